@@ -1,0 +1,249 @@
+//! Anchor triangles and the anchors file.
+//!
+//! An anchor says "rotate triangle `triangle` of frame `frame` by `angle` radians about the world-space unit
+//! `axis`" (Popa et al. 2009 §5.1). Fold estimators (video, geometry) and artists produce anchors; the
+//! space-time solve spreads them. The JSON file is the hand-off point between the two, so it is validated
+//! strictly: a typo in a hand-edited file must not silently produce a different garment.
+//!
+//! Format (documented in the README):
+//! ```json
+//! { "version": 1,
+//!   "frames": [ { "frame": 0, "anchors": [ {"triangle": 12, "axis": [0,0,1], "angle": 0.8} ],
+//!                 "control_lines": [ [[x,y,z], ...] ] } ] }
+//! ```
+//! `frame` is the 0-based position in the sequence. Frames without anchors may be omitted.
+
+use crate::error::{Error, Result};
+use crate::vec3::{self, V3};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// One anchor triangle with its target rotation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Anchor {
+    pub triangle: u32,
+    /// World-space rotation axis; normalised on load.
+    pub axis: V3,
+    /// Rotation angle in radians, in [-π, π].
+    pub angle: f64,
+}
+
+impl Anchor {
+    /// The anchor's rotation vector φ = axis · angle = log R (the principal logarithm, since |angle| ≤ π).
+    pub fn rotation_vector(&self) -> V3 {
+        vec3::scale(self.axis, self.angle)
+    }
+}
+
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameAnchors {
+    pub frame: usize,
+    #[serde(default)]
+    pub anchors: Vec<Anchor>,
+    /// Polylines on the surface that produced the anchors, kept only for inspection and overlays.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub control_lines: Vec<Vec<V3>>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AnchorsFile {
+    version: u32,
+    frames: Vec<FrameAnchors>,
+}
+
+/// Anchors of a whole sequence, indexed by frame. Each frame's anchors are sorted by triangle and unique.
+#[derive(Debug, Clone, Default)]
+pub struct AnchorSet {
+    frames: Vec<FrameAnchors>,
+}
+
+impl AnchorSet {
+    /// An anchor set with no anchors for `n_frames` frames.
+    pub fn empty(n_frames: usize) -> Self {
+        AnchorSet {
+            frames: (0..n_frames)
+                .map(|f| FrameAnchors {
+                    frame: f,
+                    ..Default::default()
+                })
+                .collect(),
+        }
+    }
+
+    /// Builds a validated set from per-frame lists (index = frame).
+    pub fn from_frames(
+        lists: Vec<Vec<Anchor>>,
+        n_triangles: usize,
+        path: Option<&Path>,
+    ) -> Result<Self> {
+        let frames = lists
+            .into_iter()
+            .enumerate()
+            .map(|(frame, anchors)| FrameAnchors {
+                frame,
+                anchors,
+                control_lines: Vec::new(),
+            })
+            .collect();
+        let mut set = AnchorSet { frames };
+        set.validate(n_triangles, path)?;
+        Ok(set)
+    }
+
+    pub fn n_frames(&self) -> usize {
+        self.frames.len()
+    }
+    pub fn frame(&self, t: usize) -> &[Anchor] {
+        self.frames.get(t).map(|f| f.anchors.as_slice()).unwrap_or(&[])
+    }
+    pub fn control_lines(&self, t: usize) -> &[Vec<V3>] {
+        self.frames.get(t).map(|f| f.control_lines.as_slice()).unwrap_or(&[])
+    }
+    pub fn set_control_lines(&mut self, t: usize, lines: Vec<Vec<V3>>) {
+        if let Some(f) = self.frames.get_mut(t) {
+            f.control_lines = lines;
+        }
+    }
+    pub fn total(&self) -> usize {
+        self.frames.iter().map(|f| f.anchors.len()).sum()
+    }
+
+    /// Parses and validates an anchors file for a sequence of `n_frames` frames and `n_triangles` triangles.
+    pub fn read(path: &Path, n_frames: usize, n_triangles: usize) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(&text, Some(path), n_frames, n_triangles)
+    }
+
+    /// Parses anchors JSON; `path` only labels errors.
+    pub fn parse(text: &str, path: Option<&Path>, n_frames: usize, n_triangles: usize) -> Result<Self> {
+        let err = |msg: String| Error::Anchors {
+            path: path.map(Path::to_path_buf),
+            msg,
+        };
+        let file: AnchorsFile = serde_json::from_str(text)
+            .map_err(|e| err(format!("line {} column {}: {e}", e.line(), e.column())))?;
+        if file.version != 1 {
+            return Err(err(format!("unsupported version {} (expected 1)", file.version)));
+        }
+        let mut frames: Vec<FrameAnchors> = (0..n_frames)
+            .map(|f| FrameAnchors {
+                frame: f,
+                ..Default::default()
+            })
+            .collect();
+        let mut seen = vec![false; n_frames];
+        for fa in file.frames {
+            if fa.frame >= n_frames {
+                return Err(err(format!(
+                    "frame {} is out of range: the sequence has {n_frames} frames (0-based)",
+                    fa.frame
+                )));
+            }
+            if std::mem::replace(&mut seen[fa.frame], true) {
+                return Err(err(format!("frame {} is listed twice", fa.frame)));
+            }
+            let f = fa.frame;
+            frames[f] = fa;
+        }
+        let mut set = AnchorSet { frames };
+        set.validate(n_triangles, path)?;
+        Ok(set)
+    }
+
+    /// Checks indices, axes and angles, normalises axes and sorts each frame by triangle.
+    fn validate(&mut self, n_triangles: usize, path: Option<&Path>) -> Result<()> {
+        let err = |msg: String| Error::Anchors {
+            path: path.map(Path::to_path_buf),
+            msg,
+        };
+        for fa in &mut self.frames {
+            let f = fa.frame;
+            for (k, a) in fa.anchors.iter_mut().enumerate() {
+                if a.triangle as usize >= n_triangles {
+                    return Err(err(format!(
+                        "frame {f} anchor {k}: triangle {} is out of range (the mesh has {n_triangles} triangles)",
+                        a.triangle
+                    )));
+                }
+                if !vec3::is_finite(a.axis) || !a.angle.is_finite() {
+                    return Err(err(format!("frame {f} anchor {k}: axis and angle must be finite numbers")));
+                }
+                let n = vec3::norm(a.axis);
+                if n < 1e-9 {
+                    return Err(err(format!("frame {f} anchor {k}: axis has zero length")));
+                }
+                if a.angle.abs() > std::f64::consts::PI + 1e-9 {
+                    return Err(err(format!(
+                        "frame {f} anchor {k}: angle {} rad is outside [-π, π]",
+                        a.angle
+                    )));
+                }
+                a.axis = vec3::scale(a.axis, 1.0 / n);
+            }
+            fa.anchors.sort_by_key(|a| a.triangle);
+            for w in fa.anchors.windows(2) {
+                if w[0].triangle == w[1].triangle {
+                    return Err(err(format!(
+                        "frame {f}: triangle {} is anchored twice",
+                        w[0].triangle
+                    )));
+                }
+            }
+            for (l, line) in fa.control_lines.iter().enumerate() {
+                if line.iter().any(|p| !vec3::is_finite(*p)) {
+                    return Err(err(format!("frame {f} control line {l}: non-finite point")));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Serialises the set (frames without anchors or lines are omitted).
+    pub fn to_json(&self) -> String {
+        let file = AnchorsFile {
+            version: 1,
+            frames: self
+                .frames
+                .iter()
+                .filter(|f| !f.anchors.is_empty() || !f.control_lines.is_empty())
+                .cloned()
+                .collect(),
+        };
+        serde_json::to_string(&file).expect("anchors serialise")
+    }
+
+    pub fn write(&self, path: &Path) -> Result<()> {
+        crate::fsutil::write_atomic(path, self.to_json().as_bytes())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parse_and_validate() {
+        let ok = r#"{"version":1,"frames":[{"frame":1,"anchors":[{"triangle":3,"axis":[0,0,2],"angle":0.5}]}]}"#;
+        let s = AnchorSet::parse(ok, None, 2, 10).unwrap();
+        assert_eq!(s.frame(0).len(), 0);
+        assert_eq!(s.frame(1)[0].axis, [0.0, 0.0, 1.0]);
+        let cases = [
+            (r#"{"version":1,"frames":[{"frame":5,"anchors":[]}]}"#, "frame 5 is out of range"),
+            (r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":10,"axis":[1,0,0],"angle":0.1}]}]}"#, "triangle 10 is out of range"),
+            (r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[0,0,0],"angle":0.1}]}]}"#, "zero length"),
+            (r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[1,0,0],"angle":4}]}]}"#, "outside [-π, π]"),
+            (r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[1,0,0],"angle":1},{"triangle":1,"axis":[1,0,0],"angle":1}]}]}"#, "anchored twice"),
+            (r#"{"version":2,"frames":[]}"#, "unsupported version"),
+            (r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[1,0,0],"angle":1,"x":1}]}]}"#, "unknown field"),
+            (r#"{"version":1,"frames":[{"frame":0},{"frame":0}]}"#, "listed twice"),
+            (r#"{"version":1,"frames":["#, "line 1"),
+        ];
+        for (text, want) in cases {
+            let e = AnchorSet::parse(text, Some(Path::new("a.json")), 2, 10).unwrap_err().to_string();
+            assert!(e.contains(want) && e.contains("a.json"), "{text}: {e}");
+        }
+    }
+}

@@ -1,0 +1,14 @@
+//! crease-core: geometry and numerics for putting folds back into captured garment sequences.
+//!
+//! Maps to the papers as follows: [`spacetime`] is Popa et al. 2009 §5 (space-time rotation weights, Alexa
+//! blending, gradient-domain positioning, stretch reduction); [`folds`] holds fold estimates as anchors;
+//! [`metrics`] measures stretch (Sander et al. 2001). No async and no networking here: services call into this
+//! crate.
+
+pub mod error;
+pub mod folds;
+pub mod fsutil;
+pub mod mesh;
+pub mod vec3;
+
+pub use error::{Error, Result};

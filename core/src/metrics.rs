@@ -1,0 +1,153 @@
+//! Stretch of an output frame relative to its input (Sander et al. 2001; Popa et al. 2009 §5.5).
+//!
+//! Each triangle's map from its original shape to its output shape is affine; its 3x2 Jacobian (in a 2D frame
+//! of the original triangle) has singular values σ₁ ≥ σ₂, the largest and smallest length ratios. Garments
+//! barely stretch, so these are the numbers that say whether added folds are physically believable:
+//! - per-triangle stretch: max(σ₁ − 1, 1 − σ₂), the largest relative length change in any direction;
+//! - L2 stretch: sqrt(Σ A (σ₁² + σ₂²)/2 / Σ A), area-weighted over the original areas (1 = isometric).
+
+use crate::mesh::Topology;
+use crate::vec3::{self, V3};
+use serde::Serialize;
+
+/// Singular values (σ₁ ≥ σ₂) of the affine map taking triangle `rest` to triangle `out`.
+pub fn triangle_singular_values(rest: [V3; 3], out: [V3; 3]) -> (f64, f64) {
+    let e1 = vec3::sub(rest[1], rest[0]);
+    let e2 = vec3::sub(rest[2], rest[0]);
+    let l1 = vec3::norm(e1);
+    let u = vec3::scale(e1, 1.0 / l1);
+    let n = vec3::cross(e1, e2);
+    let v = vec3::normalize(vec3::cross(n, e1));
+    // Rest triangle in its own 2D frame: (0,0), (l1, 0), (a, b).
+    let (a, b) = (vec3::dot(e2, u), vec3::dot(e2, v));
+    let f1 = vec3::sub(out[1], out[0]);
+    let f2 = vec3::sub(out[2], out[0]);
+    // J = [f1 f2] P⁻¹ with P = [[l1, a], [0, b]] → columns j1 = f1 / l1, j2 = (f2 − a j1) / b.
+    let j1 = vec3::scale(f1, 1.0 / l1);
+    let j2 = vec3::scale(vec3::sub(f2, vec3::scale(j1, a)), 1.0 / b);
+    // Eigenvalues of JᵀJ.
+    let (p, q, r) = (vec3::dot(j1, j1), vec3::dot(j1, j2), vec3::dot(j2, j2));
+    let mean = 0.5 * (p + r);
+    let disc = (0.25 * (p - r) * (p - r) + q * q).sqrt();
+    ((mean + disc).max(0.0).sqrt(), (mean - disc).max(0.0).sqrt())
+}
+
+/// Stretch summary of one frame (or a whole sequence, see [`StretchAccumulator`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, serde::Deserialize)]
+pub struct StretchStats {
+    /// Sander et al. L2 stretch (1 = no stretch).
+    pub l2: f64,
+    /// Maximum per-triangle stretch, as a fraction (0.04 = 4%).
+    pub max: f64,
+    /// 99th percentile of per-triangle stretch (robust to a handful of outliers).
+    pub p99: f64,
+    /// Area-weighted mean per-triangle stretch.
+    pub mean: f64,
+}
+
+/// Per-triangle stretch max(σ₁ − 1, 1 − σ₂) of `out` relative to `rest`.
+pub fn per_triangle_stretch(topo: &Topology, rest: &[V3], out: &[V3]) -> Vec<f64> {
+    topo.triangles()
+        .iter()
+        .map(|t| {
+            let (s1, s2) = triangle_singular_values(t.map(|i| rest[i as usize]), t.map(|i| out[i as usize]));
+            (s1 - 1.0).max(1.0 - s2)
+        })
+        .collect()
+}
+
+/// Accumulates stretch over frames so that sequence-level figures are exact (not averages of averages).
+#[derive(Debug, Clone, Default)]
+pub struct StretchAccumulator {
+    sum_area_sigma2: f64,
+    sum_area_stretch: f64,
+    sum_area: f64,
+    max: f64,
+    /// Histogram of per-triangle stretch in 1e-4 bins up to 100% (for percentiles).
+    hist: Vec<u64>,
+    count: u64,
+}
+
+const BINS: usize = 10_000;
+
+impl StretchAccumulator {
+    pub fn add_frame(&mut self, topo: &Topology, rest: &[V3], out: &[V3]) {
+        if self.hist.is_empty() {
+            self.hist = vec![0; BINS + 1];
+        }
+        for t in topo.triangles() {
+            let r = t.map(|i| rest[i as usize]);
+            let (s1, s2) = triangle_singular_values(r, t.map(|i| out[i as usize]));
+            let area = 0.5 * vec3::norm(vec3::cross(vec3::sub(r[1], r[0]), vec3::sub(r[2], r[0])));
+            let s = (s1 - 1.0).max(1.0 - s2);
+            self.sum_area_sigma2 += area * 0.5 * (s1 * s1 + s2 * s2);
+            self.sum_area_stretch += area * s;
+            self.sum_area += area;
+            self.max = self.max.max(s);
+            self.hist[((s * BINS as f64) as usize).min(BINS)] += 1;
+            self.count += 1;
+        }
+    }
+
+    pub fn merge(&mut self, other: &StretchAccumulator) {
+        if self.hist.is_empty() {
+            self.hist = vec![0; BINS + 1];
+        }
+        self.sum_area_sigma2 += other.sum_area_sigma2;
+        self.sum_area_stretch += other.sum_area_stretch;
+        self.sum_area += other.sum_area;
+        self.max = self.max.max(other.max);
+        for (a, b) in self.hist.iter_mut().zip(&other.hist) {
+            *a += b;
+        }
+        self.count += other.count;
+    }
+
+    pub fn stats(&self) -> StretchStats {
+        if self.sum_area == 0.0 {
+            return StretchStats::default();
+        }
+        let target = (self.count as f64 * 0.99).ceil() as u64;
+        let mut cum = 0;
+        let mut p99 = 0.0;
+        for (b, &c) in self.hist.iter().enumerate() {
+            cum += c;
+            if cum >= target {
+                p99 = (b as f64 + 1.0) / BINS as f64;
+                break;
+            }
+        }
+        StretchStats {
+            l2: (self.sum_area_sigma2 / self.sum_area).sqrt(),
+            max: self.max,
+            p99: p99.min(self.max),
+            mean: self.sum_area_stretch / self.sum_area,
+        }
+    }
+}
+
+/// Stretch of one frame.
+pub fn frame_stretch(topo: &Topology, rest: &[V3], out: &[V3]) -> StretchStats {
+    let mut acc = StretchAccumulator::default();
+    acc.add_frame(topo, rest, out);
+    acc.stats()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn singular_values_of_known_maps() {
+        let rest = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        // Rigid rotation + translation: isometric.
+        let r = crate::spacetime::so3::exp([0.3, -0.5, 0.2]);
+        let out = rest.map(|p| vec3::add(vec3::mat_vec(&r, p), [1.0, 2.0, 3.0]));
+        let (a, b) = triangle_singular_values(rest, out);
+        assert!((a - 1.0).abs() < 1e-12 && (b - 1.0).abs() < 1e-12);
+        // Stretch x by 1.1, compress y by 0.95.
+        let out = rest.map(|p| [p[0] * 1.1, p[1] * 0.95, 0.0]);
+        let (a, b) = triangle_singular_values(rest, out);
+        assert!((a - 1.1).abs() < 1e-12 && (b - 0.95).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,243 @@
+//! The streaming driver of the space-time deformation.
+//!
+//! For each time window in order: solve the weights (fused or per-anchor), cross-fade into the previous
+//! window's tail, and for every frame that is now final — in parallel across frames — read its original
+//! geometry, factorise its positioning matrix once, blend the rotations, position the vertices, run the
+//! stretch-reduction passes reusing the factor, measure stretch after each step, and hand the frame to the
+//! sink. Frames are read when needed and written when done, so memory is bounded by one window plus the
+//! frames in flight, whatever the sequence length.
+
+use super::blend::{self, CrossFade};
+use super::params::DeformParams;
+use super::position::{FramePositioner, PositionSystem};
+use super::weights::{solve_window, WindowProblem, WindowStats};
+use super::windows::plan_windows;
+use crate::error::{Error, Result};
+use crate::folds::AnchorSet;
+use crate::mesh::{Frame, FrameSink, FrameSource};
+use crate::metrics::{StretchAccumulator, StretchStats};
+use crate::progress::Progress;
+use crate::vec3::V3;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::time::Instant;
+
+/// Seconds spent per stage, summed over all frames and windows (work time: with frames positioned in parallel
+/// the wall time is lower; see `wall`).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct StageTimings {
+    pub symbolic: f64,
+    pub read: f64,
+    pub weights: f64,
+    pub blend: f64,
+    /// Numeric Cholesky factorisation of each frame's positioning matrix.
+    pub factor: f64,
+    /// First positioning solve (right-hand side + triangular solves).
+    pub position: f64,
+    /// Each stretch-reduction pass (normal rotations + solve with the reused factor).
+    pub stretch_passes: Vec<f64>,
+    pub metrics: f64,
+    pub write: f64,
+    /// Wall-clock time of the whole deformation.
+    pub wall: f64,
+}
+
+/// What a deformation did and measured.
+#[derive(Debug, Clone, Serialize)]
+pub struct DeformReport {
+    pub params: DeformParams,
+    pub frames: usize,
+    pub vertices: usize,
+    pub triangles: usize,
+    pub anchors: usize,
+    pub windows: Vec<WindowStats>,
+    /// Sequence stretch after positioning (index 0) and after each stretch pass (index k).
+    pub stretch: Vec<StretchStats>,
+    /// Per frame, the same list.
+    pub frame_stretch: Vec<Vec<StretchStats>>,
+    pub timings: StageTimings,
+}
+
+/// Original and output geometry of frames the caller asked to keep (for previews).
+#[derive(Debug, Clone, Default)]
+pub struct KeptFrames {
+    pub frames: Vec<(usize, Frame, Frame)>,
+}
+
+struct FrameOutcome {
+    t: usize,
+    rest: Frame,
+    out: Frame,
+    stretch: Vec<(StretchAccumulator, StretchStats)>,
+    read: f64,
+    blend: f64,
+    factor: f64,
+    position: f64,
+    passes: Vec<f64>,
+    metrics: f64,
+}
+
+/// Runs the whole deformation from `source` with `anchors` into `sink`. `keep` lists frames whose original and
+/// output positions are returned for previews.
+pub fn deform(
+    source: &dyn FrameSource,
+    anchors: &AnchorSet,
+    params: &DeformParams,
+    sink: &mut dyn FrameSink,
+    progress: &dyn Progress,
+    keep: &[usize],
+) -> Result<(DeformReport, KeptFrames)> {
+    params.validate()?;
+    let wall = Instant::now();
+    let n = source.n_frames();
+    if n == 0 {
+        return Err(Error::mesh("the sequence has no frames"));
+    }
+    if anchors.n_frames() != n {
+        return Err(Error::Anchors {
+            path: None,
+            msg: format!("anchors cover {} frames but the sequence has {n}", anchors.n_frames()),
+        });
+    }
+    let topo = source.topology().clone();
+    let mut timings = StageTimings {
+        stretch_passes: vec![0.0; params.stretch_passes],
+        ..Default::default()
+    };
+    let t0 = Instant::now();
+    let system = PositionSystem::new(topo.clone(), params.pinning)?;
+    timings.symbolic = t0.elapsed().as_secs_f64();
+
+    let windows = plan_windows(n, params.window, params.shift);
+    let mut fade = CrossFade::new(windows.clone(), topo.n_triangles());
+    let mut window_stats = Vec::with_capacity(windows.len());
+    let mut seq_stretch = vec![StretchAccumulator::default(); params.stretch_passes + 1];
+    let mut frame_stretch = vec![Vec::new(); n];
+    let mut kept = KeptFrames::default();
+    progress.begin("weights", windows.len() as u64);
+    progress.begin("position", n as u64);
+    for w in &windows {
+        if progress.cancelled() {
+            return Err(Error::Cancelled);
+        }
+        let problem = WindowProblem::new(&topo, anchors, *w, params.coefficients);
+        let (field, stats) = solve_window(&problem, params, progress)?;
+        drop(problem);
+        timings.weights += stats.seconds;
+        window_stats.push(stats);
+        progress.advance("weights", 1);
+        let t_fade = Instant::now();
+        let ready = fade.push(&field);
+        drop(field);
+        timings.blend += t_fade.elapsed().as_secs_f64();
+
+        let outcomes: Vec<Result<FrameOutcome>> = ready
+            .into_par_iter()
+            .map(|(t, phi)| {
+                if progress.cancelled() {
+                    return Err(Error::Cancelled);
+                }
+                let r = position_frame(&system, source, t, &phi, params.stretch_passes);
+                progress.advance("position", 1);
+                r
+            })
+            .collect();
+        for o in outcomes {
+            let o = o?;
+            let tw = Instant::now();
+            sink.write_frame(o.t, &o.out)?;
+            timings.write += tw.elapsed().as_secs_f64();
+            timings.read += o.read;
+            timings.blend += o.blend;
+            timings.factor += o.factor;
+            timings.position += o.position;
+            timings.metrics += o.metrics;
+            for (k, s) in o.passes.iter().enumerate() {
+                timings.stretch_passes[k] += s;
+            }
+            for (k, (acc, st)) in o.stretch.iter().enumerate() {
+                seq_stretch[k].merge(acc);
+                frame_stretch[o.t].push(*st);
+            }
+            if keep.contains(&o.t) {
+                kept.frames.push((o.t, o.rest, o.out));
+            }
+        }
+    }
+    progress.end("weights");
+    progress.end("position");
+    timings.wall = wall.elapsed().as_secs_f64();
+    kept.frames.sort_by_key(|f| f.0);
+    let report = DeformReport {
+        params: params.clone(),
+        frames: n,
+        vertices: topo.n_vertices(),
+        triangles: topo.n_triangles(),
+        anchors: anchors.total(),
+        windows: window_stats,
+        stretch: seq_stretch.iter().map(|a| a.stats()).collect(),
+        frame_stretch,
+        timings,
+    };
+    Ok((report, kept))
+}
+
+fn position_frame(
+    system: &PositionSystem,
+    source: &dyn FrameSource,
+    t: usize,
+    phi: &[V3],
+    passes: usize,
+) -> Result<FrameOutcome> {
+    let clock = Instant::now();
+    let rest = source.read_frame(t)?;
+    let read = clock.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
+    let fp: FramePositioner = system.factor_frame(&rest).map_err(|e| match e {
+        Error::Numeric { stage, msg } => Error::numeric(stage, format!("frame {t} ({}): {msg}", source.describe_frame(t))),
+        e => e.at(None, Some(t)),
+    })?;
+    let factor = clock.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
+    let rotations = blend::rotations(phi);
+    let blend = clock.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
+    let mut out = fp.solve(&rotations);
+    let position = clock.elapsed().as_secs_f64();
+
+    let mut metrics = 0.0;
+    let mut stretch = Vec::with_capacity(passes + 1);
+    let mut measure = |out: &Frame, metrics: &mut f64| {
+        let clock = Instant::now();
+        let mut acc = StretchAccumulator::default();
+        acc.add_frame(system.topology(), &rest, out);
+        let st = acc.stats();
+        stretch.push((acc, st));
+        *metrics += clock.elapsed().as_secs_f64();
+    };
+    measure(&out, &mut metrics);
+    let mut pass_times = Vec::with_capacity(passes);
+    for _ in 0..passes {
+        let clock = Instant::now();
+        let r = fp.normal_rotations(&out);
+        out = fp.solve(&r);
+        pass_times.push(clock.elapsed().as_secs_f64());
+        measure(&out, &mut metrics);
+    }
+    drop(fp);
+    Ok(FrameOutcome {
+        t,
+        rest,
+        out,
+        stretch,
+        read,
+        blend,
+        factor,
+        position,
+        passes: pass_times,
+        metrics,
+    })
+}

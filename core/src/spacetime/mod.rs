@@ -1,0 +1,18 @@
+//! Space-time deformation (Popa et al. 2009 §5): weights over space and time, rotation blending, vertex
+//! positioning, stretch reduction, and the streaming driver that runs them window by window.
+
+pub mod blend;
+pub mod deform;
+pub mod fused;
+pub mod operator;
+pub mod params;
+pub mod per_anchor;
+pub mod position;
+pub mod so3;
+pub mod weights;
+pub mod windows;
+
+pub use deform::{deform, DeformReport};
+pub use operator::Coefficients;
+pub use params::{DeformParams, WeightMode};
+pub use position::Pinning;

@@ -1,0 +1,119 @@
+//! Parameters of the space-time deformation, with their paper defaults and validation.
+
+use super::operator::Coefficients;
+use super::position::Pinning;
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// How the weight solve is organised (DESIGN §4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WeightMode {
+    /// Three right-hand sides X = W Φ per window.
+    #[default]
+    Fused,
+    /// One CG column per anchor, grouped into blocks of partial blends (the paper's formulation).
+    PerAnchor,
+}
+
+impl std::str::FromStr for WeightMode {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "fused" => Ok(WeightMode::Fused),
+            "per-anchor" => Ok(WeightMode::PerAnchor),
+            _ => Err(Error::param("mode", format!("`{s}` is not one of: fused, per-anchor"))),
+        }
+    }
+}
+
+impl std::fmt::Display for WeightMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            WeightMode::Fused => "fused",
+            WeightMode::PerAnchor => "per-anchor",
+        })
+    }
+}
+
+/// Everything the deformation needs besides the sequence and the anchors.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DeformParams {
+    pub coefficients: Coefficients,
+    /// Frames per time window.
+    pub window: usize,
+    /// Frames between window starts; `window - shift` frames are cross-faded.
+    pub shift: usize,
+    /// Relative residual at which each CG column stops.
+    pub cg_tolerance: f64,
+    pub cg_max_iterations: usize,
+    pub mode: WeightMode,
+    /// Anchor columns per block in per-anchor mode.
+    pub anchor_block: usize,
+    /// Stretch-reduction passes after the first positioning.
+    pub stretch_passes: usize,
+    pub pinning: Pinning,
+}
+
+impl Default for DeformParams {
+    fn default() -> Self {
+        DeformParams {
+            coefficients: Coefficients::default(),
+            window: 10,
+            shift: 7,
+            cg_tolerance: 1e-3,
+            cg_max_iterations: 2000,
+            mode: WeightMode::Fused,
+            anchor_block: 256,
+            stretch_passes: 2,
+            pinning: Pinning::Centroid,
+        }
+    }
+}
+
+impl DeformParams {
+    /// Rejects values the solver cannot honour, naming the parameter.
+    pub fn validate(&self) -> Result<()> {
+        let c = &self.coefficients;
+        let finite_nonneg = |name: &str, v: f64| {
+            if !v.is_finite() || v < 0.0 {
+                Err(Error::param(name, format!("must be a finite number ≥ 0, got {v}")))
+            } else {
+                Ok(())
+            }
+        };
+        finite_nonneg("c_s", c.c_s)?;
+        finite_nonneg("c_t", c.c_t)?;
+        for (name, v) in [("c_i", c.c_i), ("c_a", c.c_a)] {
+            if !v.is_finite() || v <= 0.0 {
+                return Err(Error::param(name, format!("must be a finite number > 0, got {v}")));
+            }
+        }
+        if self.window == 0 {
+            return Err(Error::param("window", "must be at least 1 frame"));
+        }
+        if self.shift == 0 || self.shift > self.window {
+            return Err(Error::param(
+                "shift",
+                format!("must be between 1 and the window ({}), got {}", self.window, self.shift),
+            ));
+        }
+        if !(self.cg_tolerance > 0.0 && self.cg_tolerance < 1.0) {
+            return Err(Error::param(
+                "cg_tolerance",
+                format!("must be in (0, 1), got {}", self.cg_tolerance),
+            ));
+        }
+        if self.cg_max_iterations == 0 {
+            return Err(Error::param("cg_max_iterations", "must be at least 1"));
+        }
+        if self.anchor_block == 0 {
+            return Err(Error::param("anchor_block", "must be at least 1"));
+        }
+        if self.stretch_passes > 20 {
+            return Err(Error::param("stretch_passes", format!("{} is more than the 20 allowed", self.stretch_passes)));
+        }
+        Ok(())
+    }
+}

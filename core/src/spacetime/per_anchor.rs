@@ -1,0 +1,248 @@
+//! `per-anchor` mode: the paper's formulation, one weight column per anchor (Popa et al. 2009 §5.3), split
+//! into anchor-column blocks that each return their partial blend Σ_{a∈block} w_a φ_a. Blocks are the unit the
+//! cluster distributes; their partial sums add up to the full blend.
+//!
+//! Locality: a column's right-hand side c_a e_a is a single node, and Jacobi-preconditioned CG started from
+//! zero keeps its k-th iterate inside the k-ring of that node in the space-time graph (M has a one-ring
+//! stencil). [`LocalCg`] therefore runs CG on an active set that grows by one ring per iteration. Its iterates
+//! are *exactly* those of CG on the whole window (every entry outside the active set is exactly zero, so
+//! inner products and matrix products agree), but each column costs a few thousand node updates instead of a
+//! pass over the million nodes of the window.
+
+use super::fused::CgStats;
+use super::operator::SpaceTimeOperator;
+use crate::error::{Error, Result};
+use crate::mesh::NONE;
+use crate::vec3::V3;
+use std::ops::Range;
+
+/// One anchor of a window: its node (local_frame · n_tri + triangle) and rotation vector.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindowAnchor {
+    pub node: u32,
+    pub phi: V3,
+}
+
+/// Partial blend of one anchor block: Σ_{a∈block} w_a φ_a on the nodes the block reaches, sorted by node.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PartialBlend {
+    pub nodes: Vec<u32>,
+    pub values: Vec<V3>,
+    /// Sum of CG iterations over the block's columns and the worst relative residual.
+    pub iterations: usize,
+    pub max_relative_residual: f64,
+    /// Total number of node updates (Σ over iterations of the active-set size): the work the block did.
+    pub node_updates: u64,
+}
+
+/// Splits `n_anchors` anchor columns into consecutive blocks of at most `block_size`.
+pub fn plan_blocks(n_anchors: usize, block_size: usize) -> Vec<Range<usize>> {
+    let bs = block_size.max(1);
+    (0..n_anchors.div_ceil(bs)).map(|b| b * bs..((b + 1) * bs).min(n_anchors)).collect()
+}
+
+/// Conjugate gradient for one column with a growing active set (see module docs). Reusable across columns:
+/// only the touched entries of the global-to-local map are reset.
+pub struct LocalCg {
+    local_of: Vec<u32>,
+    pub nodes: Vec<u32>,
+    pub x: Vec<f64>,
+    r: Vec<f64>,
+    p: Vec<f64>,
+    q: Vec<f64>,
+}
+
+impl LocalCg {
+    pub fn new(n_nodes: usize) -> Self {
+        LocalCg {
+            local_of: vec![NONE; n_nodes],
+            nodes: Vec::new(),
+            x: Vec::new(),
+            r: Vec::new(),
+            p: Vec::new(),
+            q: Vec::new(),
+        }
+    }
+
+    fn clear(&mut self) {
+        for &g in &self.nodes {
+            self.local_of[g as usize] = NONE;
+        }
+        self.nodes.clear();
+        self.x.clear();
+        self.r.clear();
+        self.p.clear();
+        self.q.clear();
+    }
+
+    fn push(&mut self, g: usize) {
+        self.local_of[g] = self.nodes.len() as u32;
+        self.nodes.push(g as u32);
+        self.x.push(0.0);
+        self.r.push(0.0);
+        self.p.push(0.0);
+        self.q.push(0.0);
+    }
+
+    /// Solves M w = rhs · e_node to relative residual `tol`; afterwards `self.nodes` / `self.x` hold the
+    /// column's non-zero support and values. Returns (iterations, relative residual, node updates).
+    pub fn solve(
+        &mut self,
+        op: &SpaceTimeOperator,
+        node: u32,
+        rhs: f64,
+        tol: f64,
+        max_iter: usize,
+    ) -> Result<(usize, f64, u64)> {
+        self.clear();
+        let diag = op.diag();
+        self.push(node as usize);
+        self.r[0] = rhs;
+        self.p[0] = rhs / diag[node as usize];
+        let mut rz = rhs * self.p[0];
+        let bnorm = rhs.abs();
+        let mut frontier = 0..1usize;
+        let mut updates = 0u64;
+        for it in 1..=max_iter {
+            // Grow the active set by the ring that M p can reach.
+            let before = self.nodes.len();
+            for l in frontier.clone() {
+                let g = self.nodes[l] as usize;
+                let mut nb = [0usize; 5];
+                let mut k = 0;
+                op.for_each_neighbor(g, |m, _| {
+                    nb[k] = m;
+                    k += 1;
+                });
+                for &m in &nb[..k] {
+                    if self.local_of[m] == NONE {
+                        self.push(m);
+                    }
+                }
+            }
+            frontier = before..self.nodes.len();
+            let n = self.nodes.len();
+            updates += n as u64;
+            // q = M p on the active set.
+            let mut pq = 0.0;
+            for l in 0..n {
+                let g = self.nodes[l] as usize;
+                let mut s = diag[g] * self.p[l];
+                op.for_each_neighbor(g, |m, w| {
+                    let lm = self.local_of[m];
+                    if lm != NONE {
+                        s -= w * self.p[lm as usize];
+                    }
+                });
+                self.q[l] = s;
+                pq += self.p[l] * s;
+            }
+            let alpha = rz / pq;
+            if !alpha.is_finite() {
+                return Err(Error::numeric("weights (per-anchor CG)", "breakdown: non-finite step"));
+            }
+            let mut rr = 0.0;
+            for l in 0..n {
+                self.x[l] += alpha * self.p[l];
+                self.r[l] -= alpha * self.q[l];
+                rr += self.r[l] * self.r[l];
+            }
+            let rel = rr.sqrt() / bnorm;
+            if rel <= tol {
+                return Ok((it, rel, updates));
+            }
+            let mut rz_new = 0.0;
+            for l in 0..n {
+                rz_new += self.r[l] * self.r[l] / diag[self.nodes[l] as usize];
+            }
+            let beta = rz_new / rz;
+            rz = rz_new;
+            for l in 0..n {
+                self.p[l] = self.r[l] / diag[self.nodes[l] as usize] + beta * self.p[l];
+            }
+        }
+        Err(Error::numeric(
+            "weights (per-anchor CG)",
+            format!("anchor node {node}: no convergence to {tol:e} in {max_iter} iterations"),
+        ))
+    }
+}
+
+/// Scratch for one block: a dense accumulator over the window's nodes plus the list of touched nodes.
+pub struct BlockWorkspace {
+    cg: LocalCg,
+    acc: Vec<V3>,
+    touched: Vec<u32>,
+    is_touched: Vec<bool>,
+}
+
+impl BlockWorkspace {
+    pub fn new(n_nodes: usize) -> Self {
+        BlockWorkspace {
+            cg: LocalCg::new(n_nodes),
+            acc: vec![[0.0; 3]; n_nodes],
+            touched: Vec::new(),
+            is_touched: vec![false; n_nodes],
+        }
+    }
+}
+
+/// Solves the anchor columns `anchors` (one block) and returns their partial blend. Columns are accumulated in
+/// the given order, so the result is bit-identical wherever the block runs.
+pub fn solve_block(
+    op: &SpaceTimeOperator,
+    anchors: &[WindowAnchor],
+    tol: f64,
+    max_iter: usize,
+    ws: &mut BlockWorkspace,
+) -> Result<PartialBlend> {
+    let c_a = op.coeffs.c_a;
+    let mut out = PartialBlend::default();
+    for a in anchors {
+        let (it, rel, upd) = ws.cg.solve(op, a.node, c_a, tol, max_iter)?;
+        out.iterations += it;
+        out.max_relative_residual = out.max_relative_residual.max(rel);
+        out.node_updates += upd;
+        for (l, &g) in ws.cg.nodes.iter().enumerate() {
+            let w = ws.cg.x[l];
+            let gi = g as usize;
+            if !ws.is_touched[gi] {
+                ws.is_touched[gi] = true;
+                ws.touched.push(g);
+            }
+            let acc = &mut ws.acc[gi];
+            acc[0] += w * a.phi[0];
+            acc[1] += w * a.phi[1];
+            acc[2] += w * a.phi[2];
+        }
+    }
+    ws.touched.sort_unstable();
+    out.nodes = std::mem::take(&mut ws.touched);
+    out.values = out
+        .nodes
+        .iter()
+        .map(|&g| {
+            let gi = g as usize;
+            ws.is_touched[gi] = false;
+            std::mem::replace(&mut ws.acc[gi], [0.0; 3])
+        })
+        .collect();
+    Ok(out)
+}
+
+/// Adds partial blends into a dense window field, in the order given (callers pass blocks in block order so the
+/// sum is deterministic).
+pub fn accumulate(field: &mut [V3], partial: &PartialBlend) {
+    for (&g, v) in partial.nodes.iter().zip(&partial.values) {
+        let f = &mut field[g as usize];
+        f[0] += v[0];
+        f[1] += v[1];
+        f[2] += v[2];
+    }
+}
+
+/// Stats of a whole per-anchor window solve.
+pub fn merge_stats(stats: &mut CgStats, p: &PartialBlend) {
+    stats.iterations += p.iterations;
+    stats.relative_residual = stats.relative_residual.max(p.max_relative_residual);
+}

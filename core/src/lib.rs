@@ -9,6 +9,13 @@ pub mod error;
 pub mod folds;
 pub mod fsutil;
 pub mod mesh;
+pub mod npy;
+pub mod metrics;
+pub mod preview;
+pub mod progress;
+pub mod render;
+pub mod spacetime;
+pub mod synth;
 pub mod vec3;
 
 pub use error::{Error, Result};

@@ -279,13 +279,16 @@ fn fold_anchors(grid: &Grid, topo: &Topology, spec: &DemoSpec, frame: &[V3], fol
                 let ch = (ps[0].1 + ps[1].1 + ps[2].1) / 3.0;
                 // Distance to the line segment, taking the periodic direction into account.
                 let mut best = f64::INFINITY;
+                let mut taper = 0.0;
+                let envelope_len = f.half_length * (0.5 + 0.5 * env);
                 for wrap in [-circ, 0.0, circ] {
                     let rel = [cu + wrap - o[0], ch - o[1]];
                     let along = rel[0] * d[0] + rel[1] * d[1];
                     let across = rel[0] * perp[0] + rel[1] * perp[1];
-                    let envelope_len = f.half_length * (0.5 + 0.5 * env);
-                    if along.abs() <= envelope_len {
-                        best = best.min(across.abs());
+                    if along.abs() <= envelope_len && across.abs() < best {
+                        best = across.abs();
+                        // Real folds fade out at their ends rather than stopping abruptly.
+                        taper = (0.5 * PI * along / envelope_len).cos().powf(0.5);
                     }
                 }
                 if h_outside(ch, spec.length, cell) || best > 0.5 * cell {
@@ -303,7 +306,7 @@ fn fold_anchors(grid: &Grid, topo: &Topology, spec: &DemoSpec, frame: &[V3], fol
                     Anchor {
                         triangle: ti as u32,
                         axis: vec3::scale(tangent, sign),
-                        angle: env * f.angle,
+                        angle: env * taper * f.angle,
                     },
                 );
             }

@@ -135,13 +135,10 @@ impl PositionSystem {
         &self.topo
     }
 
-    /// Non-zeros of the Cholesky factor (memory of one numeric factorisation is 8 bytes each).
-    pub fn factor_nnz(&self) -> usize {
-        self.symbolic.len_val()
-    }
-
-    /// Assembles and factorises the stiffness matrix of one original frame.
-    pub fn factor_frame<'a>(&'a self, rest: &'a [V3]) -> Result<FramePositioner<'a>> {
+    /// Assembles the lower triangle of the reduced cotangent stiffness matrix of one original frame (values in
+    /// the pattern of [`PositionSystem::pattern`]), with the per-triangle gradients, areas and unit normals.
+    #[allow(clippy::type_complexity)]
+    pub fn assemble(&self, rest: &[V3]) -> Result<(Vec<f64>, Vec<[V3; 3]>, Vec<f64>, Vec<V3>)> {
         let topo = &self.topo;
         let mut grads = Vec::with_capacity(topo.n_triangles());
         let mut areas = Vec::with_capacity(topo.n_triangles());
@@ -172,6 +169,28 @@ impl PositionSystem {
             areas.push(area);
             normals.push(nh);
         }
+        Ok((values, grads, areas, normals))
+    }
+
+    /// Sparsity pattern (CSC, lower triangle) of the reduced system: (column pointers, row indices).
+    pub fn pattern(&self) -> (&[usize], &[usize]) {
+        (&self.col_ptr, &self.row_idx)
+    }
+
+    /// Row of each vertex in the reduced system, or `NONE` for pinned vertices.
+    pub fn free_index(&self) -> &[u32] {
+        &self.free_index
+    }
+
+    /// Non-zeros of the Cholesky factor (memory of one numeric factorisation is 8 bytes each).
+    pub fn factor_nnz(&self) -> usize {
+        self.symbolic.len_val()
+    }
+
+    /// Assembles and factorises the stiffness matrix of one original frame.
+    pub fn factor_frame<'a>(&'a self, rest: &'a [V3]) -> Result<FramePositioner<'a>> {
+        let (values, grads, areas, normals) = self.assemble(rest)?;
+        let topo = &self.topo;
         let stack_req = self.symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
         let mut buf = MemBuffer::try_new(stack_req)
             .map_err(|_| Error::numeric("positioning", "out of memory for the Cholesky workspace"))?;
@@ -235,6 +254,13 @@ impl FramePositioner<'_> {
     /// Positions whose deformation gradients best match `rotations` (one per triangle) in the least-squares
     /// sense of the module documentation.
     pub fn solve(&self, rotations: &[M3]) -> Frame {
+        let mut rhs = self.rhs(rotations);
+        self.solve_in_place(&mut rhs);
+        self.finish(&rhs)
+    }
+
+    /// Right-hand side Σ_t A_t (R_t − I) ∇φ_i of the displacement system (free rows × 3).
+    pub fn rhs(&self, rotations: &[M3]) -> Mat<f64> {
         let sys = self.sys;
         let topo = &sys.topo;
         let mut rhs = Mat::<f64>::zeros(sys.n_free, 3);
@@ -253,11 +279,21 @@ impl FramePositioner<'_> {
                 }
             }
         }
-        {
-            let llt = LltRef::<usize, f64>::new(&sys.symbolic, &self.l_values);
-            let mut buf = MemBuffer::new(sys.symbolic.solve_in_place_scratch::<f64>(3, Par::Seq));
-            llt.solve_in_place_with_conj(Conj::No, rhs.as_mut(), Par::Seq, MemStack::new(&mut buf));
-        }
+        rhs
+    }
+
+    /// Overwrites `rhs` with K⁻¹ rhs using the frame's factor.
+    pub fn solve_in_place(&self, rhs: &mut Mat<f64>) {
+        let sys = self.sys;
+        let llt = LltRef::<usize, f64>::new(&sys.symbolic, &self.l_values);
+        let mut buf = MemBuffer::new(sys.symbolic.solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq));
+        llt.solve_in_place_with_conj(Conj::No, rhs.as_mut(), Par::Seq, MemStack::new(&mut buf));
+    }
+
+    /// Output positions from the solved displacements of the free vertices (applies the pinning policy).
+    fn finish(&self, rhs: &Mat<f64>) -> Frame {
+        let sys = self.sys;
+        let topo = &sys.topo;
         let mut d = vec![[0.0f64; 3]; topo.n_vertices()];
         for (v, dv) in d.iter_mut().enumerate() {
             let fi = sys.free_index[v];

@@ -1,0 +1,106 @@
+//! Progress display: indicatif bars on a terminal, plain log lines (at most one per 10% per stage) otherwise,
+//! so farm logs stay readable.
+
+use crease_core::progress::Progress;
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use std::collections::HashMap;
+use std::io::IsTerminal;
+use std::sync::Mutex;
+
+pub struct CliProgress {
+    bars: Option<MultiProgress>,
+    state: Mutex<HashMap<String, Stage>>,
+}
+
+struct Stage {
+    bar: Option<ProgressBar>,
+    done: u64,
+    total: u64,
+    last_logged_decile: u64,
+    started: std::time::Instant,
+}
+
+impl CliProgress {
+    pub fn new(quiet: bool) -> Self {
+        let bars = (!quiet && std::io::stderr().is_terminal()).then(MultiProgress::new);
+        CliProgress {
+            bars,
+            state: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// Prints a line without tearing the bars.
+    pub fn println(&self, msg: &str) {
+        match &self.bars {
+            Some(m) => {
+                let _ = m.println(msg);
+            }
+            None => eprintln!("{msg}"),
+        }
+    }
+}
+
+impl Progress for CliProgress {
+    fn begin(&self, stage: &str, total: u64) {
+        let bar = self.bars.as_ref().map(|m| {
+            let b = m.add(ProgressBar::new(total));
+            b.set_style(
+                ProgressStyle::with_template("{prefix:>10} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
+                    .unwrap_or_else(|_| ProgressStyle::default_bar())
+                    .progress_chars("=> "),
+            );
+            b.set_prefix(stage.to_string());
+            b
+        });
+        if bar.is_none() {
+            eprintln!("[{stage}] started: {total} steps");
+        }
+        if let Ok(mut s) = self.state.lock() {
+            s.insert(
+                stage.to_string(),
+                Stage {
+                    bar,
+                    done: 0,
+                    total,
+                    last_logged_decile: 0,
+                    started: std::time::Instant::now(),
+                },
+            );
+        }
+    }
+
+    fn advance(&self, stage: &str, n: u64) {
+        let Ok(mut s) = self.state.lock() else { return };
+        let Some(st) = s.get_mut(stage) else { return };
+        st.done += n;
+        match &st.bar {
+            Some(b) => b.inc(n),
+            None => {
+                let decile = if st.total == 0 { 10 } else { st.done * 10 / st.total };
+                if decile > st.last_logged_decile {
+                    st.last_logged_decile = decile;
+                    eprintln!(
+                        "[{stage}] {}/{} ({:.1}s)",
+                        st.done,
+                        st.total,
+                        st.started.elapsed().as_secs_f64()
+                    );
+                }
+            }
+        }
+    }
+
+    fn end(&self, stage: &str) {
+        let Ok(mut s) = self.state.lock() else { return };
+        if let Some(st) = s.remove(stage) {
+            match st.bar {
+                Some(b) => b.finish(),
+                None => eprintln!("[{stage}] done in {:.2}s", st.started.elapsed().as_secs_f64()),
+            }
+        }
+    }
+
+    fn note(&self, msg: &str) {
+        self.println(msg);
+    }
+}

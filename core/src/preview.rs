@@ -1,0 +1,80 @@
+//! Pictures of a deformation result: before / after / stretch renders of a few frames, and a per-frame stretch
+//! plot. People judge folds by eye first; these are what a run leaves next to its numbers.
+
+use crate::mesh::{geometry, Frame, Topology};
+use crate::metrics::{per_triangle_stretch, StretchStats};
+use crate::render::{caption, grid, plot_lines, render, stretch_color, Camera, Style};
+use crate::vec3::{self, V3};
+use image::RgbImage;
+
+const WHITE: [u8; 3] = [255, 255, 255];
+const INK: [u8; 3] = [20, 20, 20];
+
+/// Chooses a viewing direction and an up vector from the shape: up along the longest bounding-box axis,
+/// looking horizontally (perpendicular to it) from a slightly raised three-quarter angle.
+fn view_for(lo: V3, hi: V3) -> (V3, V3) {
+    let ext = vec3::sub(hi, lo);
+    let up_axis = (0..3).fold(0, |b, k| if ext[k] > ext[b] { k } else { b });
+    let mut up = [0.0; 3];
+    up[up_axis] = 1.0;
+    let a = (up_axis + 1) % 3;
+    let b = (up_axis + 2) % 3;
+    let mut dir = [0.0; 3];
+    dir[a] = 0.45;
+    dir[b] = 1.0;
+    dir[up_axis] = -0.3;
+    (vec3::normalize(dir), up)
+}
+
+/// One row per kept frame: input, output, and output coloured by per-triangle stretch (0 to `stretch_max`).
+pub fn before_after(topo: &Topology, frames: &[(usize, Frame, Frame)], size: u32, stretch_max: f64) -> RgbImage {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for (_, rest, out) in frames {
+        for p in [rest, out] {
+            let (l, h) = geometry::bounding_box(p);
+            for k in 0..3 {
+                lo[k] = lo[k].min(l[k]);
+                hi[k] = hi[k].max(h[k]);
+            }
+        }
+    }
+    let (dir, up) = view_for(lo, hi);
+    let cam = Camera::fit(lo, hi, dir, up, size, size);
+    let scale = (size / 256).max(1);
+    let rows: Vec<Vec<RgbImage>> = frames
+        .iter()
+        .map(|(t, rest, out)| {
+            let stretch = per_triangle_stretch(topo, rest, out);
+            let colors: Vec<[u8; 3]> = stretch.iter().map(|&s| stretch_color(s, stretch_max)).collect();
+            let a = render(rest, topo, &cam, &Style::default());
+            let b = render(out, topo, &cam, &Style::default());
+            let c = render(out, topo, &cam, &Style { triangle_colors: Some(&colors), ..Style::default() });
+            vec![
+                caption(&a, &format!("FRAME {t} INPUT"), scale, INK, WHITE),
+                caption(&b, &format!("FRAME {t} OUTPUT"), scale, INK, WHITE),
+                caption(&c, &format!("STRETCH 0-{:.0}%", stretch_max * 100.0), scale, INK, WHITE),
+            ]
+        })
+        .collect();
+    grid(&rows, 6, WHITE)
+}
+
+/// Per-frame maximum and 99th-percentile stretch (in %) after positioning and after each stretch pass.
+pub fn stretch_plot(frame_stretch: &[Vec<StretchStats>], width: u32, height: u32) -> RgbImage {
+    let passes = frame_stretch.iter().map(Vec::len).max().unwrap_or(0);
+    let palette = [[200, 60, 40], [230, 150, 30], [40, 120, 200], [60, 160, 80], [120, 80, 160]];
+    let mut series = Vec::new();
+    let names: Vec<String> = (0..passes)
+        .map(|p| if p == 0 { "POSITIONED".to_string() } else { format!("PASS {p}") })
+        .collect();
+    for p in 0..passes {
+        let pts: Vec<(f64, f64)> = frame_stretch
+            .iter()
+            .enumerate()
+            .filter_map(|(t, s)| s.get(p).map(|s| (t as f64, s.max * 100.0)))
+            .collect();
+        series.push((names[p].as_str(), palette[p % palette.len()], pts));
+    }
+    plot_lines(&series, width, height, "MAX STRETCH PER FRAME", "FRAME", "MAX STRETCH %")
+}

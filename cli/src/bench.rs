@@ -1,1 +1,271 @@
-use anyhow::Result; #[derive(clap::Args, Debug)] pub struct BenchArgs {} pub fn bench(_a: BenchArgs) -> Result<()> { Ok(()) }
+//! `crease bench`: the paper-scale benchmark (Popa et al. 2009 §6: ~100K triangles, ~2000 anchors per frame,
+//! 10-frame windows shifted by 7) at several mesh sizes, in both weight modes.
+//!
+//! Reports seconds per frame per stage (work time summed over frames, divided by the frame count) and the
+//! wall-clock seconds per frame, medians over repeats, and the peak resident memory of each case (the kernel's
+//! high-water mark is reset between cases). With `--export DIR` it also writes the matrices of one window and
+//! one frame as `.npy` together with our own timings of exactly those solves, for `bench/scipy_compare.py`.
+
+use anyhow::{Context, Result};
+use clap::Args;
+use crease_core::folds::AnchorSet;
+use crease_core::mesh::{MemorySink, Sequence};
+use crease_core::npy;
+use crease_core::progress::NoProgress;
+use crease_core::spacetime::per_anchor::LocalCg;
+use crease_core::spacetime::position::PositionSystem;
+use crease_core::spacetime::weights::{solve_window, WindowProblem};
+use crease_core::spacetime::windows::Window;
+use crease_core::spacetime::{deform, so3, DeformParams, WeightMode};
+use crease_core::synth::{self, DemoSpec};
+use serde_json::json;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Mesh sizes in triangles.
+    #[arg(long, value_delimiter = ',', default_value = "25000,100000,400000")]
+    pub sizes: Vec<usize>,
+    /// Frames per case (at least 20 for three windows).
+    #[arg(long, default_value_t = 20)]
+    pub frames: usize,
+    /// Anchors per frame.
+    #[arg(long, default_value_t = 2000)]
+    pub anchors: usize,
+    /// Weight modes to run.
+    #[arg(long, value_delimiter = ',', default_value = "fused,per-anchor")]
+    pub modes: Vec<WeightMode>,
+    /// Repeats per case; medians are reported.
+    #[arg(long, default_value_t = 3)]
+    pub repeats: usize,
+    /// Write the 100K-class matrices and our timings of the same solves here (for bench/scipy_compare.py).
+    #[arg(long)]
+    pub export: Option<PathBuf>,
+    /// Size (triangles) of the exported case.
+    #[arg(long, default_value_t = 100_000)]
+    pub export_size: usize,
+    /// Write all results as JSON here.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let m = v.len() / 2;
+    if v.len() % 2 == 1 {
+        v[m]
+    } else {
+        0.5 * (v[m - 1] + v[m])
+    }
+}
+
+/// Peak resident set size in bytes (VmHWM), if the platform reports it.
+fn peak_rss() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Resets the kernel's peak-RSS mark so each case reports its own peak (Linux `clear_refs` 5).
+fn reset_peak_rss() {
+    let _ = std::fs::write("/proc/self/clear_refs", "5");
+}
+
+fn case_input(triangles: usize, frames: usize, anchors: usize) -> Result<(Sequence, AnchorSet)> {
+    let spec = DemoSpec {
+        triangles,
+        frames,
+        ..Default::default()
+    };
+    let (seq, _) = synth::demo(&spec)?;
+    let a = synth::random_anchors(&seq.topology, &seq.frames, anchors, 7)?;
+    Ok((seq, a))
+}
+
+pub fn bench(a: BenchArgs) -> Result<()> {
+    if a.frames < 2 || a.repeats == 0 {
+        anyhow::bail!("--frames must be ≥ 2 and --repeats ≥ 1");
+    }
+    let threads = rayon::current_num_threads();
+    println!(
+        "crease bench: {} frames, {} anchors/frame, window 10 / shift 7, {} threads, median of {} runs",
+        a.frames, a.anchors, threads, a.repeats
+    );
+    println!("seconds per frame per stage (work time summed over frames / frames); wall = elapsed / frames");
+    println!(
+        "{:>8} {:>10} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>10}",
+        "tris", "mode", "weights", "blend", "factor", "solve", "pass1", "pass2", "wall", "peak MiB", "CG it/win"
+    );
+    let mut rows = Vec::new();
+    for &size in &a.sizes {
+        let (seq, anchors) = case_input(size, a.frames, a.anchors)?;
+        for &mode in &a.modes {
+            let params = DeformParams {
+                mode,
+                ..Default::default()
+            };
+            let mut samples: Vec<crease_core::spacetime::DeformReport> = Vec::new();
+            let mut peak = 0u64;
+            for _ in 0..a.repeats {
+                reset_peak_rss();
+                let mut sink = MemorySink::default();
+                let (report, _) = deform(&seq, &anchors, &params, &mut sink, &NoProgress, &[])?;
+                drop(sink);
+                peak = peak.max(peak_rss().unwrap_or(0));
+                samples.push(report);
+            }
+            let n = a.frames as f64;
+            let med = |f: &dyn Fn(&crease_core::spacetime::DeformReport) -> f64| median(samples.iter().map(f).collect());
+            let weights = med(&|r| r.timings.weights / n);
+            let blend = med(&|r| r.timings.blend / n);
+            let factor = med(&|r| r.timings.factor / n);
+            let solve = med(&|r| r.timings.position / n);
+            let pass = |k: usize| med(&|r| r.timings.stretch_passes.get(k).copied().unwrap_or(0.0) / n);
+            let wall = med(&|r| r.timings.wall / n);
+            let it = med(&|r| r.windows.iter().map(|w| w.cg_iterations as f64).sum::<f64>() / r.windows.len() as f64);
+            let r0 = &samples[0];
+            println!(
+                "{:>8} {:>10} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>9.0} {:>10.0}",
+                r0.triangles,
+                mode.to_string(),
+                weights,
+                blend,
+                factor,
+                solve,
+                pass(0),
+                pass(1),
+                wall,
+                peak as f64 / (1 << 20) as f64,
+                it
+            );
+            rows.push(json!({
+                "triangles": r0.triangles, "vertices": r0.vertices, "frames": a.frames, "anchors_per_frame": a.anchors,
+                "mode": mode.to_string(), "threads": threads, "repeats": a.repeats,
+                "seconds_per_frame": {"weights": weights, "blend": blend, "factor": factor, "position": solve,
+                    "stretch_pass_1": pass(0), "stretch_pass_2": pass(1), "wall": wall},
+                "peak_rss_bytes": peak, "cg_iterations_per_window": it,
+                "stretch_final": r0.stretch.last(),
+            }));
+        }
+    }
+    let export = match &a.export {
+        Some(dir) => Some(export_case(dir, a.export_size, a.frames.max(10), a.anchors, a.repeats)?),
+        None => None,
+    };
+    if let Some(path) = &a.json {
+        let doc = json!({"cases": rows, "export": export});
+        crease_core::fsutil::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// Exports the first window's weight matrix and right-hand sides, and frame 0's positioning matrix and
+/// right-hand side, with our timings of the same solves, for comparison with SciPy.
+fn export_case(dir: &Path, size: usize, frames: usize, anchors_per_frame: usize, repeats: usize) -> Result<serde_json::Value> {
+    crease_core::fsutil::create_dir_all(dir)?;
+    let (seq, anchors) = case_input(size, frames, anchors_per_frame)?;
+    let topo = seq.topology.clone();
+    let params = DeformParams::default();
+    let window = Window { start: 0, len: params.window.min(frames) };
+    let problem = WindowProblem::new(&topo, &anchors, window, params.coefficients);
+    let (indptr, indices, values) = problem.op.to_csr();
+    let n = problem.op.n_nodes();
+    npy::write(&dir.join("weights_indptr.npy"), &[indptr.len()], &indptr)?;
+    npy::write(&dir.join("weights_indices.npy"), &[indices.len()], &indices)?;
+    npy::write(&dir.join("weights_data.npy"), &[values.len()], &values)?;
+    npy::write_v3(&dir.join("weights_rhs.npy"), &problem.fused_rhs())?;
+    let anchor_nodes: Vec<u32> = problem.anchors.iter().map(|a| a.node).collect();
+    npy::write(&dir.join("weights_anchor_nodes.npy"), &[anchor_nodes.len()], &anchor_nodes)?;
+
+    // Our fused 3-RHS solve of this window.
+    let fused = median(
+        (0..repeats)
+            .map(|_| {
+                let t = Instant::now();
+                let r = solve_window(&problem, &params, &NoProgress);
+                r.map(|_| t.elapsed().as_secs_f64()).unwrap_or(f64::NAN)
+            })
+            .collect(),
+    );
+    // Our per-anchor column solve: time per column over the first 200 anchors.
+    let sample = problem.anchors.len().min(200);
+    let per_column = median(
+        (0..repeats)
+            .map(|_| {
+                let mut cg = LocalCg::new(n);
+                let t = Instant::now();
+                for a in &problem.anchors[..sample] {
+                    let _ = cg.solve(&problem.op, a.node, params.coefficients.c_a, params.cg_tolerance, params.cg_max_iterations);
+                }
+                t.elapsed().as_secs_f64() / sample as f64
+            })
+            .collect(),
+    );
+    let per_anchor_window = {
+        let pa = DeformParams { mode: WeightMode::PerAnchor, ..params.clone() };
+        let t = Instant::now();
+        solve_window(&problem, &pa, &NoProgress)?;
+        t.elapsed().as_secs_f64()
+    };
+
+    // Positioning of frame 0 with the demo's blended rotations of this window.
+    let (field, _) = solve_window(&problem, &params, &NoProgress)?;
+    let rotations: Vec<_> = field[..topo.n_triangles()].iter().map(|&p| so3::exp(p)).collect();
+    let system = PositionSystem::new(topo.clone(), params.pinning)?;
+    let rest = &seq.frames[0];
+    let (lower, _, _, _) = system.assemble(rest)?;
+    let (col_ptr, row_idx) = system.pattern();
+    let col_ptr: Vec<u64> = col_ptr.iter().map(|&c| c as u64).collect();
+    let row_idx: Vec<u64> = row_idx.iter().map(|&r| r as u64).collect();
+    npy::write(&dir.join("position_colptr.npy"), &[col_ptr.len()], &col_ptr)?;
+    npy::write(&dir.join("position_rowidx.npy"), &[row_idx.len()], &row_idx)?;
+    npy::write(&dir.join("position_lower.npy"), &[lower.len()], &lower)?;
+    let fp = system.factor_frame(rest)?;
+    let rhs = fp.rhs(&rotations);
+    let rhs_rows: Vec<[f64; 3]> = (0..rhs.nrows()).map(|i| [rhs[(i, 0)], rhs[(i, 1)], rhs[(i, 2)]]).collect();
+    npy::write_v3(&dir.join("position_rhs.npy"), &rhs_rows)?;
+    let factor = median(
+        (0..repeats)
+            .map(|_| {
+                let t = Instant::now();
+                let f = system.factor_frame(rest);
+                let e = t.elapsed().as_secs_f64();
+                drop(f);
+                e
+            })
+            .collect(),
+    );
+    let solve = median(
+        (0..repeats)
+            .map(|_| {
+                let mut b = rhs.clone();
+                let t = Instant::now();
+                fp.solve_in_place(&mut b);
+                t.elapsed().as_secs_f64()
+            })
+            .collect(),
+    );
+    let ours = json!({
+        "triangles": topo.n_triangles(), "window_nodes": n, "window_anchors": problem.anchors.len(),
+        "weights_fused_seconds": fused, "weights_per_column_seconds": per_column,
+        "weights_per_anchor_window_seconds": per_anchor_window,
+        "position_unknowns": system.pattern().0.len() - 1, "position_factor_seconds": factor,
+        "position_solve3_seconds": solve, "cg_tolerance": params.cg_tolerance,
+        "threads": rayon::current_num_threads(), "c_a": params.coefficients.c_a,
+    });
+    crease_core::fsutil::write_atomic(&dir.join("ours.json"), serde_json::to_string_pretty(&ours)?.as_bytes())
+        .context("writing ours.json")?;
+    println!(
+        "exported window ({} nodes, {} anchors) and frame-0 positioning ({} unknowns) to {}",
+        n,
+        problem.anchors.len(),
+        system.pattern().0.len() - 1,
+        dir.display()
+    );
+    Ok(ours)
+}

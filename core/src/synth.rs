@@ -147,11 +147,11 @@ pub fn demo_folds(spec: &DemoSpec) -> Vec<FoldSpec> {
     let base = [
         // (centre around, centre height, drift around/frame, drift height/frame, direction, half length, width,
         //  begin, full, fade, end) with times as fractions of the sequence.
-        (0.0, 0.30, 0.0, 0.004, 0.0, 0.36, 0.045, 0.02, 0.25, 0.65, 0.85),
-        (0.25, 0.62, 0.002, 0.0, 0.6, 0.16, 0.035, 0.2, 0.4, 0.8, 0.98),
-        (0.55, 0.75, 0.0, -0.003, 0.0, 0.3, 0.06, 0.35, 0.6, 0.9, 1.2),
-        (0.6, 0.45, -0.003, 0.0, -0.5, 0.12, 0.03, -0.2, 0.0, 0.3, 0.5),
-        (0.85, 0.18, 0.0, 0.0, 0.15, 0.2, 0.04, 0.45, 0.6, 0.75, 0.95),
+        (0.0, 0.30, 0.0, 0.004, 0.0, 0.36, 0.024, 0.02, 0.25, 0.65, 0.85),
+        (0.25, 0.62, 0.002, 0.0, 0.6, 0.16, 0.02, 0.2, 0.4, 0.8, 0.98),
+        (0.55, 0.75, 0.0, -0.003, 0.0, 0.3, 0.03, 0.35, 0.6, 0.9, 1.2),
+        (0.6, 0.45, -0.003, 0.0, -0.5, 0.12, 0.018, -0.2, 0.0, 0.3, 0.5),
+        (0.85, 0.18, 0.0, 0.0, 0.15, 0.2, 0.022, 0.45, 0.6, 0.75, 0.95),
     ];
     let mut folds = Vec::new();
     let copies = spec.fold_scale.max(0.0);
@@ -172,7 +172,7 @@ pub fn demo_folds(spec: &DemoSpec) -> Vec<FoldSpec> {
                 direction: b.4,
                 half_length: b.5 * len,
                 width,
-                angle: angle_for_width(width, 0.03 * len, 0.06 * len),
+                angle: angle_for_width(width, 0.018 * len / 0.9, 0.03 * len / 0.9),
                 t_begin: b.7 * n,
                 t_full: b.8 * n,
                 t_fade: b.9 * n,

@@ -19,16 +19,16 @@ pub struct DeformArgs {
     #[arg(long, default_value = "fused")]
     pub mode: WeightMode,
     /// Spatial smoothness weight c_s.
-    #[arg(long, default_value_t = 0.9)]
+    #[arg(long, default_value_t = 0.9, allow_hyphen_values = true)]
     pub c_s: f64,
     /// Temporal smoothness weight c_t.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, allow_hyphen_values = true)]
     pub c_t: f64,
     /// Mitigation weight c_i pulling non-anchors towards the identity.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, allow_hyphen_values = true)]
     pub c_i: f64,
     /// Anchor weight c_a.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
     pub c_a: f64,
     /// Frames per time window.
     #[arg(long, default_value_t = 10)]

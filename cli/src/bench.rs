@@ -99,7 +99,17 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     println!("seconds per frame per stage (work time summed over frames / frames); wall = elapsed / frames");
     println!(
         "{:>8} {:>10} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>8} {:>9} {:>10}",
-        "tris", "mode", "weights", "blend", "factor", "solve", "pass1", "pass2", "wall", "peak MiB", "CG it/win"
+        "tris",
+        "mode",
+        "weights",
+        "blend",
+        "factor",
+        "solve",
+        "pass1",
+        "pass2",
+        "wall",
+        "peak MiB",
+        "CG it/win"
     );
     let mut rows = Vec::new();
     for &size in &a.sizes {
@@ -120,14 +130,23 @@ pub fn bench(a: BenchArgs) -> Result<()> {
                 samples.push(report);
             }
             let n = a.frames as f64;
-            let med = |f: &dyn Fn(&crease_core::spacetime::DeformReport) -> f64| median(samples.iter().map(f).collect());
+            let med = |f: &dyn Fn(&crease_core::spacetime::DeformReport) -> f64| {
+                median(samples.iter().map(f).collect())
+            };
             let weights = med(&|r| r.timings.weights / n);
             let blend = med(&|r| r.timings.blend / n);
             let factor = med(&|r| r.timings.factor / n);
             let solve = med(&|r| r.timings.position / n);
-            let pass = |k: usize| med(&|r| r.timings.stretch_passes.get(k).copied().unwrap_or(0.0) / n);
+            let pass =
+                |k: usize| med(&|r| r.timings.stretch_passes.get(k).copied().unwrap_or(0.0) / n);
             let wall = med(&|r| r.timings.wall / n);
-            let it = med(&|r| r.windows.iter().map(|w| w.cg_iterations as f64).sum::<f64>() / r.windows.len() as f64);
+            let it = med(&|r| {
+                r.windows
+                    .iter()
+                    .map(|w| w.cg_iterations as f64)
+                    .sum::<f64>()
+                    / r.windows.len() as f64
+            });
             let r0 = &samples[0];
             println!(
                 "{:>8} {:>10} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>8.4} {:>9.0} {:>10.0}",
@@ -154,7 +173,13 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         }
     }
     let export = match &a.export {
-        Some(dir) => Some(export_case(dir, a.export_size, a.frames.max(10), a.anchors, a.repeats)?),
+        Some(dir) => Some(export_case(
+            dir,
+            a.export_size,
+            a.frames.max(10),
+            a.anchors,
+            a.repeats,
+        )?),
         None => None,
     };
     if let Some(path) = &a.json {
@@ -166,12 +191,21 @@ pub fn bench(a: BenchArgs) -> Result<()> {
 
 /// Exports the first window's weight matrix and right-hand sides, and frame 0's positioning matrix and
 /// right-hand side, with our timings of the same solves, for comparison with SciPy.
-fn export_case(dir: &Path, size: usize, frames: usize, anchors_per_frame: usize, repeats: usize) -> Result<serde_json::Value> {
+fn export_case(
+    dir: &Path,
+    size: usize,
+    frames: usize,
+    anchors_per_frame: usize,
+    repeats: usize,
+) -> Result<serde_json::Value> {
     crease_core::fsutil::create_dir_all(dir)?;
     let (seq, anchors) = case_input(size, frames, anchors_per_frame)?;
     let topo = seq.topology.clone();
     let params = DeformParams::default();
-    let window = Window { start: 0, len: params.window.min(frames) };
+    let window = Window {
+        start: 0,
+        len: params.window.min(frames),
+    };
     let problem = WindowProblem::new(&topo, &anchors, window, params.coefficients);
     let (indptr, indices, values) = problem.op.to_csr();
     let n = problem.op.n_nodes();
@@ -180,7 +214,11 @@ fn export_case(dir: &Path, size: usize, frames: usize, anchors_per_frame: usize,
     npy::write(&dir.join("weights_data.npy"), &[values.len()], &values)?;
     npy::write_v3(&dir.join("weights_rhs.npy"), &problem.fused_rhs())?;
     let anchor_nodes: Vec<u32> = problem.anchors.iter().map(|a| a.node).collect();
-    npy::write(&dir.join("weights_anchor_nodes.npy"), &[anchor_nodes.len()], &anchor_nodes)?;
+    npy::write(
+        &dir.join("weights_anchor_nodes.npy"),
+        &[anchor_nodes.len()],
+        &anchor_nodes,
+    )?;
 
     // Our fused 3-RHS solve of this window.
     let fused = median(
@@ -200,14 +238,23 @@ fn export_case(dir: &Path, size: usize, frames: usize, anchors_per_frame: usize,
                 let mut cg = LocalCg::new(n);
                 let t = Instant::now();
                 for a in &problem.anchors[..sample] {
-                    let _ = cg.solve(&problem.op, a.node, params.coefficients.c_a, params.cg_tolerance, params.cg_max_iterations);
+                    let _ = cg.solve(
+                        &problem.op,
+                        a.node,
+                        params.coefficients.c_a,
+                        params.cg_tolerance,
+                        params.cg_max_iterations,
+                    );
                 }
                 t.elapsed().as_secs_f64() / sample as f64
             })
             .collect(),
     );
     let per_anchor_window = {
-        let pa = DeformParams { mode: WeightMode::PerAnchor, ..params.clone() };
+        let pa = DeformParams {
+            mode: WeightMode::PerAnchor,
+            ..params.clone()
+        };
         let t = Instant::now();
         solve_window(&problem, &pa, &NoProgress)?;
         t.elapsed().as_secs_f64()
@@ -215,7 +262,10 @@ fn export_case(dir: &Path, size: usize, frames: usize, anchors_per_frame: usize,
 
     // Positioning of frame 0 with the demo's blended rotations of this window.
     let (field, _) = solve_window(&problem, &params, &NoProgress)?;
-    let rotations: Vec<_> = field[..topo.n_triangles()].iter().map(|&p| so3::exp(p)).collect();
+    let rotations: Vec<_> = field[..topo.n_triangles()]
+        .iter()
+        .map(|&p| so3::exp(p))
+        .collect();
     let system = PositionSystem::new(topo.clone(), params.pinning)?;
     let rest = &seq.frames[0];
     let (lower, _, _, _) = system.assemble(rest)?;
@@ -227,7 +277,9 @@ fn export_case(dir: &Path, size: usize, frames: usize, anchors_per_frame: usize,
     npy::write(&dir.join("position_lower.npy"), &[lower.len()], &lower)?;
     let fp = system.factor_frame(rest)?;
     let rhs = fp.rhs(&rotations);
-    let rhs_rows: Vec<[f64; 3]> = (0..rhs.nrows()).map(|i| [rhs[(i, 0)], rhs[(i, 1)], rhs[(i, 2)]]).collect();
+    let rhs_rows: Vec<[f64; 3]> = (0..rhs.nrows())
+        .map(|i| [rhs[(i, 0)], rhs[(i, 1)], rhs[(i, 2)]])
+        .collect();
     npy::write_v3(&dir.join("position_rhs.npy"), &rhs_rows)?;
     let factor = median(
         (0..repeats)
@@ -258,8 +310,11 @@ fn export_case(dir: &Path, size: usize, frames: usize, anchors_per_frame: usize,
         "position_solve3_seconds": solve, "cg_tolerance": params.cg_tolerance,
         "threads": rayon::current_num_threads(), "c_a": params.coefficients.c_a,
     });
-    crease_core::fsutil::write_atomic(&dir.join("ours.json"), serde_json::to_string_pretty(&ours)?.as_bytes())
-        .context("writing ours.json")?;
+    crease_core::fsutil::write_atomic(
+        &dir.join("ours.json"),
+        serde_json::to_string_pretty(&ours)?.as_bytes(),
+    )
+    .context("writing ours.json")?;
     println!(
         "exported window ({} nodes, {} anchors) and frame-0 positioning ({} unknowns) to {}",
         n,

@@ -7,7 +7,11 @@ mod run;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "crease", version, about = "Space-time wrinkling of captured garment sequences (Popa et al. 2009)")]
+#[command(
+    name = "crease",
+    version,
+    about = "Space-time wrinkling of captured garment sequences (Popa et al. 2009)"
+)]
 struct Cli {
     /// Worker threads for the numerics (default: all cores).
     #[arg(long, global = true)]
@@ -29,7 +33,10 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
-        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n.max(1)).build_global() {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+        {
             eprintln!("error: cannot set up {n} threads: {e}");
             std::process::exit(2);
         }

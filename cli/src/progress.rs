@@ -45,9 +45,11 @@ impl Progress for CliProgress {
         let bar = self.bars.as_ref().map(|m| {
             let b = m.add(ProgressBar::new(total));
             b.set_style(
-                ProgressStyle::with_template("{prefix:>10} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}")
-                    .unwrap_or_else(|_| ProgressStyle::default_bar())
-                    .progress_chars("=> "),
+                ProgressStyle::with_template(
+                    "{prefix:>10} [{bar:40}] {pos}/{len} {elapsed_precise} eta {eta}",
+                )
+                .unwrap_or_else(|_| ProgressStyle::default_bar())
+                .progress_chars("=> "),
             );
             b.set_prefix(stage.to_string());
             b
@@ -76,7 +78,7 @@ impl Progress for CliProgress {
         match &st.bar {
             Some(b) => b.inc(n),
             None => {
-                let decile = if st.total == 0 { 10 } else { st.done * 10 / st.total };
+                let decile = (st.done * 10).checked_div(st.total).unwrap_or(10);
                 if decile > st.last_logged_decile {
                     st.last_logged_decile = decile;
                     eprintln!(
@@ -95,7 +97,10 @@ impl Progress for CliProgress {
         if let Some(st) = s.remove(stage) {
             match st.bar {
                 Some(b) => b.finish(),
-                None => eprintln!("[{stage}] done in {:.2}s", st.started.elapsed().as_secs_f64()),
+                None => eprintln!(
+                    "[{stage}] done in {:.2}s",
+                    st.started.elapsed().as_secs_f64()
+                ),
             }
         }
     }

@@ -170,11 +170,16 @@ pub fn run(a: RunArgs) -> Result<()> {
     params.validate()?;
     let (input, anchors_path, out) = match (&a.input, &a.anchors) {
         (None, _) => {
-            let root = a.out.clone().unwrap_or_else(|| PathBuf::from("crease-demo"));
+            let root = a
+                .out
+                .clone()
+                .unwrap_or_else(|| PathBuf::from("crease-demo"));
             let (input, anchors) = write_demo(&root, a.demo_triangles, a.demo_frames)?;
             (input, anchors, root.join("output"))
         }
-        (Some(_), None) => bail!("--anchors is required with --input (see README: anchors file format)"),
+        (Some(_), None) => {
+            bail!("--anchors is required with --input (see README: anchors file format)")
+        }
         (Some(i), Some(an)) => (
             i.clone(),
             an.clone(),
@@ -187,7 +192,10 @@ pub fn run(a: RunArgs) -> Result<()> {
     let n = source.n_frames();
     let anchors = AnchorSet::read(&anchors_path, n, topo.n_triangles())?;
     if same_dir(&input, &out) {
-        bail!("--out {} is the input directory; choose another so the input is not overwritten", out.display());
+        bail!(
+            "--out {} is the input directory; choose another so the input is not overwritten",
+            out.display()
+        );
     }
     fsutil::create_dir_all(&out)?;
     // A report from an earlier run must not vouch for what this run may leave half-written.
@@ -195,7 +203,9 @@ pub fn run(a: RunArgs) -> Result<()> {
     match std::fs::remove_file(&report_path) {
         Ok(()) => {}
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-        Err(e) => return Err(e).with_context(|| format!("removing stale {}", report_path.display())),
+        Err(e) => {
+            return Err(e).with_context(|| format!("removing stale {}", report_path.display()))
+        }
     }
     let mut sink = create_sink(&opened.layout, &out)?;
     let keep: Vec<usize> = if a.preview_frames.is_empty() {
@@ -227,7 +237,10 @@ pub fn run(a: RunArgs) -> Result<()> {
     let img = preview::before_after(&topo, &kept.frames, a.preview_size, 0.10);
     render::save_png(&img, &preview_path)?;
     let plot_path = out.join("stretch.png");
-    render::save_png(&preview::stretch_plot(&report.frame_stretch, 900, 420), &plot_path)?;
+    render::save_png(
+        &preview::stretch_plot(&report.frame_stretch, 900, 420),
+        &plot_path,
+    )?;
     let preview_seconds = t_preview.elapsed().as_secs_f64();
 
     let last = report.stretch.last().copied().unwrap_or_default();

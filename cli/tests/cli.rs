@@ -25,7 +25,12 @@ fn obj_vertices(path: &Path) -> Vec<[f64; 3]> {
         .lines()
         .filter(|l| l.starts_with("v "))
         .map(|l| {
-            let v: Vec<f64> = l.split_whitespace().skip(1).take(3).map(|x| x.parse().unwrap()).collect();
+            let v: Vec<f64> = l
+                .split_whitespace()
+                .skip(1)
+                .take(3)
+                .map(|x| x.parse().unwrap())
+                .collect();
             [v[0], v[1], v[2]]
         })
         .collect()
@@ -35,9 +40,21 @@ fn obj_vertices(path: &Path) -> Vec<[f64; 3]> {
 fn demo_runs_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("demo");
-    let o = crease(&["run", "--out", out.to_str().unwrap(), "--demo-triangles", "3000", "--demo-frames", "12", "--preview-size", "128"]);
+    let o = crease(&[
+        "run",
+        "--out",
+        out.to_str().unwrap(),
+        "--demo-triangles",
+        "3000",
+        "--demo-frames",
+        "12",
+        "--preview-size",
+        "128",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    let report: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("output/report.json")).unwrap()).unwrap();
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("output/report.json")).unwrap())
+            .unwrap();
     assert_eq!(report["complete"], true);
     assert_eq!(report["summary"]["frames"], 12);
     let inputs = std::fs::read_dir(out.join("input")).unwrap().count();
@@ -60,7 +77,11 @@ fn demo_runs_end_to_end() {
     assert!(max2 < max0, "{max0} -> {max2}");
     let a = obj_vertices(&out.join("input/frame_0006.obj"));
     let b = obj_vertices(&out.join("output/frame_0006.obj"));
-    let moved = a.iter().zip(&b).filter(|(p, q)| (0..3).any(|k| (p[k] - q[k]).abs() > 1e-4)).count();
+    let moved = a
+        .iter()
+        .zip(&b)
+        .filter(|(p, q)| (0..3).any(|k| (p[k] - q[k]).abs() > 1e-4))
+        .count();
     assert!(moved > 50, "only {moved} vertices moved");
 }
 
@@ -72,27 +93,61 @@ fn runs_on_captured_sleeve_fixture_keeping_layout() {
     let frames: Vec<String> = (0..4)
         .map(|f| {
             let list: Vec<String> = (0..40)
-                .map(|k| format!(r#"{{"triangle":{},"axis":[0,0,{}],"angle":0.6}}"#, 6000 + 2 * k, if k < 20 { 1 } else { -1 }))
+                .map(|k| {
+                    format!(
+                        r#"{{"triangle":{},"axis":[0,0,{}],"angle":0.6}}"#,
+                        6000 + 2 * k,
+                        if k < 20 { 1 } else { -1 }
+                    )
+                })
                 .collect();
             format!(r#"{{"frame":{f},"anchors":[{}]}}"#, list.join(","))
         })
         .collect();
-    std::fs::write(&anchors, format!(r#"{{"version":1,"frames":[{}]}}"#, frames.join(","))).unwrap();
+    std::fs::write(
+        &anchors,
+        format!(r#"{{"version":1,"frames":[{}]}}"#, frames.join(",")),
+    )
+    .unwrap();
     let out = dir.path().join("out");
     let o = crease(&[
-        "run", "--input", fixture().to_str().unwrap(), "--anchors", anchors.to_str().unwrap(),
-        "--out", out.to_str().unwrap(), "--mode", "per-anchor", "--preview-size", "96",
+        "run",
+        "--input",
+        fixture().to_str().unwrap(),
+        "--anchors",
+        anchors.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--mode",
+        "per-anchor",
+        "--preview-size",
+        "96",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
-    for f in ["frame_0020.obj", "frame_0021.obj", "frame_0022.obj", "frame_0023.obj"] {
+    for f in [
+        "frame_0020.obj",
+        "frame_0021.obj",
+        "frame_0022.obj",
+        "frame_0023.obj",
+    ] {
         let a = obj_vertices(&fixture().join(f));
         let b = obj_vertices(&out.join(f));
         assert_eq!(a.len(), b.len());
         // Vertex order kept: far from the anchors, vertices barely move.
-        let close = a.iter().zip(&b).filter(|(p, q)| (0..3).all(|k| (p[k] - q[k]).abs() < 2e-3)).count();
-        assert!(close > a.len() / 2, "{f}: only {close} of {} vertices stayed in place", a.len());
+        let close = a
+            .iter()
+            .zip(&b)
+            .filter(|(p, q)| (0..3).all(|k| (p[k] - q[k]).abs() < 2e-3))
+            .count();
+        assert!(
+            close > a.len() / 2,
+            "{f}: only {close} of {} vertices stayed in place",
+            a.len()
+        );
         // Comments of the input survive.
-        assert!(std::fs::read_to_string(out.join(f)).unwrap().starts_with("# captured"));
+        assert!(std::fs::read_to_string(out.join(f))
+            .unwrap()
+            .starts_with("# captured"));
     }
 }
 
@@ -104,18 +159,30 @@ fn bad_inputs_get_clear_errors_and_no_report() {
     std::fs::write(&anchors, r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":99999999,"axis":[1,0,0],"angle":0.5}]}]}"#).unwrap();
     let out = dir.path().join("out");
     let cases: Vec<(Vec<String>, Vec<&str>)> = vec![
-        (vec!["--anchors".into(), anchors.display().to_string()], vec!["a.json", "triangle 99999999 is out of range"]),
+        (
+            vec!["--anchors".into(), anchors.display().to_string()],
+            vec!["a.json", "triangle 99999999 is out of range"],
+        ),
         (vec!["--shift".into(), "0".into()], vec!["shift"]),
         (vec!["--window".into(), "0".into()], vec!["window"]),
         (vec!["--c-a".into(), "-1".into()], vec!["c_a"]),
         (vec!["--cg-tol".into(), "2".into()], vec!["cg_tolerance"]),
         (vec!["--mode".into(), "magic".into()], vec!["magic"]),
-        (vec!["--preview-frames".into(), "9".into()], vec!["frame 9 is out of range"]),
+        (
+            vec!["--preview-frames".into(), "9".into()],
+            vec!["frame 9 is out of range"],
+        ),
     ];
     let empty = dir.path().join("empty.json");
     std::fs::write(&empty, r#"{"version":1,"frames":[]}"#).unwrap();
     for (extra, want) in cases {
-        let mut args: Vec<String> = vec!["run".into(), "--input".into(), good.display().to_string(), "--out".into(), out.display().to_string()];
+        let mut args: Vec<String> = vec![
+            "run".into(),
+            "--input".into(),
+            good.display().to_string(),
+            "--out".into(),
+            out.display().to_string(),
+        ];
         if !extra.contains(&"--anchors".to_string()) {
             args.extend(["--anchors".into(), empty.display().to_string()]);
         }
@@ -139,12 +206,35 @@ fn bad_inputs_get_clear_errors_and_no_report() {
     let idx = lines.iter().position(|l| l.starts_with("v ")).unwrap() + 10;
     lines[idx] = "v nan 0 0".into();
     std::fs::write(bad.join("frame_0021.obj"), lines.join("\n")).unwrap();
-    let o = crease(&["run", "--input", bad.to_str().unwrap(), "--anchors", empty.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    let o = crease(&[
+        "run",
+        "--input",
+        bad.to_str().unwrap(),
+        "--anchors",
+        empty.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     let err = stderr(&o);
     assert!(!o.status.success());
-    assert!(err.contains("frame_0021.obj") && err.contains("vertex 10"), "{err}");
+    assert!(
+        err.contains("frame_0021.obj") && err.contains("vertex 10"),
+        "{err}"
+    );
     assert!(!out.join("report.json").exists());
     // Output directory equal to the input directory is refused.
-    let o = crease(&["run", "--input", bad.to_str().unwrap(), "--anchors", empty.to_str().unwrap(), "--out", bad.to_str().unwrap()]);
-    assert!(!o.status.success() && stderr(&o).contains("input directory"), "{}", stderr(&o));
+    let o = crease(&[
+        "run",
+        "--input",
+        bad.to_str().unwrap(),
+        "--anchors",
+        empty.to_str().unwrap(),
+        "--out",
+        bad.to_str().unwrap(),
+    ]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("input directory"),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -50,7 +50,8 @@ pub fn per_triangle_stretch(topo: &Topology, rest: &[V3], out: &[V3]) -> Vec<f64
     topo.triangles()
         .iter()
         .map(|t| {
-            let (s1, s2) = triangle_singular_values(t.map(|i| rest[i as usize]), t.map(|i| out[i as usize]));
+            let (s1, s2) =
+                triangle_singular_values(t.map(|i| rest[i as usize]), t.map(|i| out[i as usize]));
             (s1 - 1.0).max(1.0 - s2)
         })
         .collect()

@@ -27,7 +27,12 @@ fn view_for(lo: V3, hi: V3) -> (V3, V3) {
 }
 
 /// One row per kept frame: input, output, and output coloured by per-triangle stretch (0 to `stretch_max`).
-pub fn before_after(topo: &Topology, frames: &[(usize, Frame, Frame)], size: u32, stretch_max: f64) -> RgbImage {
+pub fn before_after(
+    topo: &Topology,
+    frames: &[(usize, Frame, Frame)],
+    size: u32,
+    stretch_max: f64,
+) -> RgbImage {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
     for (_, rest, out) in frames {
@@ -46,14 +51,31 @@ pub fn before_after(topo: &Topology, frames: &[(usize, Frame, Frame)], size: u32
         .iter()
         .map(|(t, rest, out)| {
             let stretch = per_triangle_stretch(topo, rest, out);
-            let colors: Vec<[u8; 3]> = stretch.iter().map(|&s| stretch_color(s, stretch_max)).collect();
+            let colors: Vec<[u8; 3]> = stretch
+                .iter()
+                .map(|&s| stretch_color(s, stretch_max))
+                .collect();
             let a = render(rest, topo, &cam, &Style::default());
             let b = render(out, topo, &cam, &Style::default());
-            let c = render(out, topo, &cam, &Style { triangle_colors: Some(&colors), ..Style::default() });
+            let c = render(
+                out,
+                topo,
+                &cam,
+                &Style {
+                    triangle_colors: Some(&colors),
+                    ..Style::default()
+                },
+            );
             vec![
                 caption(&a, &format!("FRAME {t} INPUT"), scale, INK, WHITE),
                 caption(&b, &format!("FRAME {t} OUTPUT"), scale, INK, WHITE),
-                caption(&c, &format!("STRETCH 0-{:.0}%", stretch_max * 100.0), scale, INK, WHITE),
+                caption(
+                    &c,
+                    &format!("STRETCH 0-{:.0}%", stretch_max * 100.0),
+                    scale,
+                    INK,
+                    WHITE,
+                ),
             ]
         })
         .collect();
@@ -63,10 +85,22 @@ pub fn before_after(topo: &Topology, frames: &[(usize, Frame, Frame)], size: u32
 /// Per-frame maximum and 99th-percentile stretch (in %) after positioning and after each stretch pass.
 pub fn stretch_plot(frame_stretch: &[Vec<StretchStats>], width: u32, height: u32) -> RgbImage {
     let passes = frame_stretch.iter().map(Vec::len).max().unwrap_or(0);
-    let palette = [[200, 60, 40], [230, 150, 30], [40, 120, 200], [60, 160, 80], [120, 80, 160]];
+    let palette = [
+        [200, 60, 40],
+        [230, 150, 30],
+        [40, 120, 200],
+        [60, 160, 80],
+        [120, 80, 160],
+    ];
     let mut series = Vec::new();
     let names: Vec<String> = (0..passes)
-        .map(|p| if p == 0 { "POSITIONED".to_string() } else { format!("PASS {p}") })
+        .map(|p| {
+            if p == 0 {
+                "POSITIONED".to_string()
+            } else {
+                format!("PASS {p}")
+            }
+        })
         .collect();
     for p in 0..passes {
         let pts: Vec<(f64, f64)> = frame_stretch
@@ -76,5 +110,12 @@ pub fn stretch_plot(frame_stretch: &[Vec<StretchStats>], width: u32, height: u32
             .collect();
         series.push((names[p].as_str(), palette[p % palette.len()], pts));
     }
-    plot_lines(&series, width, height, "MAX STRETCH PER FRAME", "FRAME", "MAX STRETCH %")
+    plot_lines(
+        &series,
+        width,
+        height,
+        "MAX STRETCH PER FRAME",
+        "FRAME",
+        "MAX STRETCH %",
+    )
 }

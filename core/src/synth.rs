@@ -32,7 +32,11 @@ impl Grid {
     }
     /// Triangles with alternating diagonals (less directional bias than one diagonal everywhere).
     pub fn triangles(&self) -> Vec<[u32; 3]> {
-        let cells_c = if self.periodic { self.cols } else { self.cols - 1 };
+        let cells_c = if self.periodic {
+            self.cols
+        } else {
+            self.cols - 1
+        };
         let mut tris = Vec::with_capacity(cells_c * (self.rows - 1) * 2);
         for r in 0..self.rows - 1 {
             for c in 0..cells_c {
@@ -147,11 +151,17 @@ pub fn demo_folds(spec: &DemoSpec) -> Vec<FoldSpec> {
     let base = [
         // (centre around, centre height, drift around/frame, drift height/frame, direction, half length, width,
         //  begin, full, fade, end) with times as fractions of the sequence.
-        (0.0, 0.30, 0.0, 0.004, 0.0, 0.36, 0.024, 0.02, 0.25, 0.65, 0.85),
+        (
+            0.0, 0.30, 0.0, 0.004, 0.0, 0.36, 0.024, 0.02, 0.25, 0.65, 0.85,
+        ),
         (0.25, 0.62, 0.002, 0.0, 0.6, 0.16, 0.02, 0.2, 0.4, 0.8, 0.98),
         (0.55, 0.75, 0.0, -0.003, 0.0, 0.3, 0.03, 0.35, 0.6, 0.9, 1.2),
-        (0.6, 0.45, -0.003, 0.0, -0.5, 0.12, 0.018, -0.2, 0.0, 0.3, 0.5),
-        (0.85, 0.18, 0.0, 0.0, 0.15, 0.2, 0.022, 0.45, 0.6, 0.75, 0.95),
+        (
+            0.6, 0.45, -0.003, 0.0, -0.5, 0.12, 0.018, -0.2, 0.0, 0.3, 0.5,
+        ),
+        (
+            0.85, 0.18, 0.0, 0.0, 0.15, 0.2, 0.022, 0.45, 0.6, 0.75, 0.95,
+        ),
     ];
     let mut folds = Vec::new();
     let copies = spec.fold_scale.max(0.0);
@@ -167,7 +177,10 @@ pub fn demo_folds(spec: &DemoSpec) -> Vec<FoldSpec> {
             let shift_height = copy as f64 * 0.11;
             let width = b.6 * len / 0.9;
             folds.push(FoldSpec {
-                centre: [((b.0 + shift_around) % 1.0) * circ, ((b.1 + shift_height) % 0.8 + 0.1) * len],
+                centre: [
+                    ((b.0 + shift_around) % 1.0) * circ,
+                    ((b.1 + shift_height) % 0.8 + 0.1) * len,
+                ],
                 drift: [b.2 * circ * 36.0 / n, b.3 * len * 36.0 / n],
                 direction: b.4,
                 half_length: b.5 * len,
@@ -187,7 +200,9 @@ pub fn demo_folds(spec: &DemoSpec) -> Vec<FoldSpec> {
 pub fn demo(spec: &DemoSpec) -> Result<(Sequence, AnchorSet)> {
     let grid = tube_grid_for(spec.triangles, spec.radius, spec.length);
     let topo = Arc::new(grid.topology()?);
-    let frames: Vec<Frame> = (0..spec.frames).map(|t| tube_frame(&grid, spec, t as f64)).collect();
+    let frames: Vec<Frame> = (0..spec.frames)
+        .map(|t| tube_frame(&grid, spec, t as f64))
+        .collect();
     let folds = demo_folds(spec);
     let lists = frames
         .iter()
@@ -212,7 +227,12 @@ fn tube_point(spec: &DemoSpec, u: f64, h: f64, t: f64) -> V3 {
     let (cx, cz, tz, tx) = if k.abs() < 1e-9 {
         (0.0, h, 1.0, 0.0)
     } else {
-        ((1.0 - (k * h).cos()) / k, (k * h).sin() / k, (k * h).cos(), (k * h).sin())
+        (
+            (1.0 - (k * h).cos()) / k,
+            (k * h).sin() / k,
+            (k * h).cos(),
+            (k * h).sin(),
+        )
     };
     let (sd, cd) = sway.sin_cos();
     let dir = [cd, sd, 0.0]; // bending direction in the xy plane
@@ -222,12 +242,21 @@ fn tube_point(spec: &DemoSpec, u: f64, h: f64, t: f64) -> V3 {
     let nvec = [dir[0] * tz, dir[1] * tz, -tx];
     let (s, c) = theta.sin_cos();
     let _ = (tz, tx);
-    vec3::add(centre, vec3::add(vec3::scale(nvec, spec.radius * c), vec3::scale(side, spec.radius * s)))
+    vec3::add(
+        centre,
+        vec3::add(
+            vec3::scale(nvec, spec.radius * c),
+            vec3::scale(side, spec.radius * s),
+        ),
+    )
 }
 
 fn grid_param(grid: &Grid, spec: &DemoSpec, c: f64, r: f64) -> (f64, f64) {
     let circ = 2.0 * PI * spec.radius;
-    (c / grid.cols as f64 * circ, r / (grid.rows - 1) as f64 * spec.length)
+    (
+        c / grid.cols as f64 * circ,
+        r / (grid.rows - 1) as f64 * spec.length,
+    )
 }
 
 fn tube_frame(grid: &Grid, spec: &DemoSpec, t: f64) -> Frame {
@@ -243,7 +272,14 @@ fn tube_frame(grid: &Grid, spec: &DemoSpec, t: f64) -> Frame {
 
 /// Anchors of all active folds at frame `t`: the triangles whose parameter-space centroid lies within half a
 /// cell of a control line, rotating about the line's 3D tangent (opposite senses on the two lines).
-fn fold_anchors(grid: &Grid, topo: &Topology, spec: &DemoSpec, frame: &[V3], folds: &[FoldSpec], t: f64) -> Vec<Anchor> {
+fn fold_anchors(
+    grid: &Grid,
+    topo: &Topology,
+    spec: &DemoSpec,
+    frame: &[V3],
+    folds: &[FoldSpec],
+    t: f64,
+) -> Vec<Anchor> {
     let circ = 2.0 * PI * spec.radius;
     let cell = (circ / grid.cols as f64).max(spec.length / (grid.rows - 1) as f64);
     let tris = topo.triangles();
@@ -263,7 +299,10 @@ fn fold_anchors(grid: &Grid, topo: &Topology, spec: &DemoSpec, frame: &[V3], fol
         let d = [f.direction.cos(), f.direction.sin()];
         let perp = [-d[1], d[0]];
         for (side, sign) in [(-0.5, 1.0), (0.5, -1.0)] {
-            let o = [centre[0] + perp[0] * side * f.width, centre[1] + perp[1] * side * f.width];
+            let o = [
+                centre[0] + perp[0] * side * f.width,
+                centre[1] + perp[1] * side * f.width,
+            ];
             for (ti, tri) in tris.iter().enumerate() {
                 let ps = tri.map(param);
                 // Unwrap the around coordinate near the seam relative to the first corner.
@@ -330,8 +369,14 @@ fn line_tangent(p: [V3; 3], u: [f64; 3], h: [f64; 3], d: [f64; 2]) -> V3 {
     }
     let e1 = vec3::sub(p[1], p[0]);
     let e2 = vec3::sub(p[2], p[0]);
-    let xu = vec3::scale(vec3::sub(vec3::scale(e1, dh2), vec3::scale(e2, dh1)), 1.0 / det);
-    let xh = vec3::scale(vec3::sub(vec3::scale(e2, du1), vec3::scale(e1, du2)), 1.0 / det);
+    let xu = vec3::scale(
+        vec3::sub(vec3::scale(e1, dh2), vec3::scale(e2, dh1)),
+        1.0 / det,
+    );
+    let xh = vec3::scale(
+        vec3::sub(vec3::scale(e2, du1), vec3::scale(e1, du2)),
+        1.0 / det,
+    );
     vec3::add(vec3::scale(xu, d[0]), vec3::scale(xh, d[1]))
 }
 
@@ -354,7 +399,12 @@ pub fn sheet(cols: usize, rows: usize, h: f64) -> Result<(Arc<Topology>, Frame)>
 
 /// Random anchors for benchmarks: `per_frame` anchors per frame on distinct triangles, with random axes in each
 /// triangle's plane and angles between 30° and 60°. Deterministic for a given seed.
-pub fn random_anchors(topo: &Topology, frames: &[Frame], per_frame: usize, seed: u64) -> Result<AnchorSet> {
+pub fn random_anchors(
+    topo: &Topology,
+    frames: &[Frame],
+    per_frame: usize,
+    seed: u64,
+) -> Result<AnchorSet> {
     let mut state = seed ^ 0x9E37_79B9_7F4A_7C15;
     let mut next = || {
         // xorshift64*
@@ -371,13 +421,23 @@ pub fn random_anchors(topo: &Topology, frames: &[Frame], per_frame: usize, seed:
         while picked.len() < per_frame {
             let t = (next() % n_tri as u64) as u32;
             let tri = topo.triangles()[t as usize].map(|v| frame[v as usize]);
-            let n = vec3::normalize(vec3::cross(vec3::sub(tri[1], tri[0]), vec3::sub(tri[2], tri[0])));
+            let n = vec3::normalize(vec3::cross(
+                vec3::sub(tri[1], tri[0]),
+                vec3::sub(tri[2], tri[0]),
+            ));
             let e = vec3::normalize(vec3::sub(tri[1], tri[0]));
             let b = vec3::cross(n, e);
             let a = (next() % 10_000) as f64 / 10_000.0 * 2.0 * PI;
             let axis = vec3::add(vec3::scale(e, a.cos()), vec3::scale(b, a.sin()));
             let angle = (PI / 6.0) * (1.0 + (next() % 10_000) as f64 / 10_000.0);
-            picked.insert(t, Anchor { triangle: t, axis, angle });
+            picked.insert(
+                t,
+                Anchor {
+                    triangle: t,
+                    axis,
+                    angle,
+                },
+            );
         }
         lists.push(picked.into_values().collect());
     }

@@ -21,7 +21,11 @@ fn small_demo(frames: usize) -> (Sequence, AnchorSet) {
     .unwrap()
 }
 
-fn run(seq: &Sequence, anchors: &AnchorSet, params: &DeformParams) -> (Vec<Vec<[f64; 3]>>, crease_core::spacetime::DeformReport) {
+fn run(
+    seq: &Sequence,
+    anchors: &AnchorSet,
+    params: &DeformParams,
+) -> (Vec<Vec<[f64; 3]>>, crease_core::spacetime::DeformReport) {
     let mut sink = MemorySink::default();
     let (report, _) = deform(seq, anchors, params, &mut sink, &NoProgress, &[]).unwrap();
     (sink.frames.into_values().collect(), report)
@@ -32,7 +36,10 @@ fn no_anchors_returns_input() {
     let (seq, _) = small_demo(12);
     let anchors = AnchorSet::empty(seq.frames.len());
     for mode in [WeightMode::Fused, WeightMode::PerAnchor] {
-        let params = DeformParams { mode, ..Default::default() };
+        let params = DeformParams {
+            mode,
+            ..Default::default()
+        };
         let (out, _) = run(&seq, &anchors, &params);
         for (t, (o, i)) in out.iter().zip(&seq.frames).enumerate() {
             for (a, b) in o.iter().zip(i) {
@@ -53,12 +60,28 @@ fn rigid_motion_of_input_moves_output_rigidly() {
     let shift = [3.0, -2.0, 0.5];
     let moved = Sequence::new(
         seq.topology.clone(),
-        seq.frames.iter().map(|f| f.iter().map(|p| vec3::add(vec3::mat_vec(&q, *p), shift)).collect()).collect(),
+        seq.frames
+            .iter()
+            .map(|f| {
+                f.iter()
+                    .map(|p| vec3::add(vec3::mat_vec(&q, *p), shift))
+                    .collect()
+            })
+            .collect(),
     )
     .unwrap();
     let moved_anchors = AnchorSet::from_frames(
         (0..seq.frames.len())
-            .map(|t| anchors.frame(t).iter().map(|a| Anchor { axis: vec3::mat_vec(&q, a.axis), ..*a }).collect())
+            .map(|t| {
+                anchors
+                    .frame(t)
+                    .iter()
+                    .map(|a| Anchor {
+                        axis: vec3::mat_vec(&q, a.axis),
+                        ..*a
+                    })
+                    .collect()
+            })
             .collect(),
         seq.topology.n_triangles(),
         None,
@@ -82,7 +105,10 @@ fn triangle_rotation(rest: &[[f64; 3]], out: &[[f64; 3]], tri: [u32; 3]) -> (f64
     let frame = |p: &[[f64; 3]]| {
         let a = p[tri[0] as usize];
         let e = vec3::normalize(vec3::sub(p[tri[1] as usize], a));
-        let n = vec3::normalize(vec3::cross(vec3::sub(p[tri[1] as usize], a), vec3::sub(p[tri[2] as usize], a)));
+        let n = vec3::normalize(vec3::cross(
+            vec3::sub(p[tri[1] as usize], a),
+            vec3::sub(p[tri[2] as usize], a),
+        ));
         let b = vec3::cross(n, e);
         [e, b, n]
     };
@@ -108,7 +134,9 @@ fn single_anchor_rotates_its_triangle_and_decays() {
     let centre_tri = {
         let mut best = (f64::INFINITY, 0u32);
         for (t, tri) in topo.triangles().iter().enumerate() {
-            let c = tri.iter().fold([0.0; 3], |s, &v| vec3::add(s, rest[v as usize]));
+            let c = tri
+                .iter()
+                .fold([0.0; 3], |s, &v| vec3::add(s, rest[v as usize]));
             let d = vec3::norm(vec3::sub(vec3::scale(c, 1.0 / 3.0), [0.3, 0.3, 0.0]));
             if d < best.0 {
                 best = (d, t as u32);
@@ -118,21 +146,42 @@ fn single_anchor_rotates_its_triangle_and_decays() {
     };
     let angle = 0.6;
     let mut lists = vec![Vec::new(); n];
-    lists[7].push(Anchor { triangle: centre_tri, axis: [1.0, 0.0, 0.0], angle });
+    lists[7].push(Anchor {
+        triangle: centre_tri,
+        axis: [1.0, 0.0, 0.0],
+        angle,
+    });
     let anchors = AnchorSet::from_frames(lists, topo.n_triangles(), None).unwrap();
-    let params = DeformParams { window: n, shift: n, stretch_passes: 0, ..Default::default() };
+    let params = DeformParams {
+        window: n,
+        shift: n,
+        stretch_passes: 0,
+        ..Default::default()
+    };
     // The blended rotation field itself: the anchor's own triangle gets close to the full rotation.
-    let problem = WindowProblem::new(&topo, &anchors, Window { start: 0, len: n }, params.coefficients);
+    let problem = WindowProblem::new(
+        &topo,
+        &anchors,
+        Window { start: 0, len: n },
+        params.coefficients,
+    );
     let (field, _) = solve_window(&problem, &params, &NoProgress).unwrap();
     let n_tri = topo.n_triangles();
     let at = |t: usize, tri: usize| vec3::norm(field[t * n_tri + tri]);
     let own = at(7, centre_tri as usize);
     // c_a/(c_a + neighbours' pull): the anchor term dominates, the smoothness terms pull it down somewhat.
-    assert!(own > 0.6 * angle && own <= angle * 1.001, "own rotation {own}");
+    assert!(
+        own > 0.6 * angle && own <= angle * 1.001,
+        "own rotation {own}"
+    );
     // Decay in space: rings of triangles further away rotate less.
     let centroid = |tri: usize| {
         let t = topo.triangles()[tri];
-        vec3::scale(t.iter().fold([0.0; 3], |s, &v| vec3::add(s, rest[v as usize])), 1.0 / 3.0)
+        vec3::scale(
+            t.iter()
+                .fold([0.0; 3], |s, &v| vec3::add(s, rest[v as usize])),
+            1.0 / 3.0,
+        )
     };
     let c0 = centroid(centre_tri as usize);
     let mean_at = |t: usize, lo: f64, hi: f64| {
@@ -146,7 +195,9 @@ fn single_anchor_rotates_its_triangle_and_decays() {
         }
         s / k as f64
     };
-    let rings: Vec<f64> = (0..5).map(|k| mean_at(7, 0.02 * k as f64 + 0.005, 0.02 * (k + 1) as f64 + 0.005)).collect();
+    let rings: Vec<f64> = (0..5)
+        .map(|k| mean_at(7, 0.02 * k as f64 + 0.005, 0.02 * (k + 1) as f64 + 0.005))
+        .collect();
     for w in rings.windows(2) {
         assert!(w[1] < w[0], "spatial decay {rings:?}");
     }
@@ -162,7 +213,10 @@ fn single_anchor_rotates_its_triangle_and_decays() {
     let tri = topo.triangles()[centre_tri as usize];
     let (applied, axis) = triangle_rotation(&rest, &out[7], tri);
     assert!(applied > 0.25 * own, "applied {applied} vs blended {own}");
-    assert!(axis[0].abs() > 0.9, "rotation axis {axis:?} is not the anchor's");
+    assert!(
+        axis[0].abs() > 0.9,
+        "rotation axis {axis:?} is not the anchor's"
+    );
     let (far, _) = triangle_rotation(&rest, &out[0], tri);
     assert!(far < 0.15 * applied, "frame 0 rotated by {far}");
 }
@@ -176,25 +230,46 @@ fn anchor_line_is_realised_by_positioning() {
     let seq = Sequence::new(topo.clone(), vec![rest.clone(); n]).unwrap();
     let row: Vec<u32> = (0..topo.n_triangles() as u32)
         .filter(|&t| {
-            let c = topo.triangles()[t as usize].iter().fold([0.0; 3], |s, &v| vec3::add(s, rest[v as usize]));
+            let c = topo.triangles()[t as usize]
+                .iter()
+                .fold([0.0; 3], |s, &v| vec3::add(s, rest[v as usize]));
             (c[1] / 3.0 - 0.245).abs() < 0.004 && c[0] / 3.0 > 0.05 && c[0] / 3.0 < 0.44
         })
         .collect();
     assert!(row.len() > 40);
     let angle = 0.5;
     let lists = (0..n)
-        .map(|_| row.iter().map(|&t| Anchor { triangle: t, axis: [1.0, 0.0, 0.0], angle }).collect())
+        .map(|_| {
+            row.iter()
+                .map(|&t| Anchor {
+                    triangle: t,
+                    axis: [1.0, 0.0, 0.0],
+                    angle,
+                })
+                .collect()
+        })
         .collect();
     let anchors = AnchorSet::from_frames(lists, topo.n_triangles(), None).unwrap();
-    let params = DeformParams { stretch_passes: 0, ..Default::default() };
-    let problem = WindowProblem::new(&topo, &anchors, Window { start: 0, len: n }, params.coefficients);
+    let params = DeformParams {
+        stretch_passes: 0,
+        ..Default::default()
+    };
+    let problem = WindowProblem::new(
+        &topo,
+        &anchors,
+        Window { start: 0, len: n },
+        params.coefficients,
+    );
     let (field, _) = solve_window(&problem, &params, &NoProgress).unwrap();
     let (out, _) = run(&seq, &anchors, &params);
     let mid = row[row.len() / 2] as usize;
     let blended = vec3::norm(field[2 * topo.n_triangles() + mid]);
     let (applied, axis) = triangle_rotation(&rest, &out[2], topo.triangles()[mid]);
     eprintln!("anchor line: blended {blended:.3} rad, positioned {applied:.3} rad");
-    assert!((applied - blended).abs() < 0.2 * blended, "applied {applied} vs blended {blended}");
+    assert!(
+        (applied - blended).abs() < 0.2 * blended,
+        "applied {applied} vs blended {blended}"
+    );
     assert!(axis[0].abs() > 0.95);
 }
 
@@ -205,9 +280,20 @@ fn per_anchor_and_fused_agree_and_weights_are_convex() {
     let window = Window { start: 0, len: 10 };
     let coeffs = Coefficients::default();
     let problem = WindowProblem::new(&topo, &anchors, window, coeffs);
-    assert!(problem.anchors.len() >= 300, "only {} anchors", problem.anchors.len());
-    let fused = DeformParams { mode: WeightMode::Fused, ..Default::default() };
-    let per = DeformParams { mode: WeightMode::PerAnchor, anchor_block: 37, ..Default::default() };
+    assert!(
+        problem.anchors.len() >= 300,
+        "only {} anchors",
+        problem.anchors.len()
+    );
+    let fused = DeformParams {
+        mode: WeightMode::Fused,
+        ..Default::default()
+    };
+    let per = DeformParams {
+        mode: WeightMode::PerAnchor,
+        anchor_block: 37,
+        ..Default::default()
+    };
     let (xf, sf) = solve_window(&problem, &fused, &NoProgress).unwrap();
     let (xp, sp) = solve_window(&problem, &per, &NoProgress).unwrap();
     assert!(sp.blocks > 5);
@@ -239,18 +325,26 @@ fn per_anchor_and_fused_agree_and_weights_are_convex() {
     let r_p = resid(&xp);
     let mut q = vec![[0.0; 3]; diff.len()];
     problem.op.apply3(&diff, &mut q);
-    let r_diff = (q.iter().map(|v| vec3::dot(*v, *v)).sum::<f64>() / b.iter().map(|v| vec3::dot(*v, *v)).sum::<f64>()).sqrt();
+    let r_diff = (q.iter().map(|v| vec3::dot(*v, *v)).sum::<f64>()
+        / b.iter().map(|v| vec3::dot(*v, *v)).sum::<f64>())
+    .sqrt();
     let e_loose = rel(&xp, &xf);
     eprintln!(
         "{} anchors, {} blocks: residual fused {r_f:.2e} ({} it), per-anchor {r_p:.2e} ({} column it); difference {r_diff:.2e} in residual, {e_loose:.2e} relative",
         problem.anchors.len(), sp.blocks, sf.cg_iterations, sp.cg_iterations
     );
     assert!(r_f <= tol && r_p <= 3.0 * tol && r_diff <= 3.0 * tol);
-    let tighter = |p: &DeformParams| DeformParams { cg_tolerance: tol / 10.0, ..p.clone() };
+    let tighter = |p: &DeformParams| DeformParams {
+        cg_tolerance: tol / 10.0,
+        ..p.clone()
+    };
     let (xf2, _) = solve_window(&problem, &tighter(&fused), &NoProgress).unwrap();
     let (xp2, _) = solve_window(&problem, &tighter(&per), &NoProgress).unwrap();
     let e_tight = rel(&xp2, &xf2);
-    eprintln!("relative difference at tol {tol:e}: {e_loose:.2e}; at {:e}: {e_tight:.2e}", tol / 10.0);
+    eprintln!(
+        "relative difference at tol {tol:e}: {e_loose:.2e}; at {:e}: {e_tight:.2e}",
+        tol / 10.0
+    );
     assert!(e_tight < e_loose / 4.0 && e_tight < 2e-2);
 
     // Convexity: every anchor's weight column is in [0, 1] (to the CG tolerance) and their sum is ≤ 1.
@@ -289,9 +383,16 @@ fn local_cg_matches_whole_window_cg() {
     for (l, &g) in cg.nodes.iter().enumerate() {
         dense[g as usize] = cg.x[l];
     }
-    let worst = dense.iter().zip(&x).map(|(a, b)| (a - b[0]).abs()).fold(0.0, f64::max);
+    let worst = dense
+        .iter()
+        .zip(&x)
+        .map(|(a, b)| (a - b[0]).abs())
+        .fold(0.0, f64::max);
     assert!(worst < 1e-12, "local and global CG differ by {worst}");
-    let _ = WindowAnchor { node, phi: [0.0; 3] };
+    let _ = WindowAnchor {
+        node,
+        phi: [0.0; 3],
+    };
 }
 
 #[test]
@@ -316,7 +417,11 @@ fn no_jump_at_window_boundaries() {
         frames
     };
     let fs = fields(&staggered);
-    let fg = fields(&DeformParams { window: n, shift: n, ..Default::default() });
+    let fg = fields(&DeformParams {
+        window: n,
+        shift: n,
+        ..Default::default()
+    });
     let change = |f: &Vec<Vec<[f64; 3]>>, t: usize| {
         (0..n_tri)
             .map(|i| so3::angle_between(&so3::exp(f[t][i]), &so3::exp(f[t + 1][i])))
@@ -330,7 +435,11 @@ fn no_jump_at_window_boundaries() {
         let g = change(&fg, t);
         worst_ratio = worst_ratio.max(s / g.max(1e-3));
         // The staggered field may not change between frames much more than the global solution does.
-        assert!(s <= 1.5 * g + 0.02, "frame {t}->{}: staggered change {s:.4} rad vs global {g:.4}", t + 1);
+        assert!(
+            s <= 1.5 * g + 0.02,
+            "frame {t}->{}: staggered change {s:.4} rad vs global {g:.4}",
+            t + 1
+        );
     }
     // And the staggered field stays close to the global one.
     let mut diff = 0.0f64;
@@ -346,13 +455,91 @@ fn no_jump_at_window_boundaries() {
 #[test]
 fn stretch_passes_lower_max_stretch() {
     let (seq, anchors) = small_demo(10);
-    let params = DeformParams { stretch_passes: 2, ..Default::default() };
+    let params = DeformParams {
+        stretch_passes: 2,
+        ..Default::default()
+    };
     let (_, report) = run(&seq, &anchors, &params);
     let s = &report.stretch;
     eprintln!("stretch per pass: {s:?}");
     assert_eq!(s.len(), 3);
-    assert!(s[1].max < s[0].max && s[2].max <= s[1].max * 1.0001, "{s:?}");
+    assert!(
+        s[1].max < s[0].max && s[2].max <= s[1].max * 1.0001,
+        "{s:?}"
+    );
     assert!(s[2].l2 > 0.9 && s[2].l2 < 1.1);
     let _ = geometry::vertex_normals;
     let _ = Arc::new(());
+}
+
+/// A long procedural sequence produced frame by frame, counting how many frames are held at once.
+struct CountingSource {
+    seq: Sequence,
+    reads: std::sync::atomic::AtomicUsize,
+    writes: Arc<std::sync::atomic::AtomicUsize>,
+    max_in_flight: std::sync::atomic::AtomicUsize,
+    repeat: usize,
+}
+
+impl crease_core::mesh::FrameSource for CountingSource {
+    fn topology(&self) -> &Arc<crease_core::mesh::Topology> {
+        &self.seq.topology
+    }
+    fn n_frames(&self) -> usize {
+        self.seq.frames.len() * self.repeat
+    }
+    fn read_frame(&self, t: usize) -> crease_core::Result<crease_core::mesh::Frame> {
+        use std::sync::atomic::Ordering::SeqCst;
+        let r = self.reads.fetch_add(1, SeqCst) + 1;
+        let in_flight = r - self.writes.load(SeqCst);
+        self.max_in_flight.fetch_max(in_flight, SeqCst);
+        Ok(self.seq.frames[t % self.seq.frames.len()].clone())
+    }
+    fn describe_frame(&self, t: usize) -> String {
+        format!("generated frame {t}")
+    }
+}
+
+struct CountingSink(Arc<std::sync::atomic::AtomicUsize>, Vec<bool>);
+impl crease_core::mesh::FrameSink for CountingSink {
+    fn write_frame(&mut self, t: usize, _: &[[f64; 3]]) -> crease_core::Result<()> {
+        self.0.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        self.1[t] = true;
+        Ok(())
+    }
+    fn finish(&mut self) -> crease_core::Result<Vec<std::path::PathBuf>> {
+        Ok(Vec::new())
+    }
+}
+
+#[test]
+fn long_sequences_stream_with_memory_bounded_by_the_window() {
+    let (seq, _) = synth::demo(&DemoSpec {
+        triangles: 1500,
+        frames: 10,
+        ..Default::default()
+    })
+    .unwrap();
+    let writes = Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let source = CountingSource {
+        seq,
+        reads: Default::default(),
+        writes: writes.clone(),
+        max_in_flight: Default::default(),
+        repeat: 12,
+    };
+    let n = crease_core::mesh::FrameSource::n_frames(&source);
+    let anchors = AnchorSet::empty(n);
+    let mut sink = CountingSink(writes, vec![false; n]);
+    let params = DeformParams::default();
+    deform(&source, &anchors, &params, &mut sink, &NoProgress, &[]).unwrap();
+    assert!(sink.1.iter().all(|&w| w), "every frame written");
+    let held = source
+        .max_in_flight
+        .load(std::sync::atomic::Ordering::SeqCst);
+    // At most the frames one window releases are read before they are written, however long the sequence.
+    assert!(
+        held <= params.window,
+        "{held} frames held at once for a {n}-frame sequence"
+    );
 }

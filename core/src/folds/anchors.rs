@@ -97,10 +97,16 @@ impl AnchorSet {
         self.frames.len()
     }
     pub fn frame(&self, t: usize) -> &[Anchor] {
-        self.frames.get(t).map(|f| f.anchors.as_slice()).unwrap_or(&[])
+        self.frames
+            .get(t)
+            .map(|f| f.anchors.as_slice())
+            .unwrap_or(&[])
     }
     pub fn control_lines(&self, t: usize) -> &[Vec<V3>] {
-        self.frames.get(t).map(|f| f.control_lines.as_slice()).unwrap_or(&[])
+        self.frames
+            .get(t)
+            .map(|f| f.control_lines.as_slice())
+            .unwrap_or(&[])
     }
     pub fn set_control_lines(&mut self, t: usize, lines: Vec<Vec<V3>>) {
         if let Some(f) = self.frames.get_mut(t) {
@@ -118,7 +124,12 @@ impl AnchorSet {
     }
 
     /// Parses anchors JSON; `path` only labels errors.
-    pub fn parse(text: &str, path: Option<&Path>, n_frames: usize, n_triangles: usize) -> Result<Self> {
+    pub fn parse(
+        text: &str,
+        path: Option<&Path>,
+        n_frames: usize,
+        n_triangles: usize,
+    ) -> Result<Self> {
         let err = |msg: String| Error::Anchors {
             path: path.map(Path::to_path_buf),
             msg,
@@ -126,7 +137,10 @@ impl AnchorSet {
         let file: AnchorsFile = serde_json::from_str(text)
             .map_err(|e| err(format!("line {} column {}: {e}", e.line(), e.column())))?;
         if file.version != 1 {
-            return Err(err(format!("unsupported version {} (expected 1)", file.version)));
+            return Err(err(format!(
+                "unsupported version {} (expected 1)",
+                file.version
+            )));
         }
         let mut frames: Vec<FrameAnchors> = (0..n_frames)
             .map(|f| FrameAnchors {
@@ -169,7 +183,9 @@ impl AnchorSet {
                     )));
                 }
                 if !vec3::is_finite(a.axis) || !a.angle.is_finite() {
-                    return Err(err(format!("frame {f} anchor {k}: axis and angle must be finite numbers")));
+                    return Err(err(format!(
+                        "frame {f} anchor {k}: axis and angle must be finite numbers"
+                    )));
                 }
                 let n = vec3::norm(a.axis);
                 if n < 1e-9 {
@@ -231,18 +247,41 @@ mod tests {
         assert_eq!(s.frame(0).len(), 0);
         assert_eq!(s.frame(1)[0].axis, [0.0, 0.0, 1.0]);
         let cases = [
-            (r#"{"version":1,"frames":[{"frame":5,"anchors":[]}]}"#, "frame 5 is out of range"),
-            (r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":10,"axis":[1,0,0],"angle":0.1}]}]}"#, "triangle 10 is out of range"),
-            (r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[0,0,0],"angle":0.1}]}]}"#, "zero length"),
-            (r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[1,0,0],"angle":4}]}]}"#, "outside [-π, π]"),
-            (r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[1,0,0],"angle":1},{"triangle":1,"axis":[1,0,0],"angle":1}]}]}"#, "anchored twice"),
+            (
+                r#"{"version":1,"frames":[{"frame":5,"anchors":[]}]}"#,
+                "frame 5 is out of range",
+            ),
+            (
+                r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":10,"axis":[1,0,0],"angle":0.1}]}]}"#,
+                "triangle 10 is out of range",
+            ),
+            (
+                r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[0,0,0],"angle":0.1}]}]}"#,
+                "zero length",
+            ),
+            (
+                r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[1,0,0],"angle":4}]}]}"#,
+                "outside [-π, π]",
+            ),
+            (
+                r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[1,0,0],"angle":1},{"triangle":1,"axis":[1,0,0],"angle":1}]}]}"#,
+                "anchored twice",
+            ),
             (r#"{"version":2,"frames":[]}"#, "unsupported version"),
-            (r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[1,0,0],"angle":1,"x":1}]}]}"#, "unknown field"),
-            (r#"{"version":1,"frames":[{"frame":0},{"frame":0}]}"#, "listed twice"),
+            (
+                r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[1,0,0],"angle":1,"x":1}]}]}"#,
+                "unknown field",
+            ),
+            (
+                r#"{"version":1,"frames":[{"frame":0},{"frame":0}]}"#,
+                "listed twice",
+            ),
             (r#"{"version":1,"frames":["#, "line 1"),
         ];
         for (text, want) in cases {
-            let e = AnchorSet::parse(text, Some(Path::new("a.json")), 2, 10).unwrap_err().to_string();
+            let e = AnchorSet::parse(text, Some(Path::new("a.json")), 2, 10)
+                .unwrap_err()
+                .to_string();
             assert!(e.contains(want) && e.contains("a.json"), "{text}: {e}");
         }
     }

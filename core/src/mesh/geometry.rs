@@ -13,17 +13,26 @@ pub const DEGENERATE_EPS: f64 = 1e-10;
 #[inline]
 pub fn tri_cross(p: &[V3], tri: [u32; 3]) -> V3 {
     let a = p[tri[0] as usize];
-    vec3::cross(vec3::sub(p[tri[1] as usize], a), vec3::sub(p[tri[2] as usize], a))
+    vec3::cross(
+        vec3::sub(p[tri[1] as usize], a),
+        vec3::sub(p[tri[2] as usize], a),
+    )
 }
 
 /// Unit normals of all triangles.
 pub fn triangle_normals(topo: &Topology, p: &[V3]) -> Vec<V3> {
-    topo.triangles().iter().map(|&t| vec3::normalize(tri_cross(p, t))).collect()
+    topo.triangles()
+        .iter()
+        .map(|&t| vec3::normalize(tri_cross(p, t)))
+        .collect()
 }
 
 /// Triangle areas.
 pub fn triangle_areas(topo: &Topology, p: &[V3]) -> Vec<f64> {
-    topo.triangles().iter().map(|&t| 0.5 * vec3::norm(tri_cross(p, t))).collect()
+    topo.triangles()
+        .iter()
+        .map(|&t| 0.5 * vec3::norm(tri_cross(p, t)))
+        .collect()
 }
 
 /// Area-weighted vertex normals (unit length; zero for isolated vertices).
@@ -63,7 +72,9 @@ pub fn validate_frame(topo: &Topology, p: &[V3]) -> Result<()> {
             .map(|e| vec3::dot(*e, *e))
             .fold(0.0, f64::max);
         let twice_area = vec3::norm(tri_cross(p, tri));
-        if !(twice_area > DEGENERATE_EPS * longest) {
+        // Written so that NaN areas also count as degenerate.
+        if twice_area.partial_cmp(&(DEGENERATE_EPS * longest)) != Some(std::cmp::Ordering::Greater)
+        {
             return Err(Error::mesh(format!(
                 "triangle {t} (vertices {} {} {}) is degenerate (zero area)",
                 tri[0], tri[1], tri[2]

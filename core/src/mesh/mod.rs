@@ -52,7 +52,9 @@ impl Sequence {
 
     /// Reads every frame of a source into memory.
     pub fn load(source: &dyn FrameSource) -> Result<Self> {
-        let frames = (0..source.n_frames()).map(|t| source.read_frame(t)).collect::<Result<Vec<_>>>()?;
+        let frames = (0..source.n_frames())
+            .map(|t| source.read_frame(t))
+            .collect::<Result<Vec<_>>>()?;
         Ok(Sequence {
             topology: source.topology().clone(),
             frames,

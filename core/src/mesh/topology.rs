@@ -110,7 +110,11 @@ impl Topology {
         self.tri_adj
             .iter()
             .enumerate()
-            .map(|(t, adj)| adj.iter().filter(|&&u| u != NONE && (u as usize) > t).count())
+            .map(|(t, adj)| {
+                adj.iter()
+                    .filter(|&&u| u != NONE && (u as usize) > t)
+                    .count()
+            })
             .sum()
     }
     /// Vertices within `rings` edge hops of `v` (including `v`), in breadth-first order.
@@ -146,7 +150,11 @@ fn build_tri_adjacency(n_vertices: usize, tris: &[[u32; 3]]) -> Result<Vec<[u32;
             let a = tri[k];
             let b = tri[(k + 1) % 3];
             let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-            half.push(((lo as u64) * n_vertices as u64 + hi as u64, t as u32, k as u8));
+            half.push((
+                (lo as u64) * n_vertices as u64 + hi as u64,
+                t as u32,
+                k as u8,
+            ));
         }
     }
     half.sort_unstable();

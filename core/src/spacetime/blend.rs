@@ -34,7 +34,11 @@ impl CrossFade {
         self.next += 1;
         let w = self.windows[k];
         assert_eq!(field.len(), w.len * self.n_tri, "window field size");
-        let next_start = self.windows.get(k + 1).map(|n| n.start).unwrap_or(usize::MAX);
+        let next_start = self
+            .windows
+            .get(k + 1)
+            .map(|n| n.start)
+            .unwrap_or(usize::MAX);
         let mut done = Vec::new();
         let mut pending = Vec::new();
         let mut old = std::mem::take(&mut self.pending).into_iter().peekable();

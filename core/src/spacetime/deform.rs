@@ -96,7 +96,10 @@ pub fn deform(
     if anchors.n_frames() != n {
         return Err(Error::Anchors {
             path: None,
-            msg: format!("anchors cover {} frames but the sequence has {n}", anchors.n_frames()),
+            msg: format!(
+                "anchors cover {} frames but the sequence has {n}",
+                anchors.n_frames()
+            ),
         });
     }
     let topo = source.topology().clone();
@@ -195,7 +198,10 @@ fn position_frame(
 
     let clock = Instant::now();
     let fp: FramePositioner = system.factor_frame(&rest).map_err(|e| match e {
-        Error::Numeric { stage, msg } => Error::numeric(stage, format!("frame {t} ({}): {msg}", source.describe_frame(t))),
+        Error::Numeric { stage, msg } => Error::numeric(
+            stage,
+            format!("frame {t} ({}): {msg}", source.describe_frame(t)),
+        ),
         e => e.at(None, Some(t)),
     })?;
     let factor = clock.elapsed().as_secs_f64();

@@ -32,7 +32,9 @@ fn sum3(n: usize, f: impl Fn(usize) -> [f64; 3] + Sync) -> [f64; 3] {
             s
         })
         .collect();
-    partial.iter().fold([0.0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
+    partial
+        .iter()
+        .fold([0.0; 3], |a, b| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
 }
 
 /// Solves M X = B (rows × 3) to ‖B − M X‖_F ≤ tol ‖B‖_F.
@@ -41,17 +43,28 @@ fn sum3(n: usize, f: impl Fn(usize) -> [f64; 3] + Sync) -> [f64; 3] {
 /// products (CG on M ⊗ I₃). Unlike per-column CG this is exactly equivariant under rotations of the anchors'
 /// rotation vectors (B → B Q leaves every inner product unchanged), so a rigidly moved capture with rigidly
 /// moved anchors yields a rigidly moved result to round-off, not merely to the solver tolerance.
-pub fn solve3(op: &SpaceTimeOperator, b: &[[f64; 3]], tol: f64, max_iter: usize) -> Result<(Vec<[f64; 3]>, CgStats)> {
+pub fn solve3(
+    op: &SpaceTimeOperator,
+    b: &[[f64; 3]],
+    tol: f64,
+    max_iter: usize,
+) -> Result<(Vec<[f64; 3]>, CgStats)> {
     let n = op.n_nodes();
     assert_eq!(b.len(), n);
     let inv_d: Vec<f64> = op.diag().iter().map(|d| 1.0 / d).collect();
     let dot = |a: &[[f64; 3]], c: &[[f64; 3]]| {
-        let s = sum3(n, |k| [a[k][0] * c[k][0], a[k][1] * c[k][1], a[k][2] * c[k][2]]);
+        let s = sum3(n, |k| {
+            [a[k][0] * c[k][0], a[k][1] * c[k][1], a[k][2] * c[k][2]]
+        });
         s[0] + s[1] + s[2]
     };
     let mut x = vec![[0.0f64; 3]; n];
     let mut r = b.to_vec();
-    let mut p: Vec<[f64; 3]> = r.iter().zip(&inv_d).map(|(r, d)| [r[0] * d, r[1] * d, r[2] * d]).collect();
+    let mut p: Vec<[f64; 3]> = r
+        .iter()
+        .zip(&inv_d)
+        .map(|(r, d)| [r[0] * d, r[1] * d, r[2] * d])
+        .collect();
     let mut q = vec![[0.0f64; 3]; n];
     let bnorm = dot(b, b).sqrt();
     let mut rz = dot(&r, &p);
@@ -63,7 +76,10 @@ pub fn solve3(op: &SpaceTimeOperator, b: &[[f64; 3]], tol: f64, max_iter: usize)
         op.apply3(&p, &mut q);
         let alpha = rz / dot(&p, &q);
         if !alpha.is_finite() {
-            return Err(Error::numeric("weights (fused CG)", "breakdown: non-finite step"));
+            return Err(Error::numeric(
+                "weights (fused CG)",
+                "breakdown: non-finite step",
+            ));
         }
         x.par_chunks_mut(CHUNK)
             .zip(r.par_chunks_mut(CHUNK))
@@ -85,7 +101,11 @@ pub fn solve3(op: &SpaceTimeOperator, b: &[[f64; 3]], tol: f64, max_iter: usize)
         }
         let rz_new = sum3(n, |k| {
             let d = inv_d[k];
-            [r[k][0] * r[k][0] * d, r[k][1] * r[k][1] * d, r[k][2] * r[k][2] * d]
+            [
+                r[k][0] * r[k][0] * d,
+                r[k][1] * r[k][1] * d,
+                r[k][2] * r[k][2] * d,
+            ]
         });
         let rz_new = rz_new[0] + rz_new[1] + rz_new[2];
         let beta = rz_new / rz;

@@ -45,7 +45,12 @@ pub struct SpaceTimeOperator<'a> {
 
 impl<'a> SpaceTimeOperator<'a> {
     /// `anchored_nodes` lists the window nodes that carry an anchor (any order).
-    pub fn new(topo: &'a Topology, n_frames: usize, coeffs: Coefficients, anchored_nodes: &[u32]) -> Self {
+    pub fn new(
+        topo: &'a Topology,
+        n_frames: usize,
+        coeffs: Coefficients,
+        anchored_nodes: &[u32],
+    ) -> Self {
         let n_tri = topo.n_triangles();
         let tri_adj = topo.tri_adj();
         let mut diag = Vec::with_capacity(n_tri * n_frames);
@@ -53,7 +58,9 @@ impl<'a> SpaceTimeOperator<'a> {
             let time_deg = (lt > 0) as usize + (lt + 1 < n_frames) as usize;
             for adj in tri_adj {
                 let space_deg = adj.iter().filter(|&&j| j != NONE).count();
-                diag.push(coeffs.c_s * space_deg as f64 + coeffs.c_t * time_deg as f64 + coeffs.c_i);
+                diag.push(
+                    coeffs.c_s * space_deg as f64 + coeffs.c_t * time_deg as f64 + coeffs.c_i,
+                );
             }
         }
         for &n in anchored_nodes {

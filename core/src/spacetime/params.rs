@@ -22,7 +22,10 @@ impl std::str::FromStr for WeightMode {
         match s {
             "fused" => Ok(WeightMode::Fused),
             "per-anchor" => Ok(WeightMode::PerAnchor),
-            _ => Err(Error::param("mode", format!("`{s}` is not one of: fused, per-anchor"))),
+            _ => Err(Error::param(
+                "mode",
+                format!("`{s}` is not one of: fused, per-anchor"),
+            )),
         }
     }
 }
@@ -78,7 +81,10 @@ impl DeformParams {
         let c = &self.coefficients;
         let finite_nonneg = |name: &str, v: f64| {
             if !v.is_finite() || v < 0.0 {
-                Err(Error::param(name, format!("must be a finite number ≥ 0, got {v}")))
+                Err(Error::param(
+                    name,
+                    format!("must be a finite number ≥ 0, got {v}"),
+                ))
             } else {
                 Ok(())
             }
@@ -87,7 +93,10 @@ impl DeformParams {
         finite_nonneg("c_t", c.c_t)?;
         for (name, v) in [("c_i", c.c_i), ("c_a", c.c_a)] {
             if !v.is_finite() || v <= 0.0 {
-                return Err(Error::param(name, format!("must be a finite number > 0, got {v}")));
+                return Err(Error::param(
+                    name,
+                    format!("must be a finite number > 0, got {v}"),
+                ));
             }
         }
         if self.window == 0 {
@@ -96,7 +105,10 @@ impl DeformParams {
         if self.shift == 0 || self.shift > self.window {
             return Err(Error::param(
                 "shift",
-                format!("must be between 1 and the window ({}), got {}", self.window, self.shift),
+                format!(
+                    "must be between 1 and the window ({}), got {}",
+                    self.window, self.shift
+                ),
             ));
         }
         if !(self.cg_tolerance > 0.0 && self.cg_tolerance < 1.0) {
@@ -112,7 +124,10 @@ impl DeformParams {
             return Err(Error::param("anchor_block", "must be at least 1"));
         }
         if self.stretch_passes > 20 {
-            return Err(Error::param("stretch_passes", format!("{} is more than the 20 allowed", self.stretch_passes)));
+            return Err(Error::param(
+                "stretch_passes",
+                format!("{} is more than the 20 allowed", self.stretch_passes),
+            ));
         }
         Ok(())
     }

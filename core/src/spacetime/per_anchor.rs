@@ -38,7 +38,9 @@ pub struct PartialBlend {
 /// Splits `n_anchors` anchor columns into consecutive blocks of at most `block_size`.
 pub fn plan_blocks(n_anchors: usize, block_size: usize) -> Vec<Range<usize>> {
     let bs = block_size.max(1);
-    (0..n_anchors.div_ceil(bs)).map(|b| b * bs..((b + 1) * bs).min(n_anchors)).collect()
+    (0..n_anchors.div_ceil(bs))
+        .map(|b| b * bs..((b + 1) * bs).min(n_anchors))
+        .collect()
 }
 
 /// Conjugate gradient for one column with a growing active set (see module docs). Reusable across columns:
@@ -139,7 +141,10 @@ impl LocalCg {
             }
             let alpha = rz / pq;
             if !alpha.is_finite() {
-                return Err(Error::numeric("weights (per-anchor CG)", "breakdown: non-finite step"));
+                return Err(Error::numeric(
+                    "weights (per-anchor CG)",
+                    "breakdown: non-finite step",
+                ));
             }
             let mut rr = 0.0;
             for l in 0..n {

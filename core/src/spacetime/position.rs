@@ -115,9 +115,15 @@ impl PositionSystem {
             })
             .collect();
         let symbolic = {
-            let sym = SymbolicSparseColMatRef::new_checked(n_free, n_free, &col_ptr, None, &row_idx);
-            factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, Default::default())
-                .map_err(|e| Error::numeric("positioning: symbolic Cholesky", format!("{e:?}")))?
+            let sym =
+                SymbolicSparseColMatRef::new_checked(n_free, n_free, &col_ptr, None, &row_idx);
+            factorize_symbolic_cholesky(
+                sym,
+                Side::Lower,
+                SymmetricOrdering::Amd,
+                Default::default(),
+            )
+            .map_err(|e| Error::numeric("positioning: symbolic Cholesky", format!("{e:?}")))?
         };
         Ok(PositionSystem {
             topo,
@@ -148,7 +154,7 @@ impl PositionSystem {
             let [a, b, c] = tri.map(|i| rest[i as usize]);
             let n = vec3::cross(vec3::sub(b, a), vec3::sub(c, a));
             let twice_area = vec3::norm(n);
-            if !(twice_area > 0.0) || !twice_area.is_finite() {
+            if !twice_area.is_finite() || twice_area <= 0.0 {
                 return Err(Error::mesh(format!("triangle {t} is degenerate")));
             }
             let nh = vec3::scale(n, 1.0 / twice_area);
@@ -191,12 +197,21 @@ impl PositionSystem {
     pub fn factor_frame<'a>(&'a self, rest: &'a [V3]) -> Result<FramePositioner<'a>> {
         let (values, grads, areas, normals) = self.assemble(rest)?;
         let topo = &self.topo;
-        let stack_req = self.symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
-        let mut buf = MemBuffer::try_new(stack_req)
-            .map_err(|_| Error::numeric("positioning", "out of memory for the Cholesky workspace"))?;
+        let stack_req = self
+            .symbolic
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
+        let mut buf = MemBuffer::try_new(stack_req).map_err(|_| {
+            Error::numeric("positioning", "out of memory for the Cholesky workspace")
+        })?;
         let mut l_values = vec![0.0f64; self.symbolic.len_val()];
         {
-            let sym = SymbolicSparseColMatRef::new_checked(self.n_free, self.n_free, &self.col_ptr, None, &self.row_idx);
+            let sym = SymbolicSparseColMatRef::new_checked(
+                self.n_free,
+                self.n_free,
+                &self.col_ptr,
+                None,
+                &self.row_idx,
+            );
             let k = SparseColMatRef::new(sym, &values);
             self.symbolic
                 .factorize_numeric_llt::<f64>(
@@ -208,7 +223,12 @@ impl PositionSystem {
                     MemStack::new(&mut buf),
                     Default::default(),
                 )
-                .map_err(|e| Error::numeric("positioning: Cholesky", format!("stiffness matrix is not positive definite ({e:?})")))?;
+                .map_err(|e| {
+                    Error::numeric(
+                        "positioning: Cholesky",
+                        format!("stiffness matrix is not positive definite ({e:?})"),
+                    )
+                })?;
         }
         let vertex_area = {
             let mut va = vec![0.0; topo.n_vertices()];
@@ -286,7 +306,10 @@ impl FramePositioner<'_> {
     pub fn solve_in_place(&self, rhs: &mut Mat<f64>) {
         let sys = self.sys;
         let llt = LltRef::<usize, f64>::new(&sys.symbolic, &self.l_values);
-        let mut buf = MemBuffer::new(sys.symbolic.solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq));
+        let mut buf = MemBuffer::new(
+            sys.symbolic
+                .solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq),
+        );
         llt.solve_in_place_with_conj(Conj::No, rhs.as_mut(), Par::Seq, MemStack::new(&mut buf));
     }
 
@@ -298,7 +321,11 @@ impl FramePositioner<'_> {
         for (v, dv) in d.iter_mut().enumerate() {
             let fi = sys.free_index[v];
             if fi != NONE {
-                *dv = [rhs[(fi as usize, 0)], rhs[(fi as usize, 1)], rhs[(fi as usize, 2)]];
+                *dv = [
+                    rhs[(fi as usize, 0)],
+                    rhs[(fi as usize, 1)],
+                    rhs[(fi as usize, 2)],
+                ];
             }
         }
         if sys.pinning == Pinning::Centroid {
@@ -317,7 +344,11 @@ impl FramePositioner<'_> {
                 }
             }
         }
-        self.rest.iter().zip(&d).map(|(x, dv)| vec3::add(*x, *dv)).collect()
+        self.rest
+            .iter()
+            .zip(&d)
+            .map(|(x, dv)| vec3::add(*x, *dv))
+            .collect()
     }
 
     /// Stretch-reduction rotations (Popa et al. 2009 §5.5): for each triangle, the rotation taking its original

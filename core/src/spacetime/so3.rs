@@ -14,16 +14,31 @@ pub fn exp(phi: V3) -> M3 {
     let th = th2.sqrt();
     let (a, b) = if th < 1e-4 {
         // sin θ/θ and (1-cos θ)/θ² to fourth order.
-        (1.0 - th2 / 6.0 + th2 * th2 / 120.0, 0.5 - th2 / 24.0 + th2 * th2 / 720.0)
+        (
+            1.0 - th2 / 6.0 + th2 * th2 / 120.0,
+            0.5 - th2 / 24.0 + th2 * th2 / 720.0,
+        )
     } else {
         (th.sin() / th, (1.0 - th.cos()) / th2)
     };
     let [x, y, z] = phi;
     // R = I + a K + b K², K the cross-product matrix of phi.
     [
-        [1.0 - b * (y * y + z * z), -a * z + b * x * y, a * y + b * x * z],
-        [a * z + b * x * y, 1.0 - b * (x * x + z * z), -a * x + b * y * z],
-        [-a * y + b * x * z, a * x + b * y * z, 1.0 - b * (x * x + y * y)],
+        [
+            1.0 - b * (y * y + z * z),
+            -a * z + b * x * y,
+            a * y + b * x * z,
+        ],
+        [
+            a * z + b * x * y,
+            1.0 - b * (x * x + z * z),
+            -a * x + b * y * z,
+        ],
+        [
+            -a * y + b * x * z,
+            a * x + b * y * z,
+            1.0 - b * (x * x + y * y),
+        ],
     ]
 }
 
@@ -57,7 +72,11 @@ pub fn log(r: &M3) -> V3 {
     }
     let axis = vec3::normalize(axis);
     // Pick the sign consistent with the (small) antisymmetric part.
-    let axis = if vec3::dot(axis, w) < 0.0 { vec3::scale(axis, -1.0) } else { axis };
+    let axis = if vec3::dot(axis, w) < 0.0 {
+        vec3::scale(axis, -1.0)
+    } else {
+        axis
+    };
     vec3::scale(axis, th)
 }
 
@@ -76,8 +95,15 @@ pub fn rotation_between(from: V3, to: V3) -> V3 {
         return [0.0; 3];
     }
     // Opposite directions: any axis perpendicular to `from` gives a rotation by π.
-    let helper = if from[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
-    vec3::scale(vec3::normalize(vec3::cross(from, helper)), std::f64::consts::PI)
+    let helper = if from[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    vec3::scale(
+        vec3::normalize(vec3::cross(from, helper)),
+        std::f64::consts::PI,
+    )
 }
 
 /// Geodesic angle between two rotations, |log(Aᵀ B)|.
@@ -108,10 +134,10 @@ mod tests {
             let r = exp(phi);
             // orthonormal with det 1
             let rtr = vec3::mat_mul(&vec3::transpose(&r), &r);
-            for i in 0..3 {
-                for j in 0..3 {
+            for (i, row) in rtr.iter().enumerate() {
+                for (j, v) in row.iter().enumerate() {
                     let want = if i == j { 1.0 } else { 0.0 };
-                    assert!((rtr[i][j] - want).abs() < 1e-12);
+                    assert!((v - want).abs() < 1e-12);
                 }
             }
             let back = log(&r);

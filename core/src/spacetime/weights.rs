@@ -21,7 +21,12 @@ pub struct WindowProblem<'a> {
 }
 
 impl<'a> WindowProblem<'a> {
-    pub fn new(topo: &'a Topology, anchors: &AnchorSet, window: Window, coeffs: Coefficients) -> Self {
+    pub fn new(
+        topo: &'a Topology,
+        anchors: &AnchorSet,
+        window: Window,
+        coeffs: Coefficients,
+    ) -> Self {
         let n_tri = topo.n_triangles();
         let mut list = Vec::new();
         for lt in 0..window.len {
@@ -68,7 +73,11 @@ pub struct WindowStats {
 }
 
 /// Solves one window in the configured mode.
-pub fn solve_window(problem: &WindowProblem, params: &DeformParams, progress: &dyn Progress) -> Result<(Vec<V3>, WindowStats)> {
+pub fn solve_window(
+    problem: &WindowProblem,
+    params: &DeformParams,
+    progress: &dyn Progress,
+) -> Result<(Vec<V3>, WindowStats)> {
     let t0 = std::time::Instant::now();
     let mut stats = WindowStats {
         start: problem.window.start,
@@ -79,7 +88,12 @@ pub fn solve_window(problem: &WindowProblem, params: &DeformParams, progress: &d
     let field = match params.mode {
         WeightMode::Fused => {
             let b = problem.fused_rhs();
-            let (x, cg) = fused::solve3(&problem.op, &b, params.cg_tolerance, params.cg_max_iterations)?;
+            let (x, cg) = fused::solve3(
+                &problem.op,
+                &b,
+                params.cg_tolerance,
+                params.cg_max_iterations,
+            )?;
             stats.cg_iterations = cg.iterations;
             stats.max_relative_residual = cg.relative_residual;
             x
@@ -99,9 +113,7 @@ pub fn solve_window(problem: &WindowProblem, params: &DeformParams, progress: &d
                     .par_iter()
                     .map_init(
                         || BlockWorkspace::new(problem.op.n_nodes()),
-                        |ws, range| {
-                            solve_block_range(problem, range.clone(), params, ws)
-                        },
+                        |ws, range| solve_block_range(problem, range.clone(), params, ws),
                     )
                     .collect();
                 for p in partials {

@@ -79,6 +79,26 @@ impl Polygons {
     }
 }
 
+impl Polygons {
+    /// Whether any face has more than three vertices (then triangle and face numbers differ).
+    pub(crate) fn has_polygons(&self) -> bool {
+        self.iter().any(|f| f.len() > 3)
+    }
+}
+
+/// Adds to a mesh error that names a triangle how triangles are numbered when the file has polygons, since the
+/// triangle index then differs from the face index a user sees in the file.
+pub(crate) fn explain_triangle_numbers(e: crate::Error, has_polygons: bool) -> crate::Error {
+    match e {
+        crate::Error::Mesh { path, frame, msg } if has_polygons && msg.contains("triangle") => crate::Error::Mesh {
+            path,
+            frame,
+            msg: format!("{msg} (triangles count from 0 in face order, each polygon split into a fan of n-2 triangles)"),
+        },
+        other => other,
+    }
+}
+
 /// A face as text for messages, with `base` added to every index (1 for OBJ, 0 for PLY) and long polygons
 /// shortened.
 pub(crate) fn describe_face(face: &[u32], base: u64) -> String {

@@ -1,7 +1,7 @@
 //! Sequences stored as a directory of numbered frame files (OBJ or PLY): a lazy [`FrameSource`] and a
 //! [`FrameSink`] that writes each output frame in the format, name and layout of its input file.
 
-use super::faces::{describe_face, Polygons};
+use super::faces::{describe_face, explain_triangle_numbers, Polygons};
 use super::numbering::file_name;
 use super::{obj, ply};
 use crate::error::{Error, Result};
@@ -67,8 +67,9 @@ impl FrameDirSource {
             .first()
             .ok_or_else(|| Error::mesh("the sequence has no frames"))?;
         let (_, positions, faces0) = read_mesh(format, first)?;
-        let topology = Topology::new(positions.len(), faces0.triangulate())
-            .map_err(|e| e.at(Some(first.clone()), Some(0)))?;
+        let topology = Topology::new(positions.len(), faces0.triangulate()).map_err(|e| {
+            explain_triangle_numbers(e.at(Some(first.clone()), Some(0)), faces0.has_polygons())
+        })?;
         Ok(FrameDirSource {
             format,
             files,
@@ -143,7 +144,8 @@ impl FrameSource for FrameDirSource {
         if let Some(e) = self.different_faces(t, path, &bytes, &faces) {
             return Err(e);
         }
-        geometry::validate_frame(&self.topology, &positions).map_err(at)?;
+        geometry::validate_frame(&self.topology, &positions)
+            .map_err(|e| explain_triangle_numbers(at(e), self.faces0.has_polygons()))?;
         Ok(positions)
     }
 

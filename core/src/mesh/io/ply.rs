@@ -561,9 +561,13 @@ pub(crate) fn parse_ply(path: &Path, bytes: &[u8]) -> Result<PlyMesh> {
     let big = header.encoding == Encoding::BinaryBe;
     let n_vertices = header.elements[header.vertex].count;
     let n_faces = header.elements[header.face].count;
-    // Never trust a header count for an allocation: a record takes at least one byte.
-    let mut positions: Vec<V3> = Vec::with_capacity(n_vertices.min(body.len()));
-    let mut faces = Polygons::with_capacity(n_faces.min(body.len()), (3 * n_faces).min(body.len()));
+    // Never trust a header count for an allocation: a vertex record takes at least 3 bytes (three 1-byte
+    // coordinates), a face record at least 4, an index at least 1.
+    let mut positions: Vec<V3> = Vec::with_capacity(n_vertices.min(body.len() / 3));
+    let mut faces = Polygons::with_capacity(
+        n_faces.min(body.len() / 4),
+        n_faces.saturating_mul(3).min(body.len()),
+    );
     let mut poly: Vec<u32> = Vec::with_capacity(8);
     let face_item = match header.elements[header.face].props[header.face_list].kind {
         PropKind::List { count, item } => (count.size(), item),

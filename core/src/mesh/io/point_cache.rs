@@ -1,6 +1,7 @@
 //! Sequences stored as an OBJ (topology) plus a PC2 point cache (positions): a lazy [`FrameSource`] that seeks
 //! to one sample per read, and a [`FrameSink`] that fills a new cache frame by frame in any order.
 
+use super::faces::explain_triangle_numbers;
 use super::frame_dir::{check_output, describe_missing, out_of_range};
 use super::obj;
 use super::pc2::{self, Pc2Header};
@@ -19,6 +20,8 @@ pub(crate) struct Pc2Source {
     pc2: PathBuf,
     header: Pc2Header,
     topology: Arc<Topology>,
+    /// Whether the OBJ has polygons, so that errors naming a triangle explain the numbering.
+    has_polygons: bool,
 }
 
 impl Pc2Source {
@@ -38,10 +41,16 @@ impl Pc2Source {
                 ),
             ));
         }
-        let topology = Topology::new(mesh.positions.len(), mesh.faces.triangulate())
-            .map_err(|e| e.at(Some(obj_path.to_path_buf()), None))?;
+        let topology =
+            Topology::new(mesh.positions.len(), mesh.faces.triangulate()).map_err(|e| {
+                explain_triangle_numbers(
+                    e.at(Some(obj_path.to_path_buf()), None),
+                    mesh.faces.has_polygons(),
+                )
+            })?;
         Ok(Pc2Source {
             pc2: pc2_path.to_path_buf(),
+            has_polygons: mesh.faces.has_polygons(),
             header,
             topology: Arc::new(topology),
         })
@@ -62,8 +71,9 @@ impl FrameSource for Pc2Source {
             return Err(out_of_range(t, self.header.num_samples));
         }
         let positions = pc2::read_pc2_sample(&self.pc2, &self.header, t)?;
-        geometry::validate_frame(&self.topology, &positions)
-            .map_err(|e| e.at(Some(self.pc2.clone()), Some(t)))?;
+        geometry::validate_frame(&self.topology, &positions).map_err(|e| {
+            explain_triangle_numbers(e.at(Some(self.pc2.clone()), Some(t)), self.has_polygons)
+        })?;
         Ok(positions)
     }
 

@@ -239,6 +239,23 @@ const ERROR_CASES: &[(&str, Setup, &[&str])] = &[
         ],
     ),
     (
+        "zero-area triangle inside a quad",
+        |d| {
+            put(
+                d,
+                "f1.obj",
+                "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0.5 0.5 0\nf 1 2 3 4\n",
+            );
+            d.to_path_buf()
+        },
+        &[
+            "f1.obj",
+            "(frame 0)",
+            "triangle 1 (vertices 0 2 3)",
+            "fan of n-2 triangles",
+        ],
+    ),
+    (
         "repeated-vertex triangle",
         |d| {
             put(d, "f1.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 3 3\n");
@@ -459,6 +476,8 @@ fn bad_inputs_are_named() {
             Ok(()) => failures.push(format!("{name}: no error")),
             Err(e) => {
                 let msg = e.to_string();
+                // Shown with --nocapture, to review the wording of every message at once.
+                eprintln!("{name}:\n    {msg}");
                 let missing: Vec<_> = fragments.iter().filter(|f| !msg.contains(*f)).collect();
                 if !missing.is_empty() {
                     failures.push(format!("{name}: {missing:?} not in `{msg}`"));
@@ -696,10 +715,10 @@ fn binary_be_ply_round_trip() {
             expected[at..at + 24],
             "positions of vertex {i}"
         );
-        for k in 0..3 {
+        for (k, &expected_n) in n.iter().enumerate() {
             let o = at + 24 + 4 * k;
             let v = f32::from_be_bytes(got[o..o + 4].try_into().unwrap());
-            assert_eq!(v, n[k] as f32, "normal of vertex {i}");
+            assert_eq!(v, expected_n as f32, "normal of vertex {i}");
         }
         assert_eq!(
             got[at + 36..at + record],
@@ -871,40 +890,60 @@ fn plain_writers_round_trip() {
     assert!(e.to_string().contains("plain file name"), "{e}");
 }
 
-/// The brief asks for a 50K-vertex OBJ to parse well under 50 ms in release builds.
+/// Mutated and truncated inputs must give errors, never panics (parsers and rewriters alike).
 #[test]
-#[cfg_attr(
-    debug_assertions,
-    ignore = "timing is only meaningful in release builds"
-)]
-fn obj_parsing_is_fast() {
-    let (p, tris) = grid(224, 224, 1.0);
-    let mut text = String::new();
-    for v in &p {
-        text.push_str(&format!("v {:.6} {:.6} {:.6}\n", v[0], v[1], v[2]));
+fn corrupted_inputs_never_panic() {
+    let topo = grid_topology(3, 3);
+    let (p, tris) = grid(3, 3, 1.0);
+    let dir = tempfile::tempdir().unwrap();
+    let mut seeds: Vec<(bool, Vec<u8>)> = Vec::new();
+    for binary in [false, true] {
+        let path = dir.path().join("x.ply");
+        write_ply_frame(&path, &topo, &p, binary).unwrap();
+        seeds.push((false, std::fs::read(&path).unwrap()));
     }
-    for t in &tris {
-        text.push_str(&format!(
-            "f {}/{}/{} {}/{}/{} {}/{}/{}\n",
-            t[0] + 1,
-            t[0] + 1,
-            t[0] + 1,
-            t[1] + 1,
-            t[1] + 1,
-            t[1] + 1,
-            t[2] + 1,
-            t[2] + 1,
-            t[2] + 1
-        ));
+    seeds.push((false, big_endian_ply(&p, &tris)));
+    let body = "0 0 0 1 0 0 1\n1 0 0 1 0 0 1\n1 1 0 1 0 0 1\n0 1 0 1 0 0 1\n3 0 1 2\n3 0 2 3\n7\n";
+    seeds.push((false, format!("{ASCII_NORMALS_PLY}{body}").into_bytes()));
+    let obj =
+        "# c\nv 0 0 0 1 1 1\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2//1 -2/1 4\n";
+    seeds.push((true, obj.as_bytes().to_vec()));
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut rng = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    let path = Path::new("fuzz");
+    for (is_obj, seed) in &seeds {
+        for round in 0..3000 {
+            let mut bytes = seed.clone();
+            match round % 3 {
+                0 => bytes.truncate((rng() as usize) % (seed.len() + 1)),
+                1 => {
+                    for _ in 0..1 + rng() % 4 {
+                        let i = (rng() as usize) % bytes.len();
+                        bytes[i] = rng() as u8;
+                    }
+                }
+                _ => {
+                    let i = (rng() as usize) % bytes.len();
+                    let chars = b" \n-0123456789./e#";
+                    bytes.insert(i, chars[(rng() as usize) % chars.len()]);
+                }
+            }
+            if *is_obj {
+                if let Ok(m) = super::obj::parse_obj(path, &bytes) {
+                    let _ = m.faces.triangulate();
+                    let _ = super::obj::rewrite_obj(path, &bytes, &m.positions);
+                }
+            } else if let Ok(m) = super::ply::parse_ply(path, &bytes) {
+                let header = super::ply::parse_header(path, &bytes).unwrap();
+                let normals = vec![[0.0, 0.0, 1.0]; m.positions.len()];
+                let _ =
+                    super::ply::rewrite_ply(path, &bytes, &header, &m.positions, Some(&normals));
+            }
+        }
     }
-    let mut best = std::time::Duration::MAX;
-    // Best of several runs, so that a busy build machine does not fail the test.
-    for _ in 0..10 {
-        let start = std::time::Instant::now();
-        let mesh = super::obj::parse_obj(Path::new("big.obj"), text.as_bytes()).unwrap();
-        best = best.min(start.elapsed());
-        assert_eq!(mesh.positions.len(), 224 * 224);
-    }
-    eprintln!("50K-vertex OBJ ({} bytes) parsed in {best:?}", text.len());
-    assert!(best.as_millis() < 50, "parsing took {best:?}");
 }

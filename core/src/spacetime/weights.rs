@@ -104,17 +104,25 @@ pub fn solve_window(
             let mut field = vec![[0.0; 3]; problem.op.n_nodes()];
             let mut cg = CgStats::default();
             // Blocks run in parallel in batches and are summed in block order: deterministic, bounded memory.
-            let batch = (2 * rayon::current_num_threads()).max(1);
+            // One workspace per pool thread, allocated once per window (each holds window-sized scratch).
+            let threads = rayon::current_num_threads().max(1);
+            let pool: Vec<std::sync::Mutex<BlockWorkspace>> = (0..threads)
+                .map(|_| std::sync::Mutex::new(BlockWorkspace::new(problem.op.n_nodes())))
+                .collect();
+            let batch = 2 * threads;
             for chunk in blocks.chunks(batch) {
                 if progress.cancelled() {
                     return Err(Error::Cancelled);
                 }
                 let partials: Vec<Result<PartialBlend>> = chunk
                     .par_iter()
-                    .map_init(
-                        || BlockWorkspace::new(problem.op.n_nodes()),
-                        |ws, range| solve_block_range(problem, range.clone(), params, ws),
-                    )
+                    .map(|range| {
+                        let slot = rayon::current_thread_index().unwrap_or(0) % threads;
+                        let mut ws = pool[slot].lock().map_err(|_| {
+                            Error::numeric("weights (per-anchor)", "a worker thread panicked")
+                        })?;
+                        solve_block_range(problem, range.clone(), params, &mut ws)
+                    })
                     .collect();
                 for p in partials {
                     let p = p?;

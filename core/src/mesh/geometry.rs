@@ -96,3 +96,19 @@ pub fn bounding_box(p: &[V3]) -> (V3, V3) {
     }
     (lo, hi)
 }
+
+/// Errors unless there is one position per vertex of `topology`, naming the file the positions belong to.
+pub fn check_position_count(
+    topology: &Topology,
+    n_positions: usize,
+    path: &std::path::Path,
+) -> Result<()> {
+    if n_positions != topology.n_vertices() {
+        return Err(Error::mesh(format!(
+            "{n_positions} positions given for a topology with {} vertices",
+            topology.n_vertices()
+        ))
+        .at(Some(path.to_path_buf()), None));
+    }
+    Ok(())
+}

@@ -236,14 +236,7 @@ impl FrameDirSink {
                 topo
             }
         };
-        if topology.n_vertices() != positions.len() {
-            return Err(Error::mesh(format!(
-                "has {} vertices, but {} positions were given for it",
-                topology.n_vertices(),
-                positions.len()
-            ))
-            .at(Some(input.to_path_buf()), None));
-        }
+        geometry::check_position_count(&topology, positions.len(), input)?;
         Ok(geometry::vertex_normals(&topology, positions))
     }
 }

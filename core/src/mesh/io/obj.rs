@@ -11,7 +11,7 @@ use super::faces::Polygons;
 use super::tokens::{self, parse_f64, parse_i64, show};
 use crate::error::{Error, Result};
 use crate::fsutil;
-use crate::mesh::Topology;
+use crate::mesh::{geometry, Topology};
 use crate::vec3::V3;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -266,14 +266,7 @@ pub(crate) fn rewrite_obj(path: &Path, src: &[u8], positions: &[V3]) -> Result<V
 
 /// Writes a plain OBJ (`v` and `f` lines only, 1-based triangle indices) atomically.
 pub fn write_obj(path: &Path, topology: &Topology, positions: &[V3]) -> Result<()> {
-    if positions.len() != topology.n_vertices() {
-        return Err(Error::mesh(format!(
-            "{} positions given for a topology with {} vertices",
-            positions.len(),
-            topology.n_vertices()
-        ))
-        .at(Some(path.to_path_buf()), None));
-    }
+    geometry::check_position_count(topology, positions.len(), path)?;
     fsutil::write_atomic_with(path, |w| {
         let mut buf = Vec::with_capacity(64);
         for p in positions {

@@ -10,7 +10,7 @@ use super::faces::Polygons;
 use super::tokens::{self, parse_f32, parse_f64, parse_i64, show};
 use crate::error::{Error, Result};
 use crate::fsutil;
-use crate::mesh::Topology;
+use crate::mesh::{geometry, Topology};
 use crate::vec3::V3;
 use std::io::Write;
 use std::path::Path;
@@ -840,14 +840,7 @@ pub fn write_ply_frame(
     positions: &[V3],
     binary: bool,
 ) -> Result<()> {
-    if positions.len() != topology.n_vertices() {
-        return Err(Error::mesh(format!(
-            "{} positions given for a topology with {} vertices",
-            positions.len(),
-            topology.n_vertices()
-        ))
-        .at(Some(path.to_path_buf()), None));
-    }
+    geometry::check_position_count(topology, positions.len(), path)?;
     fsutil::write_atomic_with(path, |w| {
         write!(
             w,

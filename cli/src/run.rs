@@ -234,7 +234,14 @@ pub fn run(a: RunArgs) -> Result<()> {
 
     let t_preview = std::time::Instant::now();
     let preview_path = out.join("preview.png");
-    let img = preview::before_after(&topo, &kept.frames, a.preview_size, 0.10);
+    let focus = kept.frames.first().and_then(|(_, rest, _)| {
+        let anchored = kept
+            .frames
+            .iter()
+            .flat_map(|(t, _, _)| anchors.frame(*t).iter().map(|a| a.triangle));
+        preview::fold_focus(&topo, rest, anchored)
+    });
+    let img = preview::before_after(&topo, &kept.frames, a.preview_size, 0.10, focus);
     render::save_png(&img, &preview_path)?;
     let plot_path = out.join("stretch.png");
     render::save_png(

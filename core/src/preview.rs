@@ -10,9 +10,10 @@ use image::RgbImage;
 const WHITE: [u8; 3] = [255, 255, 255];
 const INK: [u8; 3] = [20, 20, 20];
 
-/// Chooses a viewing direction and an up vector from the shape: up along the longest bounding-box axis,
-/// looking horizontally (perpendicular to it) from a slightly raised three-quarter angle.
-fn view_for(lo: V3, hi: V3) -> (V3, V3) {
+/// Chooses a viewing direction and an up vector: up along the longest bounding-box axis; the camera looks at
+/// the side the folds face (`focus`, the mean normal of the anchored triangles) when there is one, otherwise
+/// from a fixed three-quarter angle; always slightly from above.
+fn view_for(lo: V3, hi: V3, focus: Option<V3>) -> (V3, V3) {
     let ext = vec3::sub(hi, lo);
     let up_axis = (0..3).fold(0, |b, k| if ext[k] > ext[b] { k } else { b });
     let mut up = [0.0; 3];
@@ -22,16 +23,41 @@ fn view_for(lo: V3, hi: V3) -> (V3, V3) {
     let mut dir = [0.0; 3];
     dir[a] = 0.45;
     dir[b] = 1.0;
-    dir[up_axis] = -0.3;
+    if let Some(f) = focus {
+        // Look against the folds' normal, projected to the horizontal plane.
+        let h = vec3::sub(f, vec3::scale(up, vec3::dot(f, up)));
+        if vec3::norm(h) > 1e-6 {
+            dir = vec3::scale(vec3::normalize(h), -1.0);
+        }
+    }
+    dir[up_axis] = -0.3 * vec3::norm(dir);
     (vec3::normalize(dir), up)
 }
 
-/// One row per kept frame: input, output, and output coloured by per-triangle stretch (0 to `stretch_max`).
+/// Mean unit normal of the given triangles in `positions`, if they agree enough to define a side to look at.
+pub fn fold_focus(
+    topo: &Topology,
+    positions: &[V3],
+    triangles: impl Iterator<Item = u32>,
+) -> Option<V3> {
+    let normals = geometry::triangle_normals(topo, positions);
+    let (mut sum, mut n) = ([0.0; 3], 0usize);
+    for t in triangles {
+        sum = vec3::add(sum, normals[t as usize]);
+        n += 1;
+    }
+    (n > 0 && vec3::norm(sum) > 0.2 * n as f64).then(|| vec3::normalize(sum))
+}
+
+/// One row per kept frame: input, output, output seen from the far side, and output coloured by per-triangle
+/// stretch (0 to `stretch_max`).
+/// `focus` is the direction the folds face (see [`fold_focus`]); the camera looks at that side.
 pub fn before_after(
     topo: &Topology,
     frames: &[(usize, Frame, Frame)],
     size: u32,
     stretch_max: f64,
+    focus: Option<V3>,
 ) -> RgbImage {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
@@ -44,8 +70,14 @@ pub fn before_after(
             }
         }
     }
-    let (dir, up) = view_for(lo, hi);
+    let (dir, up) = view_for(lo, hi, focus);
     let cam = Camera::fit(lo, hi, dir, up, size, size);
+    // The far side, where folds hidden from the first camera show.
+    let back_dir = {
+        let h = vec3::sub(dir, vec3::scale(up, vec3::dot(dir, up)));
+        vec3::normalize(vec3::sub(vec3::scale(dir, 1.0), vec3::scale(h, 2.0)))
+    };
+    let back = Camera::fit(lo, hi, back_dir, up, size, size);
     let scale = (size / 256).max(1);
     let rows: Vec<Vec<RgbImage>> = frames
         .iter()
@@ -57,6 +89,7 @@ pub fn before_after(
                 .collect();
             let a = render(rest, topo, &cam, &Style::default());
             let b = render(out, topo, &cam, &Style::default());
+            let d = render(out, topo, &back, &Style::default());
             let c = render(
                 out,
                 topo,
@@ -69,6 +102,7 @@ pub fn before_after(
             vec![
                 caption(&a, &format!("FRAME {t} INPUT"), scale, INK, WHITE),
                 caption(&b, &format!("FRAME {t} OUTPUT"), scale, INK, WHITE),
+                caption(&d, "OUTPUT, FAR SIDE", scale, INK, WHITE),
                 caption(
                     &c,
                     &format!("STRETCH 0-{:.0}%", stretch_max * 100.0),

@@ -148,20 +148,18 @@ pub fn demo_folds(spec: &DemoSpec) -> Vec<FoldSpec> {
     let circ = 2.0 * PI * spec.radius;
     let len = spec.length;
     let n = spec.frames as f64;
-    let base = [
+    // Garment folds are quasi-developable: long folds run along the tube or diagonally (twist), and folds
+    // around it are short arcs. A ridge running all the way around a closed tube would have to lengthen the
+    // circumference by amplitude/radius, which no cloth does; real sleeves buckle into diamonds instead.
+    #[rustfmt::skip]
+    let base: [(f64, f64, f64, f64, f64, f64, f64, f64, f64, f64, f64); 5] = [
         // (centre around, centre height, drift around/frame, drift height/frame, direction, half length, width,
-        //  begin, full, fade, end) with times as fractions of the sequence.
-        (
-            0.0, 0.30, 0.0, 0.004, 0.0, 0.36, 0.024, 0.02, 0.25, 0.65, 0.85,
-        ),
-        (0.25, 0.62, 0.002, 0.0, 0.6, 0.16, 0.02, 0.2, 0.4, 0.8, 0.98),
-        (0.55, 0.75, 0.0, -0.003, 0.0, 0.3, 0.03, 0.35, 0.6, 0.9, 1.2),
-        (
-            0.6, 0.45, -0.003, 0.0, -0.5, 0.12, 0.018, -0.2, 0.0, 0.3, 0.5,
-        ),
-        (
-            0.85, 0.18, 0.0, 0.0, 0.15, 0.2, 0.022, 0.45, 0.6, 0.75, 0.95,
-        ),
+        //  begin, full, fade, end); positions as fractions of circumference/length, times of the sequence.
+        (0.0,  0.30,  0.0,    0.004,  0.35,   0.2,  0.024, 0.02, 0.25, 0.65, 0.85),
+        (0.25, 0.62,  0.002,  0.0,    0.6,    0.16, 0.02,  0.2,  0.4,  0.8,  0.98),
+        (0.55, 0.62,  0.0,   -0.003,  1.5708, 0.25, 0.03,  0.35, 0.6,  0.9,  1.2),
+        (0.6,  0.45, -0.003,  0.0,   -1.1,    0.12, 0.018, -0.2, 0.0,  0.3,  0.5),
+        (0.85, 0.18,  0.0,    0.0,    0.15,   0.1,  0.022, 0.45, 0.6,  0.75, 0.95),
     ];
     let mut folds = Vec::new();
     let copies = spec.fold_scale.max(0.0);
@@ -327,7 +325,7 @@ fn fold_anchors(
                     if along.abs() <= envelope_len && across.abs() < best {
                         best = across.abs();
                         // Real folds fade out at their ends rather than stopping abruptly.
-                        taper = (0.5 * PI * along / envelope_len).cos().powf(0.5);
+                        taper = (0.5 * PI * along / envelope_len).cos().powf(2.0);
                     }
                 }
                 if h_outside(ch, spec.length, cell) || best > 0.5 * cell {

@@ -11,7 +11,7 @@ use crate::error::Result;
 use crate::folds::{Anchor, AnchorSet};
 use crate::mesh::{Frame, Sequence, Topology};
 use crate::vec3::{self, V3};
-use std::f64::consts::PI;
+use std::f64::consts::{FRAC_PI_2, PI};
 use std::sync::Arc;
 
 /// A regular grid on a surface patch: `cols × rows` vertices, two triangles per cell.
@@ -152,14 +152,14 @@ pub fn demo_folds(spec: &DemoSpec) -> Vec<FoldSpec> {
     // around it are short arcs. A ridge running all the way around a closed tube would have to lengthen the
     // circumference by amplitude/radius, which no cloth does; real sleeves buckle into diamonds instead.
     #[rustfmt::skip]
-    let base: [(f64, f64, f64, f64, f64, f64, f64, f64, f64, f64, f64); 5] = [
+    let base: [[f64; 11]; 5] = [
         // (centre around, centre height, drift around/frame, drift height/frame, direction, half length, width,
         //  begin, full, fade, end); positions as fractions of circumference/length, times of the sequence.
-        (0.0,  0.30,  0.0,    0.004,  0.35,   0.2,  0.024, 0.02, 0.25, 0.65, 0.85),
-        (0.25, 0.62,  0.002,  0.0,    0.6,    0.16, 0.02,  0.2,  0.4,  0.8,  0.98),
-        (0.55, 0.62,  0.0,   -0.003,  1.5708, 0.25, 0.03,  0.35, 0.6,  0.9,  1.2),
-        (0.6,  0.45, -0.003,  0.0,   -1.1,    0.12, 0.018, -0.2, 0.0,  0.3,  0.5),
-        (0.85, 0.18,  0.0,    0.0,    0.15,   0.1,  0.022, 0.45, 0.6,  0.75, 0.95),
+        [0.0,  0.30,  0.0,    0.004,  0.35,   0.2,  0.024, 0.02, 0.25, 0.65, 0.85],
+        [0.25, 0.62,  0.002,  0.0,    0.6,    0.16, 0.02,  0.2,  0.4,  0.8,  0.98],
+        [0.55, 0.62,  0.0,   -0.003,  FRAC_PI_2, 0.25, 0.03,  0.35, 0.6,  0.9,  1.2],
+        [0.6,  0.45, -0.003,  0.0,   -1.1,    0.12, 0.018, -0.2, 0.0,  0.3,  0.5],
+        [0.85, 0.18,  0.0,    0.0,    0.15,   0.1,  0.022, 0.45, 0.6,  0.75, 0.95],
     ];
     let mut folds = Vec::new();
     let copies = spec.fold_scale.max(0.0);
@@ -173,21 +173,21 @@ pub fn demo_folds(spec: &DemoSpec) -> Vec<FoldSpec> {
             // Copies are shifted around the tube and in height so they do not coincide.
             let shift_around = copy as f64 * 0.37;
             let shift_height = copy as f64 * 0.11;
-            let width = b.6 * len / 0.9;
+            let width = b[6] * len / 0.9;
             folds.push(FoldSpec {
                 centre: [
-                    ((b.0 + shift_around) % 1.0) * circ,
-                    ((b.1 + shift_height) % 0.8 + 0.1) * len,
+                    ((b[0] + shift_around) % 1.0) * circ,
+                    ((b[1] + shift_height) % 0.8 + 0.1) * len,
                 ],
-                drift: [b.2 * circ * 36.0 / n, b.3 * len * 36.0 / n],
-                direction: b.4,
-                half_length: b.5 * len,
+                drift: [b[2] * circ * 36.0 / n, b[3] * len * 36.0 / n],
+                direction: b[4],
+                half_length: b[5] * len,
                 width,
                 angle: angle_for_width(width, 0.018 * len / 0.9, 0.03 * len / 0.9),
-                t_begin: b.7 * n,
-                t_full: b.8 * n,
-                t_fade: b.9 * n,
-                t_end: b.10 * n,
+                t_begin: b[7] * n,
+                t_full: b[8] * n,
+                t_fade: b[9] * n,
+                t_end: b[10] * n,
             });
         }
     }

@@ -354,8 +354,7 @@ fn per_anchor_and_fused_agree_and_weights_are_convex() {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for a in &problem.anchors {
         cg.solve(op, a.node, coeffs.c_a, 1e-3, 1000).unwrap();
-        for (l, &g) in cg.nodes.iter().enumerate() {
-            let w = cg.x[l];
+        for (g, w) in cg.column() {
             lo = lo.min(w);
             hi = hi.max(w);
             sum[g as usize] += w;
@@ -380,8 +379,8 @@ fn local_cg_matches_whole_window_cg() {
     b[node as usize] = [10.0, 0.0, 0.0];
     let (x, _) = crease_core::spacetime::fused::solve3(&op, &b, 1e-3, 1000).unwrap();
     let mut dense = vec![0.0; op.n_nodes()];
-    for (l, &g) in cg.nodes.iter().enumerate() {
-        dense[g as usize] = cg.x[l];
+    for (g, w) in cg.column() {
+        dense[g as usize] = w;
     }
     let worst = dense
         .iter()

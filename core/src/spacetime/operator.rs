@@ -103,6 +103,54 @@ impl<'a> SpaceTimeOperator<'a> {
         }
     }
 
+    /// The five neighbour slots of row `node`: slots 0–2 are the triangles across edges 0–2 in the same frame,
+    /// slot 3 the same triangle one frame earlier, slot 4 one frame later; `usize::MAX` where there is none.
+    /// Slots 0–2 couple with `c_s`, slots 3–4 with `c_t`.
+    #[inline]
+    pub fn neighbor_slots(&self, node: usize) -> [usize; 5] {
+        let lt = node / self.n_tri;
+        let i = node - lt * self.n_tri;
+        let base = lt * self.n_tri;
+        let adj = self.tri_adj[i];
+        let sp = |j: u32| {
+            if j == NONE {
+                usize::MAX
+            } else {
+                base + j as usize
+            }
+        };
+        [
+            sp(adj[0]),
+            sp(adj[1]),
+            sp(adj[2]),
+            if lt > 0 {
+                node - self.n_tri
+            } else {
+                usize::MAX
+            },
+            if lt + 1 < self.n_frames {
+                node + self.n_tri
+            } else {
+                usize::MAX
+            },
+        ]
+    }
+
+    /// The slot of `node` in the neighbour list of its neighbour in slot `slot` (the link seen from the other
+    /// side).
+    #[inline]
+    pub fn reverse_slot(&self, node: usize, slot: usize, neighbor: usize) -> usize {
+        match slot {
+            3 => 4,
+            4 => 3,
+            _ => {
+                let i = (node % self.n_tri) as u32;
+                let j = neighbor % self.n_tri;
+                self.tri_adj[j].iter().position(|&k| k == i).unwrap_or(0)
+            }
+        }
+    }
+
     /// y = M p for three right-hand sides stored row-wise, parallel over node chunks (each output row is
     /// written by exactly one task, so the result does not depend on the thread count).
     pub fn apply3(&self, p: &[[f64; 3]], y: &mut [[f64; 3]]) {

@@ -23,7 +23,8 @@ pub struct WindowAnchor {
     pub phi: V3,
 }
 
-/// Partial blend of one anchor block: Σ_{a∈block} w_a φ_a on the nodes the block reaches, sorted by node.
+/// Partial blend of one anchor block: Σ_{a∈block} w_a φ_a on the nodes the block reaches, in the order the
+/// block first reached them (deterministic: it depends only on the block's anchors).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PartialBlend {
     pub nodes: Vec<u32>,
@@ -45,10 +46,16 @@ pub fn plan_blocks(n_anchors: usize, block_size: usize) -> Vec<Range<usize>> {
 
 /// Conjugate gradient for one column with a growing active set (see module docs). Reusable across columns:
 /// only the touched entries of the global-to-local map are reset.
+///
+/// The active nodes keep their own adjacency in local indices (`links`), filled in as nodes join, so an
+/// iteration touches only the compact local arrays. Local index 0 is a sentinel whose value is always zero; it
+/// stands for "no neighbour or not yet active", which keeps the inner loop free of branches.
 pub struct LocalCg {
     local_of: Vec<u32>,
-    pub nodes: Vec<u32>,
-    pub x: Vec<f64>,
+    nodes: Vec<u32>,
+    links: Vec<[u32; 5]>,
+    diag: Vec<f64>,
+    x: Vec<f64>,
     r: Vec<f64>,
     p: Vec<f64>,
     q: Vec<f64>,
@@ -56,38 +63,73 @@ pub struct LocalCg {
 
 impl LocalCg {
     pub fn new(n_nodes: usize) -> Self {
-        LocalCg {
+        let mut cg = LocalCg {
             local_of: vec![NONE; n_nodes],
             nodes: Vec::new(),
+            links: Vec::new(),
+            diag: Vec::new(),
             x: Vec::new(),
             r: Vec::new(),
             p: Vec::new(),
             q: Vec::new(),
-        }
+        };
+        cg.clear();
+        cg
+    }
+
+    /// The last solved column: (window node, weight) for every node of its support.
+    pub fn column(&self) -> impl Iterator<Item = (u32, f64)> + '_ {
+        self.nodes[1..]
+            .iter()
+            .copied()
+            .zip(self.x[1..].iter().copied())
     }
 
     fn clear(&mut self) {
-        for &g in &self.nodes {
+        for &g in self.nodes.iter().skip(1) {
             self.local_of[g as usize] = NONE;
         }
+        for v in [
+            &mut self.diag,
+            &mut self.x,
+            &mut self.r,
+            &mut self.p,
+            &mut self.q,
+        ] {
+            v.clear();
+            v.push(0.0);
+        }
         self.nodes.clear();
-        self.x.clear();
-        self.r.clear();
-        self.p.clear();
-        self.q.clear();
+        self.nodes.push(NONE);
+        self.links.clear();
+        self.links.push([0; 5]);
     }
 
-    fn push(&mut self, g: usize) {
-        self.local_of[g] = self.nodes.len() as u32;
+    fn push(&mut self, op: &SpaceTimeOperator, g: usize) {
+        let l = self.nodes.len() as u32;
+        self.local_of[g] = l;
         self.nodes.push(g as u32);
+        self.diag.push(op.diag()[g]);
         self.x.push(0.0);
         self.r.push(0.0);
         self.p.push(0.0);
         self.q.push(0.0);
+        let mut own = [0u32; 5];
+        for (slot, &m) in op.neighbor_slots(g).iter().enumerate() {
+            if m == usize::MAX {
+                continue;
+            }
+            let lm = self.local_of[m];
+            if lm != NONE {
+                own[slot] = lm;
+                self.links[lm as usize][op.reverse_slot(g, slot, m)] = l;
+            }
+        }
+        self.links.push(own);
     }
 
-    /// Solves M w = rhs · e_node to relative residual `tol`; afterwards `self.nodes` / `self.x` hold the
-    /// column's non-zero support and values. Returns (iterations, relative residual, node updates).
+    /// Solves M w = rhs · e_node to relative residual `tol`; afterwards [`LocalCg::column`] yields the column's
+    /// support and values. Returns (iterations, relative residual, node updates).
     pub fn solve(
         &mut self,
         op: &SpaceTimeOperator,
@@ -97,47 +139,38 @@ impl LocalCg {
         max_iter: usize,
     ) -> Result<(usize, f64, u64)> {
         self.clear();
-        let diag = op.diag();
-        self.push(node as usize);
-        self.r[0] = rhs;
-        self.p[0] = rhs / diag[node as usize];
-        let mut rz = rhs * self.p[0];
+        self.push(op, node as usize);
+        self.r[1] = rhs;
+        self.p[1] = rhs / self.diag[1];
+        let mut rz = rhs * self.p[1];
         let bnorm = rhs.abs();
-        let mut frontier = 0..1usize;
+        let (c_s, c_t) = (op.coeffs.c_s, op.coeffs.c_t);
+        let mut frontier = 1..2usize;
         let mut updates = 0u64;
         for it in 1..=max_iter {
             // Grow the active set by the ring that M p can reach.
             let before = self.nodes.len();
             for l in frontier.clone() {
                 let g = self.nodes[l] as usize;
-                let mut nb = [0usize; 5];
-                let mut k = 0;
-                op.for_each_neighbor(g, |m, _| {
-                    nb[k] = m;
-                    k += 1;
-                });
-                for &m in &nb[..k] {
-                    if self.local_of[m] == NONE {
-                        self.push(m);
+                for m in op.neighbor_slots(g) {
+                    if m != usize::MAX && self.local_of[m] == NONE {
+                        self.push(op, m);
                     }
                 }
             }
             frontier = before..self.nodes.len();
             let n = self.nodes.len();
-            updates += n as u64;
+            updates += (n - 1) as u64;
             // q = M p on the active set.
             let mut pq = 0.0;
-            for l in 0..n {
-                let g = self.nodes[l] as usize;
-                let mut s = diag[g] * self.p[l];
-                op.for_each_neighbor(g, |m, w| {
-                    let lm = self.local_of[m];
-                    if lm != NONE {
-                        s -= w * self.p[lm as usize];
-                    }
-                });
+            for l in 1..n {
+                let k = self.links[l];
+                let p = &self.p;
+                let s = self.diag[l] * p[l]
+                    - c_s * (p[k[0] as usize] + p[k[1] as usize] + p[k[2] as usize])
+                    - c_t * (p[k[3] as usize] + p[k[4] as usize]);
                 self.q[l] = s;
-                pq += self.p[l] * s;
+                pq += p[l] * s;
             }
             let alpha = rz / pq;
             if !alpha.is_finite() {
@@ -147,7 +180,7 @@ impl LocalCg {
                 ));
             }
             let mut rr = 0.0;
-            for l in 0..n {
+            for l in 1..n {
                 self.x[l] += alpha * self.p[l];
                 self.r[l] -= alpha * self.q[l];
                 rr += self.r[l] * self.r[l];
@@ -157,13 +190,13 @@ impl LocalCg {
                 return Ok((it, rel, updates));
             }
             let mut rz_new = 0.0;
-            for l in 0..n {
-                rz_new += self.r[l] * self.r[l] / diag[self.nodes[l] as usize];
+            for l in 1..n {
+                rz_new += self.r[l] * self.r[l] / self.diag[l];
             }
             let beta = rz_new / rz;
             rz = rz_new;
-            for l in 0..n {
-                self.p[l] = self.r[l] / diag[self.nodes[l] as usize] + beta * self.p[l];
+            for l in 1..n {
+                self.p[l] = self.r[l] / self.diag[l] + beta * self.p[l];
             }
         }
         Err(Error::numeric(
@@ -208,8 +241,7 @@ pub fn solve_block(
         out.iterations += it;
         out.max_relative_residual = out.max_relative_residual.max(rel);
         out.node_updates += upd;
-        for (l, &g) in ws.cg.nodes.iter().enumerate() {
-            let w = ws.cg.x[l];
+        for (g, w) in ws.cg.column() {
             let gi = g as usize;
             if !ws.is_touched[gi] {
                 ws.is_touched[gi] = true;
@@ -221,7 +253,6 @@ pub fn solve_block(
             acc[2] += w * a.phi[2];
         }
     }
-    ws.touched.sort_unstable();
     out.nodes = std::mem::take(&mut ws.touched);
     out.values = out
         .nodes

@@ -172,6 +172,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
             }));
         }
     }
+    aux_stages(&a)?;
     let export = match &a.export {
         Some(dir) => Some(export_case(
             dir,
@@ -187,6 +188,103 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         crease_core::fsutil::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     }
     Ok(())
+}
+
+/// Stages around the deformation: reading and writing one OBJ frame, and rendering one 512x512 preview tile.
+fn aux_stages(a: &BenchArgs) -> Result<()> {
+    println!(
+        "\nI/O and preview, seconds per frame (median of {} runs)",
+        a.repeats.max(3)
+    );
+    println!(
+        "{:>8} {:>10} {:>10} {:>10}",
+        "tris", "OBJ read", "OBJ write", "render"
+    );
+    for &size in &a.sizes {
+        let spec = DemoSpec {
+            triangles: size,
+            frames: 1,
+            ..Default::default()
+        };
+        let (seq, _) = synth::demo(&spec)?;
+        let dir = scratch_dir()?;
+        let input = dir.join("in");
+        crease_core::fsutil::create_dir_all(&input)?;
+        crease_core::mesh::io::write_obj_sequence(
+            &input,
+            &seq.topology,
+            [("frame_0001.obj".to_string(), seq.frames[0].as_slice())],
+        )?;
+        let opened = crease_core::mesh::io::open_sequence(&input)?;
+        let runs = a.repeats.max(3);
+        let read = median(
+            (0..runs)
+                .map(|_| {
+                    let t = Instant::now();
+                    let ok = opened.source.read_frame(0).is_ok();
+                    if ok {
+                        t.elapsed().as_secs_f64()
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect(),
+        );
+        let out = dir.join("out");
+        let write = median(
+            (0..runs)
+                .map(|_| {
+                    let t = Instant::now();
+                    let ok = crease_core::mesh::io::create_sink(&opened.layout, &out)
+                        .and_then(|mut sink| {
+                            sink.write_frame(0, &seq.frames[0])?;
+                            sink.finish()
+                        })
+                        .is_ok();
+                    if ok {
+                        t.elapsed().as_secs_f64()
+                    } else {
+                        f64::NAN
+                    }
+                })
+                .collect(),
+        );
+        let (lo, hi) = crease_core::mesh::geometry::bounding_box(&seq.frames[0]);
+        let cam =
+            crease_core::render::Camera::fit(lo, hi, [0.0, 1.0, -0.3], [0.0, 0.0, 1.0], 512, 512);
+        let render = median(
+            (0..runs)
+                .map(|_| {
+                    let t = Instant::now();
+                    let img = crease_core::render::render(
+                        &seq.frames[0],
+                        &seq.topology,
+                        &cam,
+                        &Default::default(),
+                    );
+                    std::hint::black_box(img);
+                    t.elapsed().as_secs_f64()
+                })
+                .collect(),
+        );
+        println!(
+            "{:>8} {:>10.4} {:>10.4} {:>10.4}",
+            seq.topology.n_triangles(),
+            read,
+            write,
+            render
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    Ok(())
+}
+
+/// A scratch directory for benchmark files (under the system temporary directory).
+fn scratch_dir() -> Result<PathBuf> {
+    let dir = std::env::temp_dir().join(format!("crease-bench-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    crease_core::fsutil::create_dir_all(&dir)?;
+    Ok(dir)
 }
 
 /// Exports the first window's weight matrix and right-hand sides, and frame 0's positioning matrix and

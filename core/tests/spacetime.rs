@@ -542,3 +542,34 @@ fn long_sequences_stream_with_memory_bounded_by_the_window() {
         "{held} frames held at once for a {n}-frame sequence"
     );
 }
+
+#[test]
+fn results_are_bit_identical_across_thread_counts() {
+    // The cluster will split the same work differently; outputs must not depend on how many threads ran it.
+    let (seq, anchors) = small_demo(12);
+    for mode in [WeightMode::Fused, WeightMode::PerAnchor] {
+        let params = DeformParams {
+            mode,
+            anchor_block: 50,
+            ..Default::default()
+        };
+        let outputs: Vec<Vec<Vec<[f64; 3]>>> = [1usize, 2, 3]
+            .iter()
+            .map(|&threads| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| run(&seq, &anchors, &params).0)
+            })
+            .collect();
+        for other in &outputs[1..] {
+            let same = outputs[0]
+                .iter()
+                .flatten()
+                .zip(other.iter().flatten())
+                .all(|(a, b)| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()));
+            assert!(same, "{mode}: output depends on the thread count");
+        }
+    }
+}

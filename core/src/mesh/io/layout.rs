@@ -306,6 +306,25 @@ pub fn open_sequence(path: &Path) -> Result<OpenedSequence> {
     Ok(OpenedSequence { source, layout })
 }
 
+/// Copies the `.mtl` material libraries next to OBJ inputs into `out_dir`, so the output frames' `mtllib`
+/// lines (kept verbatim) still resolve.
+fn copy_material_libraries(input_dir: &Path, out_dir: &Path) -> Result<()> {
+    let dir = if input_dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        input_dir
+    };
+    for file in list_files(dir)? {
+        if extension_is(&file, "mtl") {
+            if let Some(name) = file.file_name() {
+                let bytes = std::fs::read(&file).map_err(|e| Error::io(&file, e))?;
+                fsutil::write_atomic(&out_dir.join(name), &bytes)?;
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Creates a sink writing into `out_dir` (created if needed) in the layout of the input: the same file names,
 /// each output frame derived from its input file (see the OBJ and PLY rewriters for what is kept), or a copy of
 /// the topology OBJ plus a PC2 with the input's header. `out_dir` must not be an input directory, since the
@@ -329,6 +348,12 @@ pub fn create_sink(source_layout: &SequenceLayout, out_dir: &Path) -> Result<Box
                 ),
             ));
         }
+    }
+    if let SequenceLayout::ObjFrames { dir, .. } = source_layout {
+        copy_material_libraries(dir, out_dir)?;
+    }
+    if let SequenceLayout::ObjPc2 { obj, .. } = source_layout {
+        copy_material_libraries(obj.parent().unwrap_or(Path::new(".")), out_dir)?;
     }
     Ok(match source_layout {
         SequenceLayout::ObjFrames { frames, .. } => Box::new(FrameDirSink::new(

@@ -513,6 +513,7 @@ fn obj_directory_round_trip_keeps_everything_but_positions() {
     for (t, name) in ["f9.obj", "f10.obj", "f11.obj"].iter().enumerate() {
         put(&input, name, frame_text(t));
     }
+    put(&input, "cloth.mtl", "newmtl red\nKd 1 0 0\n".to_string());
     let (opened, frames) = read_all(&input);
     assert_eq!(opened.layout.kind(), "obj-frames");
     assert_eq!(opened.source.topology().n_triangles(), 4);
@@ -528,6 +529,11 @@ fn obj_directory_round_trip_keeps_everything_but_positions() {
 
     let (_, reread) = read_all(&out);
     assert_eq!(reread, new, "OBJ output must round-trip positions exactly");
+    // The material library the frames refer to comes along.
+    assert_eq!(
+        std::fs::read_to_string(out.join("cloth.mtl")).unwrap(),
+        "newmtl red\nKd 1 0 0\n"
+    );
     let text = std::fs::read_to_string(out.join("f10.obj")).unwrap();
     assert!(
         text.starts_with("# exported by test\r\nmtllib cloth.mtl\no cloth\n"),

@@ -513,7 +513,7 @@ fn obj_directory_round_trip_keeps_everything_but_positions() {
     for (t, name) in ["f9.obj", "f10.obj", "f11.obj"].iter().enumerate() {
         put(&input, name, frame_text(t));
     }
-    put(&input, "cloth.mtl", "newmtl red\nKd 1 0 0\n".to_string());
+    put(&input, "cloth.mtl", "newmtl red\nKd 1 0 0\n");
     let (opened, frames) = read_all(&input);
     assert_eq!(opened.layout.kind(), "obj-frames");
     assert_eq!(opened.source.topology().n_triangles(), 4);

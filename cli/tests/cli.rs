@@ -238,3 +238,79 @@ fn bad_inputs_get_clear_errors_and_no_report() {
         stderr(&o)
     );
 }
+
+#[test]
+fn point_cache_and_ply_inputs_keep_their_layout() {
+    use crease_core::mesh::io::{read_pc2_header, write_obj, write_pc2, write_ply_frame};
+    use crease_core::synth::{self, DemoSpec};
+    let (seq, anchors) = synth::demo(&DemoSpec {
+        triangles: 2000,
+        frames: 8,
+        ..Default::default()
+    })
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let anchors_path = dir.path().join("anchors.json");
+    anchors.write(&anchors_path).unwrap();
+
+    // OBJ topology + PC2 point cache.
+    let pc = dir.path().join("pc");
+    std::fs::create_dir(&pc).unwrap();
+    write_obj(&pc.join("sleeve.obj"), &seq.topology, &seq.frames[0]).unwrap();
+    write_pc2(&pc.join("sleeve.pc2"), &seq.frames, 1.0, 1.0).unwrap();
+    let out = dir.path().join("out-pc");
+    let o = crease(&[
+        "run",
+        "--input",
+        pc.to_str().unwrap(),
+        "--anchors",
+        anchors_path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--preview-size",
+        "64",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let h_in = read_pc2_header(&pc.join("sleeve.pc2")).unwrap();
+    let h_out = read_pc2_header(&out.join("sleeve.pc2")).unwrap();
+    assert_eq!(h_in, h_out);
+    assert!(out.join("sleeve.obj").exists());
+
+    // Binary PLY frames.
+    let ply = dir.path().join("ply");
+    std::fs::create_dir(&ply).unwrap();
+    for (t, f) in seq.frames.iter().enumerate() {
+        write_ply_frame(
+            &ply.join(format!("cloth_{t:03}.ply")),
+            &seq.topology,
+            f,
+            true,
+        )
+        .unwrap();
+    }
+    let out = dir.path().join("out-ply");
+    let o = crease(&[
+        "run",
+        "--input",
+        ply.to_str().unwrap(),
+        "--anchors",
+        anchors_path.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--preview-size",
+        "64",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for t in 0..seq.frames.len() {
+        let name = format!("cloth_{t:03}.ply");
+        let bytes = std::fs::read(out.join(&name)).unwrap();
+        assert!(
+            bytes.starts_with(b"ply\nformat binary_little_endian"),
+            "{name}"
+        );
+        assert_eq!(
+            bytes.len(),
+            std::fs::metadata(ply.join(&name)).unwrap().len() as usize
+        );
+    }
+}

@@ -15,6 +15,22 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// Runs `crease run` on `input` with `anchors` into `out` and asserts it succeeded.
+fn run_ok(input: &Path, anchors: &Path, out: &Path) {
+    let o = crease(&[
+        "run",
+        "--input",
+        input.to_str().unwrap(),
+        "--anchors",
+        anchors.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--preview-size",
+        "64",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 fn fixture() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/sleeve")
 }
@@ -259,18 +275,7 @@ fn point_cache_and_ply_inputs_keep_their_layout() {
     write_obj(&pc.join("sleeve.obj"), &seq.topology, &seq.frames[0]).unwrap();
     write_pc2(&pc.join("sleeve.pc2"), &seq.frames, 1.0, 1.0).unwrap();
     let out = dir.path().join("out-pc");
-    let o = crease(&[
-        "run",
-        "--input",
-        pc.to_str().unwrap(),
-        "--anchors",
-        anchors_path.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--preview-size",
-        "64",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    run_ok(&pc, &anchors_path, &out);
     let h_in = read_pc2_header(&pc.join("sleeve.pc2")).unwrap();
     let h_out = read_pc2_header(&out.join("sleeve.pc2")).unwrap();
     assert_eq!(h_in, h_out);
@@ -289,18 +294,7 @@ fn point_cache_and_ply_inputs_keep_their_layout() {
         .unwrap();
     }
     let out = dir.path().join("out-ply");
-    let o = crease(&[
-        "run",
-        "--input",
-        ply.to_str().unwrap(),
-        "--anchors",
-        anchors_path.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--preview-size",
-        "64",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    run_ok(&ply, &anchors_path, &out);
     for t in 0..seq.frames.len() {
         let name = format!("cloth_{t:03}.ply");
         let bytes = std::fs::read(out.join(&name)).unwrap();

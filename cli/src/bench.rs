@@ -342,13 +342,16 @@ fn export_case(
                 let mut cg = LocalCg::new(n);
                 let t = Instant::now();
                 for a in &problem.anchors[..sample] {
-                    let _ = cg.solve(
+                    let solved = cg.solve(
                         &problem.op,
                         a.node,
                         params.coefficients.c_a,
                         params.cg_tolerance,
                         params.cg_max_iterations,
                     );
+                    if solved.is_err() {
+                        return f64::NAN;
+                    }
                 }
                 t.elapsed().as_secs_f64() / sample as f64
             })

@@ -239,7 +239,6 @@ fn tube_point(spec: &DemoSpec, u: f64, h: f64, t: f64) -> V3 {
     // Tangent T = tz·ẑ + tx·dir; normal N = −tx·ẑ + tz·dir; binormal = side.
     let nvec = [dir[0] * tz, dir[1] * tz, -tx];
     let (s, c) = theta.sin_cos();
-    let _ = (tz, tx);
     vec3::add(
         centre,
         vec3::add(

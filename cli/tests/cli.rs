@@ -15,9 +15,9 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-/// Runs `crease run` on `input` with `anchors` into `out` and asserts it succeeded.
-fn run_ok(input: &Path, anchors: &Path, out: &Path) {
-    let o = crease(&[
+/// Runs `crease run` on `input` with `anchors` into `out` (small previews).
+fn run_on(input: &Path, anchors: &Path, out: &Path) -> Output {
+    crease(&[
         "run",
         "--input",
         input.to_str().unwrap(),
@@ -27,7 +27,12 @@ fn run_ok(input: &Path, anchors: &Path, out: &Path) {
         out.to_str().unwrap(),
         "--preview-size",
         "64",
-    ]);
+    ])
+}
+
+/// [`run_on`], asserting success.
+fn run_ok(input: &Path, anchors: &Path, out: &Path) {
+    let o = run_on(input, anchors, out);
     assert!(o.status.success(), "{}", stderr(&o));
 }
 
@@ -222,15 +227,7 @@ fn bad_inputs_get_clear_errors_and_no_report() {
     let idx = lines.iter().position(|l| l.starts_with("v ")).unwrap() + 10;
     lines[idx] = "v nan 0 0".into();
     std::fs::write(bad.join("frame_0021.obj"), lines.join("\n")).unwrap();
-    let o = crease(&[
-        "run",
-        "--input",
-        bad.to_str().unwrap(),
-        "--anchors",
-        empty.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = run_on(&bad, &empty, &out);
     let err = stderr(&o);
     assert!(!o.status.success());
     assert!(
@@ -239,15 +236,7 @@ fn bad_inputs_get_clear_errors_and_no_report() {
     );
     assert!(!out.join("report.json").exists());
     // Output directory equal to the input directory is refused.
-    let o = crease(&[
-        "run",
-        "--input",
-        bad.to_str().unwrap(),
-        "--anchors",
-        empty.to_str().unwrap(),
-        "--out",
-        bad.to_str().unwrap(),
-    ]);
+    let o = run_on(&bad, &empty, &bad);
     assert!(
         !o.status.success() && stderr(&o).contains("input directory"),
         "{}",

@@ -21,6 +21,22 @@ fn small_demo(frames: usize) -> (Sequence, AnchorSet) {
     .unwrap()
 }
 
+/// The blended rotation-vector field of frames `0..n` solved as one window.
+fn whole_sequence_field(
+    topo: &crease_core::mesh::Topology,
+    anchors: &AnchorSet,
+    n: usize,
+    params: &DeformParams,
+) -> Vec<[f64; 3]> {
+    let problem = WindowProblem::new(
+        topo,
+        anchors,
+        Window { start: 0, len: n },
+        params.coefficients,
+    );
+    solve_window(&problem, params, &NoProgress).unwrap().0
+}
+
 fn run(
     seq: &Sequence,
     anchors: &AnchorSet,
@@ -159,13 +175,7 @@ fn single_anchor_rotates_its_triangle_and_decays() {
         ..Default::default()
     };
     // The blended rotation field itself: the anchor's own triangle gets close to the full rotation.
-    let problem = WindowProblem::new(
-        &topo,
-        &anchors,
-        Window { start: 0, len: n },
-        params.coefficients,
-    );
-    let (field, _) = solve_window(&problem, &params, &NoProgress).unwrap();
+    let field = whole_sequence_field(&topo, &anchors, n, &params);
     let n_tri = topo.n_triangles();
     let at = |t: usize, tri: usize| vec3::norm(field[t * n_tri + tri]);
     let own = at(7, centre_tri as usize);
@@ -254,13 +264,7 @@ fn anchor_line_is_realised_by_positioning() {
         stretch_passes: 0,
         ..Default::default()
     };
-    let problem = WindowProblem::new(
-        &topo,
-        &anchors,
-        Window { start: 0, len: n },
-        params.coefficients,
-    );
-    let (field, _) = solve_window(&problem, &params, &NoProgress).unwrap();
+    let field = whole_sequence_field(&topo, &anchors, n, &params);
     let (out, _) = run(&seq, &anchors, &params);
     let mid = row[row.len() / 2] as usize;
     let blended = vec3::norm(field[2 * topo.n_triangles() + mid]);

@@ -93,6 +93,27 @@ impl AnchorSet {
         Ok(set)
     }
 
+    /// Assembles a validated set from detector output: `frames` must hold frames `0..n` in order, as
+    /// [`crate::folds::FoldDetector::detect`] chunks concatenated in frame order do.
+    pub fn from_frame_anchors(
+        frames: Vec<FrameAnchors>,
+        n_triangles: usize,
+        path: Option<&Path>,
+    ) -> Result<Self> {
+        if let Some((i, fa)) = frames.iter().enumerate().find(|(i, fa)| fa.frame != *i) {
+            return Err(Error::Anchors {
+                path: path.map(Path::to_path_buf),
+                msg: format!(
+                    "detector output out of order: entry {i} is frame {} (expected {i})",
+                    fa.frame
+                ),
+            });
+        }
+        let mut set = AnchorSet { frames };
+        set.validate(n_triangles, path)?;
+        Ok(set)
+    }
+
     pub fn n_frames(&self) -> usize {
         self.frames.len()
     }

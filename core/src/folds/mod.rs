@@ -1,5 +1,42 @@
 //! Fold estimates and their hand-off to the deformation: anchors (triangle, axis, angle) per frame.
+//!
+//! Every way of finding folds (an anchors file, the capture video of Popa et al. 2009 §4, the geometry alone
+//! after Chen 2011 ch. 4) ends in the same [`AnchorSet`]; the [`FoldDetector`] trait is the seam that lets the
+//! single-machine driver and the cluster planner run any of them without knowing which one it is.
 
 pub mod anchors;
 
-pub use anchors::{Anchor, AnchorSet};
+pub use anchors::{Anchor, AnchorSet, FrameAnchors};
+
+use crate::mesh::FrameSource;
+use crate::progress::Progress;
+use crate::Result;
+use std::ops::Range;
+
+/// How a detector's work may be split across tasks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Granularity {
+    /// Each frame is detected on its own (video edges): any frame range is a valid task.
+    PerFrame,
+    /// Detection carries state through time (phases, seed memory): the whole sequence is one task.
+    WholeSequence,
+}
+
+/// Turns a captured sequence into anchors for the space-time deformation.
+pub trait FoldDetector: Sync {
+    /// Short name used in logs and reports (`video`, `stretch`).
+    fn name(&self) -> &'static str;
+
+    /// Whether frame ranges may be detected independently.
+    fn granularity(&self) -> Granularity;
+
+    /// Detects the anchors (and control lines) of `frames` of `source`. Returns one entry per frame of the range,
+    /// in order, with `FrameAnchors::frame` set to the absolute frame index. For
+    /// [`Granularity::WholeSequence`] the range is always the whole sequence.
+    fn detect(
+        &self,
+        source: &dyn FrameSource,
+        frames: Range<usize>,
+        progress: &dyn Progress,
+    ) -> Result<Vec<FrameAnchors>>;
+}

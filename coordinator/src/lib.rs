@@ -1,0 +1,1 @@
+//! The coordinator: persistent queue, scheduler, gRPC services.

@@ -1,0 +1,1 @@
+//! Job specs, planning (job -> task graph), storage and task execution on top of crease-core.

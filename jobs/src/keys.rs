@@ -1,0 +1,68 @@
+//! Deterministic names: task keys within a job and storage keys under the job's output.
+//!
+//! Everything a task writes is named after the job and the task alone (never a worker, an attempt or a time),
+//! so a task that runs twice — after a lost worker, a coordinator restart or a late duplicate — overwrites the
+//! same objects with the same bytes, and a finished task's results are found again after a restart.
+
+/// Intermediates live here, under the output root, so they can be opened with NumPy and deleted as a whole.
+pub const WORK_DIR: &str = ".crease-work";
+/// Written last by the finalize task: its presence says the output is complete.
+pub const REPORT: &str = "report.json";
+pub const PREVIEW: &str = "preview.png";
+pub const STRETCH_PLOT: &str = "stretch.png";
+/// Detected anchors (fold detection jobs only).
+pub const ANCHORS: &str = "anchors.json";
+
+// Task keys.
+pub fn fold_detect_task(first_frame: usize) -> String {
+    format!("folds/f{first_frame:06}")
+}
+pub const FOLD_MERGE_TASK: &str = "folds/merge";
+pub fn weight_window_task(window: usize) -> String {
+    format!("weights/w{window:04}")
+}
+pub fn weight_block_task(window: usize, block: usize) -> String {
+    format!("weights/w{window:04}/b{block:05}")
+}
+pub fn reduce_task(window: usize) -> String {
+    format!("reduce/w{window:04}")
+}
+pub fn position_task(first_frame: usize) -> String {
+    format!("position/f{first_frame:06}")
+}
+pub const FINALIZE_TASK: &str = "finalize";
+
+// Storage keys of intermediates.
+/// Detected anchors of the frames starting at `first_frame` (JSON list of `FrameAnchors`).
+pub fn fold_chunk(first_frame: usize) -> String {
+    format!("{WORK_DIR}/folds/f{first_frame:06}.json")
+}
+/// Partial blend of one anchor block: (n, 4) f64 rows `node, x, y, z`.
+pub fn block_partial(window: usize, block: usize) -> String {
+    format!("{WORK_DIR}/weights/w{window:04}/b{block:05}.npy")
+}
+/// CG statistics of one anchor block (JSON).
+pub fn block_stats(window: usize, block: usize) -> String {
+    format!("{WORK_DIR}/weights/w{window:04}/b{block:05}.json")
+}
+/// Frame `frame` of window `window`'s rotation-vector field: (n_triangles, 3) f64.
+pub fn window_field(window: usize, frame: usize) -> String {
+    format!("{WORK_DIR}/fields/w{window:04}/f{frame:06}.npy")
+}
+/// Statistics of window `window`'s weight solve (JSON `WindowStats`).
+pub fn window_stats(window: usize) -> String {
+    format!("{WORK_DIR}/fields/w{window:04}/stats.json")
+}
+/// Output positions of frame `frame`: (n_vertices, 3) f64.
+pub fn positions(frame: usize) -> String {
+    format!("{WORK_DIR}/positions/f{frame:06}.npy")
+}
+/// Stretch accumulators of frame `frame` after positioning and each pass (u64 words, see
+/// `crease_core::metrics::StretchAccumulator::to_words`).
+pub fn frame_stretch(frame: usize) -> String {
+    format!("{WORK_DIR}/positions/f{frame:06}.stretch.npy")
+}
+/// Timings of frame `frame`'s positioning (JSON; the only intermediate whose bytes differ between runs).
+pub fn frame_timings(frame: usize) -> String {
+    format!("{WORK_DIR}/positions/f{frame:06}.timings.json")
+}

@@ -1,0 +1,240 @@
+//! The planner: a job becomes a graph of tasks (DESIGN §8).
+//!
+//! ```text
+//!   fold-detect (per frame chunk, or one)  ─► fold-merge ─┐            (only when folds are detected)
+//!                                                         ▼ expand
+//!   weight-block (window, anchor block) ─► reduce (window) ─┐          (per-anchor mode)
+//!   weight-window (window) ─────────────────────────────────┤          (fused mode)
+//!                                                           ▼
+//!   position (frame chunk; depends on every window covering its frames) ─► finalize
+//! ```
+//!
+//! When the anchors are known at submit (an anchors file, or none), [`plan`] returns the whole graph. When
+//! they are detected, the anchor count of each window — and with it the number of weight blocks — is only
+//! known once detection is done, so [`plan`] returns the detection tasks and a `fold-merge` task marked
+//! `expands`, and [`expand`] returns the rest once `fold-merge` has succeeded.
+
+use crate::detect;
+use crate::error::JobError;
+use crate::inspect::InputInfo;
+use crate::keys;
+use crate::spec::JobSpec;
+use crate::task::{TaskDef, TaskOutput, TaskSpec};
+use crease_core::folds::Granularity;
+use crease_core::spacetime::per_anchor::plan_blocks;
+use crease_core::spacetime::windows::{plan_windows, Window};
+use crease_core::spacetime::WeightMode;
+
+/// The initial task graph of a job.
+pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
+    job.validate()?;
+    let n = info.n_frames;
+    if n == 0 {
+        return Err(JobError::Plan("the input has no frames".into()));
+    }
+    if let Some(counts) = &info.anchors_per_frame {
+        if counts.len() != n {
+            return Err(JobError::Plan(format!(
+                "anchor counts cover {} frames but the input has {n}",
+                counts.len()
+            )));
+        }
+        return Ok(deformation_tasks(job, n, counts, &[]));
+    }
+    let detector = detect::detector(&job.folds)?.ok_or_else(|| {
+        JobError::Plan(format!(
+            "folds of kind `{}` are neither known at submit nor detected",
+            job.folds.kind()
+        ))
+    })?;
+    let chunks: Vec<std::ops::Range<usize>> = match detector.granularity() {
+        Granularity::WholeSequence => vec![0..n],
+        Granularity::PerFrame => chunk_ranges(n, job.partition.fold_frames_per_chunk),
+    };
+    let mut tasks: Vec<TaskDef> = chunks
+        .iter()
+        .map(|r| TaskDef {
+            key: keys::fold_detect_task(r.start),
+            spec: TaskSpec::FoldDetect {
+                job: job.clone(),
+                frames: r.clone(),
+            },
+            deps: vec![],
+            expands: false,
+        })
+        .collect();
+    tasks.push(TaskDef {
+        key: keys::FOLD_MERGE_TASK.to_string(),
+        spec: TaskSpec::FoldMerge { job: job.clone() },
+        deps: tasks.iter().map(|t| t.key.clone()).collect(),
+        expands: true,
+    });
+    Ok(tasks)
+}
+
+/// The tasks to add after task `done_key` (marked `expands`) succeeded with `output`.
+pub fn expand(
+    job: &JobSpec,
+    info: &InputInfo,
+    done_key: &str,
+    output: &TaskOutput,
+) -> Result<Vec<TaskDef>, JobError> {
+    if done_key != keys::FOLD_MERGE_TASK {
+        return Err(JobError::Plan(format!(
+            "task `{done_key}` does not expand the graph"
+        )));
+    }
+    let counts: Vec<usize> = output
+        .summary
+        .get("anchors_per_frame")
+        .and_then(|v| serde_json::from_value(v.clone()).ok())
+        .ok_or_else(|| {
+            JobError::Plan(format!(
+                "task `{done_key}` reported no `anchors_per_frame` in its summary"
+            ))
+        })?;
+    if counts.len() != info.n_frames {
+        return Err(JobError::Plan(format!(
+            "task `{done_key}` reported anchors for {} frames but the input has {}",
+            counts.len(),
+            info.n_frames
+        )));
+    }
+    Ok(deformation_tasks(
+        job,
+        info.n_frames,
+        &counts,
+        &[keys::FOLD_MERGE_TASK.to_string()],
+    ))
+}
+
+/// Storage keys (relative to the job's output) that must all exist before the job may be marked done.
+pub fn final_outputs(job: &JobSpec, info: &InputInfo) -> Vec<String> {
+    let mut out = info.output_files.clone();
+    if info.anchors_per_frame.is_none() {
+        out.push(keys::ANCHORS.to_string());
+    }
+    let _ = job;
+    out.push(keys::PREVIEW.to_string());
+    out.push(keys::STRETCH_PLOT.to_string());
+    out.push(keys::REPORT.to_string());
+    out
+}
+
+/// `[0, n)` cut into consecutive ranges of at most `size` frames.
+pub fn chunk_ranges(n: usize, size: usize) -> Vec<std::ops::Range<usize>> {
+    let size = size.max(1);
+    (0..n.div_ceil(size))
+        .map(|c| c * size..((c + 1) * size).min(n))
+        .collect()
+}
+
+/// Windows of a job over `n` frames.
+pub fn job_windows(job: &JobSpec, n: usize) -> Vec<Window> {
+    let p = job.params();
+    plan_windows(n, p.window, p.shift)
+}
+
+/// Number of anchor blocks of each window, given the anchors per frame.
+pub fn blocks_per_window(job: &JobSpec, counts: &[usize]) -> Vec<usize> {
+    let p = job.params();
+    job_windows(job, counts.len())
+        .iter()
+        .map(|w| {
+            let anchors: usize = counts[w.start..w.end()].iter().sum();
+            plan_blocks(anchors, p.anchor_block).len()
+        })
+        .collect()
+}
+
+/// Weights, reduce, positioning and finalize tasks, each also depending on `extra_deps`.
+fn deformation_tasks(
+    job: &JobSpec,
+    n: usize,
+    counts: &[usize],
+    extra_deps: &[String],
+) -> Vec<TaskDef> {
+    let params = job.params();
+    let windows = job_windows(job, n);
+    let mut tasks = Vec::new();
+    // Key of the task that produces each window's field.
+    let mut field_task = Vec::with_capacity(windows.len());
+    match params.mode {
+        WeightMode::Fused => {
+            for k in 0..windows.len() {
+                let key = keys::weight_window_task(k);
+                tasks.push(TaskDef {
+                    key: key.clone(),
+                    spec: TaskSpec::WeightWindow {
+                        job: job.clone(),
+                        window: k,
+                    },
+                    deps: extra_deps.to_vec(),
+                    expands: false,
+                });
+                field_task.push(key);
+            }
+        }
+        WeightMode::PerAnchor => {
+            for (k, &blocks) in blocks_per_window(job, counts).iter().enumerate() {
+                let mut block_keys = Vec::with_capacity(blocks);
+                for b in 0..blocks {
+                    let key = keys::weight_block_task(k, b);
+                    tasks.push(TaskDef {
+                        key: key.clone(),
+                        spec: TaskSpec::WeightBlock {
+                            job: job.clone(),
+                            window: k,
+                            block: b,
+                        },
+                        deps: extra_deps.to_vec(),
+                        expands: false,
+                    });
+                    block_keys.push(key);
+                }
+                let key = keys::reduce_task(k);
+                let mut deps = extra_deps.to_vec();
+                deps.extend(block_keys);
+                tasks.push(TaskDef {
+                    key: key.clone(),
+                    spec: TaskSpec::Reduce {
+                        job: job.clone(),
+                        window: k,
+                    },
+                    deps,
+                    expands: false,
+                });
+                field_task.push(key);
+            }
+        }
+    }
+    let mut position_keys = Vec::new();
+    for r in chunk_ranges(n, job.partition.frames_per_chunk) {
+        let key = keys::position_task(r.start);
+        let mut deps = extra_deps.to_vec();
+        for (k, w) in windows.iter().enumerate() {
+            if w.start < r.end && r.start < w.end() {
+                deps.push(field_task[k].clone());
+            }
+        }
+        tasks.push(TaskDef {
+            key: key.clone(),
+            spec: TaskSpec::Position {
+                job: job.clone(),
+                frames: r,
+            },
+            deps,
+            expands: false,
+        });
+        position_keys.push(key);
+    }
+    let mut deps = extra_deps.to_vec();
+    deps.extend(position_keys);
+    tasks.push(TaskDef {
+        key: keys::FINALIZE_TASK.to_string(),
+        spec: TaskSpec::Finalize { job: job.clone() },
+        deps,
+        expands: false,
+    });
+    tasks
+}

@@ -1,0 +1,156 @@
+//! The job spec users submit (TOML or JSON, DESIGN §3): where the input and output live, where the folds come
+//! from, the deformation parameters, and how the work is partitioned across tasks.
+//!
+//! Every field except `input` and `output` has a default, and the deformation defaults are the paper defaults
+//! that `crease run` uses, so a two-line job file deforms a sequence exactly as `crease run` would.
+
+use crate::error::JobError;
+use crease_core::spacetime::DeformParams;
+use serde::{Deserialize, Serialize};
+
+/// A job as submitted. See the crate documentation for an example `job.toml`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JobSpec {
+    /// Human-readable name shown by `crease jobs` (defaults to the input's last path segment).
+    #[serde(default)]
+    pub name: String,
+    /// Input sequence URI: a plain path, `file://…` (later `s3://…`): a directory of numbered OBJ/PLY frames,
+    /// a directory with one `.obj` + one `.pc2`, or the `.pc2` itself.
+    pub input: String,
+    /// Output location URI (a directory): frames under the input's file names, `report.json` (written last),
+    /// `preview.png`, `stretch.png`, and intermediates under `.crease-work/`.
+    pub output: String,
+    /// Where the folds (anchors) come from.
+    #[serde(default)]
+    pub folds: FoldSpec,
+    /// Space-time deformation parameters (paper defaults).
+    #[serde(default)]
+    pub deform: DeformParams,
+    /// Higher runs first; FIFO within a priority.
+    #[serde(default)]
+    pub priority: i32,
+    #[serde(default)]
+    pub partition: Partition,
+    /// Submitting twice with the same token returns the first job instead of creating a second one.
+    #[serde(default)]
+    pub client_token: Option<String>,
+    /// Attempts of one task before the job fails.
+    #[serde(default = "default_max_task_attempts")]
+    pub max_task_attempts: u32,
+    /// Failed attempts, over all tasks of the job, before the job fails.
+    #[serde(default = "default_max_task_failures_per_job")]
+    pub max_task_failures_per_job: u32,
+    #[serde(default)]
+    pub preview: PreviewOptions,
+}
+
+fn default_max_task_attempts() -> u32 {
+    3
+}
+fn default_max_task_failures_per_job() -> u32 {
+    10
+}
+
+/// Where a job's anchors come from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+pub enum FoldSpec {
+    /// No folds: the output equals the input (useful to check a pipeline end to end).
+    #[default]
+    None,
+    /// An anchors file (JSON, DESIGN §3) an artist or another tool wrote.
+    Anchors {
+        /// URI of the anchors file.
+        uri: String,
+    },
+    /// Test-only detector that derives anchors from the geometry of each frame; exercises the generic
+    /// fold-detection path of the planner (see `detect.rs`).
+    #[cfg(test)]
+    #[serde(rename = "test-detector")]
+    TestDetector { whole_sequence: bool },
+}
+
+impl FoldSpec {
+    /// Short name for logs and reports.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            FoldSpec::None => "none",
+            FoldSpec::Anchors { .. } => "anchors",
+            #[cfg(test)]
+            FoldSpec::TestDetector { .. } => "test-detector",
+        }
+    }
+}
+
+/// How a job is cut into tasks.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Partition {
+    /// Anchor columns per weight block in per-anchor mode (overrides `deform.anchor_block` when set).
+    pub anchor_block: usize,
+    /// Frames per positioning task.
+    pub frames_per_chunk: usize,
+    /// Frames per fold-detection task (per-frame detectors only).
+    pub fold_frames_per_chunk: usize,
+}
+
+impl Default for Partition {
+    fn default() -> Self {
+        Partition {
+            anchor_block: 256,
+            frames_per_chunk: 4,
+            fold_frames_per_chunk: 8,
+        }
+    }
+}
+
+/// What `preview.png` shows.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PreviewOptions {
+    /// Frames (0-based) shown before/after; empty = four spread over the sequence, as `crease run` does.
+    pub frames: Vec<usize>,
+    /// Tile size in pixels.
+    pub size: u32,
+}
+
+impl Default for PreviewOptions {
+    fn default() -> Self {
+        PreviewOptions {
+            frames: Vec::new(),
+            size: 384,
+        }
+    }
+}
+
+impl JobSpec {
+    /// Parses a TOML job file and validates it.
+    pub fn from_toml_str(text: &str) -> Result<Self, JobError> {
+        let spec: JobSpec =
+            toml::from_str(text).map_err(|e| JobError::spec("job.toml", e.to_string()))?;
+        spec.validate()?;
+        Ok(spec)
+    }
+
+    /// Parses a JSON job spec and validates it.
+    pub fn from_json_str(text: &str) -> Result<Self, JobError> {
+        let spec: JobSpec =
+            serde_json::from_str(text).map_err(|e| JobError::spec("job (JSON)", e.to_string()))?;
+        spec.validate()?;
+        Ok(spec)
+    }
+
+    /// Checks everything that can be checked without touching storage, naming the field at fault.
+    pub fn validate(&self) -> Result<(), JobError> {
+        Err(JobError::spec("job", "not implemented yet"))
+    }
+
+    /// The deformation parameters tasks run with (`partition.anchor_block` is the block size).
+    pub fn params(&self) -> DeformParams {
+        DeformParams {
+            anchor_block: self.partition.anchor_block,
+            ..self.deform.clone()
+        }
+    }
+}

@@ -1,0 +1,291 @@
+//! Inputs, intermediates and outputs through `object_store` URLs (DESIGN §8: bulk data travels through object
+//! storage; gRPC carries only task descriptions and small results).
+//!
+//! A [`Storage`] is a directory-like root (the job's output location, an input directory) addressed by a URI:
+//! a plain path, `file://…`, or any scheme `object_store` was built with. Objects under it are named by
+//! relative keys (`report.json`, `.crease-work/weights/w0003.npy`). Keys are deterministic functions of the job
+//! and the task (see [`crate::keys`]), so a task that runs twice writes the same object twice, with the same
+//! bytes. `put` is atomic on every backend: `LocalFileSystem` stages into a temporary file and renames it, object
+//! stores publish whole objects, so a reader never sees half an object under a final key.
+
+use crate::error::JobError;
+use bytes::Bytes;
+use futures::TryStreamExt;
+use object_store::local::LocalFileSystem;
+use object_store::path::Path as ObjectPath;
+use object_store::{ObjectStore, ObjectStoreExt, PutPayload};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// How a URI was understood: a local filesystem path, or a remote object-store location.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Location {
+    /// A plain path or `file://` URI, made absolute.
+    Local(PathBuf),
+    /// Any other scheme, kept as a URL.
+    Remote(url::Url),
+}
+
+/// Parses a URI: plain paths (relative ones against the current directory) and `file://` are local, every
+/// other `scheme://` is remote. `field` names the job-spec field in errors.
+pub fn parse_location(uri: &str, field: &str) -> Result<Location, JobError> {
+    if uri.trim().is_empty() {
+        return Err(JobError::spec(field, "is empty; give a path or a URI"));
+    }
+    if !uri.contains("://") {
+        let p = PathBuf::from(uri);
+        let abs = if p.is_absolute() {
+            p
+        } else {
+            std::env::current_dir()
+                .map_err(|e| JobError::input(uri, format!("cannot resolve a relative path: {e}")))?
+                .join(p)
+        };
+        return Ok(Location::Local(abs));
+    }
+    let url = url::Url::parse(uri)
+        .map_err(|e| JobError::spec(field, format!("`{uri}` is not a valid URI: {e}")))?;
+    if url.scheme() == "file" {
+        let p = url.to_file_path().map_err(|_| {
+            JobError::spec(field, format!("`{uri}` is not a valid local file URI"))
+        })?;
+        return Ok(Location::Local(p));
+    }
+    Ok(Location::Remote(url))
+}
+
+/// A storage root: an object store plus the prefix of the root inside it.
+#[derive(Clone)]
+pub struct Storage {
+    uri: String,
+    store: Arc<dyn ObjectStore>,
+    prefix: ObjectPath,
+    local: Option<PathBuf>,
+}
+
+impl std::fmt::Debug for Storage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Storage").field("uri", &self.uri).finish()
+    }
+}
+
+impl Storage {
+    /// Opens the root at `uri`. A local root is created if it does not exist (outputs); use
+    /// [`Storage::open_existing`] for inputs.
+    pub fn open(uri: &str) -> Result<Self, JobError> {
+        Self::open_inner(uri, true)
+    }
+
+    /// Opens the root at `uri`, which must already exist when local.
+    pub fn open_existing(uri: &str) -> Result<Self, JobError> {
+        Self::open_inner(uri, false)
+    }
+
+    fn open_inner(uri: &str, create: bool) -> Result<Self, JobError> {
+        match parse_location(uri, "uri")? {
+            Location::Local(dir) => {
+                if create {
+                    std::fs::create_dir_all(&dir)
+                        .map_err(|e| JobError::storage(uri, format!("cannot create {}: {e}", dir.display())))?;
+                }
+                if !dir.is_dir() {
+                    return Err(JobError::storage(
+                        uri,
+                        format!("{} is not a directory", dir.display()),
+                    ));
+                }
+                let store = LocalFileSystem::new_with_prefix(&dir)
+                    .map_err(|e| JobError::storage(uri, e))?;
+                Ok(Storage {
+                    uri: uri.to_string(),
+                    store: Arc::new(store),
+                    prefix: ObjectPath::default(),
+                    local: Some(dir),
+                })
+            }
+            Location::Remote(url) => {
+                let (store, prefix) =
+                    object_store::parse_url(&url).map_err(|e| JobError::storage(uri, e))?;
+                Ok(Storage {
+                    uri: uri.to_string(),
+                    store: Arc::from(store),
+                    prefix,
+                    local: None,
+                })
+            }
+        }
+    }
+
+    pub fn uri(&self) -> &str {
+        &self.uri
+    }
+
+    /// The root as a local directory, when it is one (crease-core then reads and writes it directly).
+    pub fn local_path(&self) -> Option<&Path> {
+        self.local.as_deref()
+    }
+
+    /// `uri/key`, for messages.
+    pub fn describe(&self, key: &str) -> String {
+        format!("{}/{}", self.uri.trim_end_matches('/'), key)
+    }
+
+    fn path(&self, key: &str) -> Result<ObjectPath, JobError> {
+        let rel = ObjectPath::parse(key)
+            .map_err(|e| JobError::storage(self.describe(key), format!("invalid key: {e}")))?;
+        Ok(self.prefix.parts().chain(rel.parts()).collect())
+    }
+
+    /// Reads the whole object at `key`.
+    pub async fn get(&self, key: &str) -> Result<Bytes, JobError> {
+        let path = self.path(key)?;
+        let got = self
+            .store
+            .get(&path)
+            .await
+            .map_err(|e| JobError::storage(self.describe(key), e))?;
+        got.bytes()
+            .await
+            .map_err(|e| JobError::storage(self.describe(key), e))
+    }
+
+    /// Writes `bytes` to `key` atomically (replacing any previous object).
+    pub async fn put(&self, key: &str, bytes: impl Into<Bytes>) -> Result<(), JobError> {
+        let path = self.path(key)?;
+        self.store
+            .put(&path, PutPayload::from(bytes.into()))
+            .await
+            .map_err(|e| JobError::storage(self.describe(key), e))?;
+        Ok(())
+    }
+
+    /// Whether an object exists at `key`.
+    pub async fn exists(&self, key: &str) -> Result<bool, JobError> {
+        let path = self.path(key)?;
+        match self.store.head(&path).await {
+            Ok(_) => Ok(true),
+            Err(object_store::Error::NotFound { .. }) => Ok(false),
+            Err(e) => Err(JobError::storage(self.describe(key), e)),
+        }
+    }
+
+    /// Removes the object at `key`; a missing object is not an error.
+    pub async fn delete(&self, key: &str) -> Result<(), JobError> {
+        let path = self.path(key)?;
+        match self.store.delete(&path).await {
+            Ok(()) | Err(object_store::Error::NotFound { .. }) => Ok(()),
+            Err(e) => Err(JobError::storage(self.describe(key), e)),
+        }
+    }
+
+    /// Keys (relative to the root, sorted) of every object under `key_prefix` (`""` for all).
+    pub async fn list(&self, key_prefix: &str) -> Result<Vec<String>, JobError> {
+        let prefix = if key_prefix.is_empty() {
+            self.prefix.clone()
+        } else {
+            self.path(key_prefix)?
+        };
+        let root_parts = self.prefix.parts().count();
+        let metas: Vec<_> = self
+            .store
+            .list(Some(&prefix))
+            .try_collect()
+            .await
+            .map_err(|e| JobError::storage(self.describe(key_prefix), e))?;
+        let mut keys: Vec<String> = metas
+            .into_iter()
+            .map(|m| {
+                m.location
+                    .parts()
+                    .skip(root_parts)
+                    .map(|p| p.as_ref().to_string())
+                    .collect::<Vec<_>>()
+                    .join("/")
+            })
+            .collect();
+        keys.sort();
+        Ok(keys)
+    }
+}
+
+/// Makes the input at `uri` readable by crease-core from a local path. A local input is used in place (no
+/// copy); a remote one is downloaded once into `cache_dir/<hash of the URI>/` (objects that are already there
+/// with the right size are kept) and the local copy's path is returned. Works for directories and single files
+/// (a `.pc2` is fetched with its sibling `.obj`).
+pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf, JobError> {
+    match parse_location(uri, "input")? {
+        Location::Local(p) => Ok(p),
+        Location::Remote(url) => {
+            let local = cache_dir.join(format!("{:016x}", fnv1a(url.as_str().as_bytes())));
+            let (store, prefix) =
+                object_store::parse_url(&url).map_err(|e| JobError::input(uri, e))?;
+            let parts = prefix.parts().count();
+            let metas: Vec<_> = store
+                .list(Some(&prefix))
+                .try_collect()
+                .await
+                .map_err(|e| JobError::input(uri, e))?;
+            // A single object (a file URI): fetch its directory's objects of the same stem too.
+            let (metas, base_parts, single) = if metas.is_empty() {
+                let parent: ObjectPath = prefix.parts().take(parts.saturating_sub(1)).collect();
+                let stem = prefix
+                    .filename()
+                    .and_then(|f| f.rsplit_once('.').map(|(s, _)| s.to_string()))
+                    .unwrap_or_default();
+                let all: Vec<_> = store
+                    .list(Some(&parent))
+                    .try_collect()
+                    .await
+                    .map_err(|e| JobError::input(uri, e))?;
+                let same_stem: Vec<_> = all
+                    .into_iter()
+                    .filter(|m| {
+                        m.location.parts().count() == parts
+                            && m.location
+                                .filename()
+                                .is_some_and(|f| f.rsplit_once('.').map(|(s, _)| s) == Some(&stem))
+                    })
+                    .collect();
+                if same_stem.is_empty() {
+                    return Err(JobError::input(uri, "no such object or directory"));
+                }
+                (same_stem, parts.saturating_sub(1), true)
+            } else {
+                (metas, parts, false)
+            };
+            for m in &metas {
+                let rel: PathBuf = m.location.parts().skip(base_parts).map(|p| p.as_ref().to_string()).collect();
+                let dest = local.join(&rel);
+                if std::fs::metadata(&dest).is_ok_and(|d| d.len() == m.size) {
+                    continue;
+                }
+                let bytes = store
+                    .get(&m.location)
+                    .await
+                    .map_err(|e| JobError::input(uri, e))?
+                    .bytes()
+                    .await
+                    .map_err(|e| JobError::input(uri, e))?;
+                if let Some(parent) = dest.parent() {
+                    std::fs::create_dir_all(parent)
+                        .map_err(|e| JobError::input(uri, format!("cache {}: {e}", parent.display())))?;
+                }
+                crease_core::fsutil::write_atomic(&dest, &bytes)
+                    .map_err(|e| JobError::input(uri, format!("cache: {e}")))?;
+            }
+            Ok(if single {
+                local.join(prefix.filename().unwrap_or_default())
+            } else {
+                local
+            })
+        }
+    }
+}
+
+/// FNV-1a, to name cache directories after URIs without a hashing dependency (stable across processes, unlike
+/// `DefaultHasher`'s contract).
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x100000001b3)
+    })
+}

@@ -1,0 +1,105 @@
+//! Tasks: the self-contained units the coordinator schedules and workers execute.
+//!
+//! A [`TaskSpec`] carries everything a worker needs (the job spec with its URIs and parameters, and the
+//! window, block or frame range), so a worker keeps no state between tasks and any worker can run any task.
+//! Over gRPC a task travels as its [`TaskSpec::kind`] plus [`TaskSpec::to_payload`] (JSON).
+
+use crate::error::TaskError;
+use crate::spec::JobSpec;
+use serde::{Deserialize, Serialize};
+use std::ops::Range;
+
+/// One unit of work of a job.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum TaskSpec {
+    /// Detect the folds of `frames` (per-frame detectors: one task per chunk; whole-sequence detectors: one
+    /// task over all frames).
+    FoldDetect { job: JobSpec, frames: Range<usize> },
+    /// Gather the detected anchors into `anchors.json`; its success expands the graph with the weight tasks.
+    FoldMerge { job: JobSpec },
+    /// Per-anchor mode: the anchor columns of block `block` of window `window` → partial blend.
+    WeightBlock {
+        job: JobSpec,
+        window: usize,
+        block: usize,
+    },
+    /// Fused mode: the whole 3-right-hand-side solve of window `window` → the window's field.
+    WeightWindow { job: JobSpec, window: usize },
+    /// Per-anchor mode: sum the partial blends of window `window` in block order → the window's field.
+    Reduce { job: JobSpec, window: usize },
+    /// Cross-fade, position and stretch-reduce `frames`.
+    Position { job: JobSpec, frames: Range<usize> },
+    /// Write the output sequence, previews and `report.json` (last).
+    Finalize { job: JobSpec },
+}
+
+impl TaskSpec {
+    /// Short kind name (`weight-block`, `position`, …), as sent over gRPC next to the payload.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            TaskSpec::FoldDetect { .. } => "fold-detect",
+            TaskSpec::FoldMerge { .. } => "fold-merge",
+            TaskSpec::WeightBlock { .. } => "weight-block",
+            TaskSpec::WeightWindow { .. } => "weight-window",
+            TaskSpec::Reduce { .. } => "reduce",
+            TaskSpec::Position { .. } => "position",
+            TaskSpec::Finalize { .. } => "finalize",
+        }
+    }
+
+    /// The job this task belongs to.
+    pub fn job(&self) -> &JobSpec {
+        match self {
+            TaskSpec::FoldDetect { job, .. }
+            | TaskSpec::FoldMerge { job }
+            | TaskSpec::WeightBlock { job, .. }
+            | TaskSpec::WeightWindow { job, .. }
+            | TaskSpec::Reduce { job, .. }
+            | TaskSpec::Position { job, .. }
+            | TaskSpec::Finalize { job } => job,
+        }
+    }
+
+    /// JSON encoding sent over the wire.
+    pub fn to_payload(&self) -> Vec<u8> {
+        serde_json::to_vec(self).unwrap_or_default()
+    }
+
+    /// Decodes a payload received over the wire, checking it against the announced `kind`. A malformed task is
+    /// not retryable: it would be malformed on every worker.
+    pub fn from_payload(kind: &str, payload: &[u8]) -> Result<Self, TaskError> {
+        let spec: TaskSpec = serde_json::from_slice(payload)
+            .map_err(|e| TaskError::fatal(format!("malformed `{kind}` task payload: {e}")))?;
+        if spec.kind() != kind {
+            return Err(TaskError::fatal(format!(
+                "task payload is a `{}` task but was sent as `{kind}`",
+                spec.kind()
+            )));
+        }
+        Ok(spec)
+    }
+}
+
+/// What a successful task reports back (small: stats, timings, anchor counts; bulk results are in storage).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct TaskOutput {
+    pub summary: serde_json::Value,
+    /// Seconds of computation (excluding waiting for storage), for throughput and efficiency figures.
+    pub work_seconds: f64,
+    /// Storage keys (relative to the job's output) the task wrote.
+    pub written: Vec<String>,
+}
+
+/// One node of a job's task graph.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TaskDef {
+    /// Unique within the job and deterministic (`weights/w0003/b0007`), so a re-plan names the same tasks.
+    pub key: String,
+    pub spec: TaskSpec,
+    /// Keys of the tasks that must succeed first.
+    pub deps: Vec<String>,
+    /// When true, the coordinator calls [`crate::expand`] after this task succeeds and inserts the returned
+    /// tasks in the same transaction that marks this one done.
+    pub expands: bool,
+}

@@ -1,0 +1,169 @@
+//! One client interface with two implementations (the Quickwit shape): [`RemoteClient`] talks gRPC to a
+//! coordinator elsewhere, [`LocalClient`] calls an in-process [`Scheduler`]. The CLI's `submit`, `status`,
+//! `watch`, `cancel` and `jobs` and the single-node `crease run` are written once against [`JobClient`].
+
+use crate::scheduler::{ApiError, Scheduler};
+use crease_proto as pb;
+use crease_proto::coordinator_client::CoordinatorClient;
+use futures::stream::BoxStream;
+use futures::StreamExt;
+use std::future::Future;
+use std::sync::Arc;
+use tokio_stream::wrappers::ReceiverStream;
+use tonic::transport::Channel;
+
+/// A client-side error: the message is what the user sees.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct ClientError(pub String);
+
+impl From<tonic::Status> for ClientError {
+    fn from(s: tonic::Status) -> Self {
+        ClientError(s.message().to_string())
+    }
+}
+
+impl From<ApiError> for ClientError {
+    fn from(e: ApiError) -> Self {
+        ClientError(e.to_string())
+    }
+}
+
+pub type EventStream = BoxStream<'static, Result<pb::JobEvent, ClientError>>;
+
+/// What a user can ask of a coordinator.
+pub trait JobClient: Send + Sync {
+    /// Submits a job spec (`format` = "toml" or "json"); returns (job id, created).
+    fn submit(
+        &self,
+        spec: String,
+        format: &str,
+    ) -> impl Future<Output = Result<(String, bool), ClientError>> + Send;
+    fn status(
+        &self,
+        job_id: &str,
+        with_tasks: bool,
+    ) -> impl Future<Output = Result<pb::JobStatus, ClientError>> + Send;
+    fn list(&self) -> impl Future<Output = Result<Vec<pb::JobStatus>, ClientError>> + Send;
+    /// Returns the job's state after the request.
+    fn cancel(&self, job_id: &str) -> impl Future<Output = Result<String, ClientError>> + Send;
+    fn watch(&self, job_id: &str) -> impl Future<Output = Result<EventStream, ClientError>> + Send;
+}
+
+/// gRPC client of a coordinator.
+#[derive(Clone)]
+pub struct RemoteClient {
+    inner: CoordinatorClient<Channel>,
+}
+
+impl RemoteClient {
+    /// Connects to `url` (e.g. `http://127.0.0.1:7070`).
+    pub async fn connect(url: &str) -> Result<Self, ClientError> {
+        let endpoint = tonic::transport::Endpoint::from_shared(url.to_string())
+            .map_err(|e| ClientError(format!("coordinator address `{url}`: {e}")))?
+            .connect_timeout(std::time::Duration::from_secs(5));
+        let channel = endpoint
+            .connect()
+            .await
+            .map_err(|e| ClientError(format!("cannot reach the coordinator at {url}: {e}")))?;
+        Ok(RemoteClient {
+            inner: CoordinatorClient::new(channel),
+        })
+    }
+}
+
+impl JobClient for RemoteClient {
+    async fn submit(&self, spec: String, format: &str) -> Result<(String, bool), ClientError> {
+        let r = self
+            .inner
+            .clone()
+            .submit_job(pb::SubmitJobRequest {
+                spec,
+                format: format.to_string(),
+            })
+            .await?
+            .into_inner();
+        Ok((r.job_id, r.created))
+    }
+
+    async fn status(&self, job_id: &str, with_tasks: bool) -> Result<pb::JobStatus, ClientError> {
+        Ok(self
+            .inner
+            .clone()
+            .get_job(pb::GetJobRequest {
+                job_id: job_id.to_string(),
+                with_tasks,
+            })
+            .await?
+            .into_inner())
+    }
+
+    async fn list(&self) -> Result<Vec<pb::JobStatus>, ClientError> {
+        Ok(self
+            .inner
+            .clone()
+            .list_jobs(pb::ListJobsRequest {})
+            .await?
+            .into_inner()
+            .jobs)
+    }
+
+    async fn cancel(&self, job_id: &str) -> Result<String, ClientError> {
+        Ok(self
+            .inner
+            .clone()
+            .cancel_job(pb::CancelJobRequest {
+                job_id: job_id.to_string(),
+            })
+            .await?
+            .into_inner()
+            .state)
+    }
+
+    async fn watch(&self, job_id: &str) -> Result<EventStream, ClientError> {
+        let stream = self
+            .inner
+            .clone()
+            .watch_job(pb::WatchJobRequest {
+                job_id: job_id.to_string(),
+            })
+            .await?
+            .into_inner();
+        Ok(stream.map(|r| r.map_err(ClientError::from)).boxed())
+    }
+}
+
+/// In-process client of a scheduler (single-node mode).
+#[derive(Clone)]
+pub struct LocalClient {
+    scheduler: Arc<Scheduler>,
+}
+
+impl LocalClient {
+    pub fn new(scheduler: Arc<Scheduler>) -> Self {
+        LocalClient { scheduler }
+    }
+}
+
+impl JobClient for LocalClient {
+    async fn submit(&self, spec: String, format: &str) -> Result<(String, bool), ClientError> {
+        Ok(self.scheduler.submit(&spec, format).await?)
+    }
+
+    async fn status(&self, job_id: &str, with_tasks: bool) -> Result<pb::JobStatus, ClientError> {
+        Ok(self.scheduler.status(job_id, with_tasks)?)
+    }
+
+    async fn list(&self) -> Result<Vec<pb::JobStatus>, ClientError> {
+        Ok(self.scheduler.list()?)
+    }
+
+    async fn cancel(&self, job_id: &str) -> Result<String, ClientError> {
+        Ok(self.scheduler.cancel(job_id)?.as_str().to_string())
+    }
+
+    async fn watch(&self, job_id: &str) -> Result<EventStream, ClientError> {
+        let rx = self.scheduler.watch(job_id)?;
+        Ok(ReceiverStream::new(rx).map(Ok).boxed())
+    }
+}

@@ -104,6 +104,59 @@ impl StretchAccumulator {
         self.count += other.count;
     }
 
+    /// Exact, compact encoding (f64 bit patterns, counts, and the non-empty histogram bins as (bin, count)
+    /// pairs), so accumulators computed on different machines merge into the same sequence figures as on one.
+    pub fn to_words(&self) -> Vec<u64> {
+        let mut w = vec![
+            self.sum_area_sigma2.to_bits(),
+            self.sum_area_stretch.to_bits(),
+            self.sum_area.to_bits(),
+            self.max.to_bits(),
+            self.count,
+        ];
+        if self.hist.is_empty() {
+            w.push(u64::MAX);
+        } else {
+            let bins: Vec<(usize, u64)> = self
+                .hist
+                .iter()
+                .copied()
+                .enumerate()
+                .filter(|b| b.1 != 0)
+                .collect();
+            w.push(bins.len() as u64);
+            for (b, c) in bins {
+                w.push(b as u64);
+                w.push(c);
+            }
+        }
+        w
+    }
+
+    /// Decodes [`StretchAccumulator::to_words`]; returns the accumulator and the number of words used, or
+    /// `None` when the words are not such an encoding.
+    pub fn from_words(w: &[u64]) -> Option<(Self, usize)> {
+        let head = w.get(..6)?;
+        let mut acc = StretchAccumulator {
+            sum_area_sigma2: f64::from_bits(head[0]),
+            sum_area_stretch: f64::from_bits(head[1]),
+            sum_area: f64::from_bits(head[2]),
+            max: f64::from_bits(head[3]),
+            hist: Vec::new(),
+            count: head[4],
+        };
+        if head[5] == u64::MAX {
+            return Some((acc, 6));
+        }
+        let n = usize::try_from(head[5]).ok()?;
+        let pairs = w.get(6..6 + n.checked_mul(2)?)?;
+        acc.hist = vec![0; BINS + 1];
+        for p in pairs.chunks_exact(2) {
+            *acc.hist.get_mut(usize::try_from(p[0]).ok()?)? = p[1];
+        }
+        Some((acc, 6 + 2 * n))
+    }
+
     pub fn stats(&self) -> StretchStats {
         if self.sum_area == 0.0 {
             return StretchStats::default();
@@ -150,5 +203,33 @@ mod tests {
         let out = rest.map(|p| [p[0] * 1.1, p[1] * 0.95, 0.0]);
         let (a, b) = triangle_singular_values(rest, out);
         assert!((a - 1.1).abs() < 1e-12 && (b - 0.95).abs() < 1e-12);
+    }
+
+    #[test]
+    fn accumulator_words_round_trip() {
+        let topo = Topology::new(4, vec![[0, 1, 2], [0, 2, 3]]).unwrap();
+        let rest = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        let out = vec![
+            [0.0, 0.0, 0.0],
+            [1.1, 0.0, 0.0],
+            [1.0, 1.02, 0.1],
+            [0.0, 0.9, 0.0],
+        ];
+        let mut acc = StretchAccumulator::default();
+        acc.add_frame(&topo, &rest, &out);
+        let mut words = acc.to_words();
+        words.extend(StretchAccumulator::default().to_words());
+        let (back, used) = StretchAccumulator::from_words(&words).unwrap();
+        assert_eq!(back.stats(), acc.stats());
+        assert_eq!(back.to_words(), acc.to_words());
+        let (empty, rest_used) = StretchAccumulator::from_words(&words[used..]).unwrap();
+        assert_eq!(used + rest_used, words.len());
+        assert_eq!(empty.stats(), StretchStats::default());
+        assert!(StretchAccumulator::from_words(&words[..used - 1]).is_none());
     }
 }

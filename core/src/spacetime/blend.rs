@@ -50,11 +50,7 @@ impl CrossFade {
                 Some((f, _)) if *f == t => old.next().map(|(_, v)| v).unwrap_or_default(),
                 _ => vec![[0.0; 3]; self.n_tri],
             };
-            for (o, s) in acc.iter_mut().zip(src) {
-                o[0] += a * s[0];
-                o[1] += a * s[1];
-                o[2] += a * s[2];
-            }
+            fade_into(&mut acc, a, src);
             if t >= next_start {
                 pending.push((t, acc));
             } else {
@@ -63,6 +59,16 @@ impl CrossFade {
         }
         self.pending = pending;
         done
+    }
+}
+
+/// acc += a · src, component-wise: the one cross-fade step, shared by [`CrossFade`] and the cluster's
+/// per-frame cross-fade ([`super::stages::crossfade_frame`]) so both produce the same bits.
+pub fn fade_into(acc: &mut [V3], a: f64, src: &[V3]) {
+    for (o, s) in acc.iter_mut().zip(src) {
+        o[0] += a * s[0];
+        o[1] += a * s[1];
+        o[2] += a * s[2];
     }
 }
 

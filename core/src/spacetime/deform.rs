@@ -7,9 +7,10 @@
 //! sink. Frames are read when needed and written when done, so memory is bounded by one window plus the
 //! frames in flight, whatever the sequence length.
 
-use super::blend::{self, CrossFade};
+use super::blend::CrossFade;
 use super::params::DeformParams;
-use super::position::{FramePositioner, PositionSystem};
+use super::position::PositionSystem;
+use super::stages::{position_frame, PositionedFrame};
 use super::weights::{solve_window, WindowProblem, WindowStats};
 use super::windows::plan_windows;
 use crate::error::{Error, Result};
@@ -17,7 +18,6 @@ use crate::folds::AnchorSet;
 use crate::mesh::{Frame, FrameSink, FrameSource};
 use crate::metrics::{StretchAccumulator, StretchStats};
 use crate::progress::Progress;
-use crate::vec3::V3;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
@@ -62,19 +62,6 @@ pub struct DeformReport {
 #[derive(Debug, Clone, Default)]
 pub struct KeptFrames {
     pub frames: Vec<(usize, Frame, Frame)>,
-}
-
-struct FrameOutcome {
-    t: usize,
-    rest: Frame,
-    out: Frame,
-    stretch: Vec<(StretchAccumulator, StretchStats)>,
-    read: f64,
-    blend: f64,
-    factor: f64,
-    position: f64,
-    passes: Vec<f64>,
-    metrics: f64,
 }
 
 /// Runs the whole deformation from `source` with `anchors` into `sink`. `keep` lists frames whose original and
@@ -134,7 +121,7 @@ pub fn deform(
         drop(field);
         timings.blend += t_fade.elapsed().as_secs_f64();
 
-        let outcomes: Vec<Result<FrameOutcome>> = ready
+        let outcomes: Vec<Result<PositionedFrame>> = ready
             .into_par_iter()
             .map(|(t, phi)| {
                 if progress.cancelled() {
@@ -183,67 +170,4 @@ pub fn deform(
         timings,
     };
     Ok((report, kept))
-}
-
-fn position_frame(
-    system: &PositionSystem,
-    source: &dyn FrameSource,
-    t: usize,
-    phi: &[V3],
-    passes: usize,
-) -> Result<FrameOutcome> {
-    let clock = Instant::now();
-    let rest = source.read_frame(t)?;
-    let read = clock.elapsed().as_secs_f64();
-
-    let clock = Instant::now();
-    let fp: FramePositioner = system.factor_frame(&rest).map_err(|e| match e {
-        Error::Numeric { stage, msg } => Error::numeric(
-            stage,
-            format!("frame {t} ({}): {msg}", source.describe_frame(t)),
-        ),
-        e => e.at(None, Some(t)),
-    })?;
-    let factor = clock.elapsed().as_secs_f64();
-
-    let clock = Instant::now();
-    let rotations = blend::rotations(phi);
-    let blend = clock.elapsed().as_secs_f64();
-
-    let clock = Instant::now();
-    let mut out = fp.solve(&rotations);
-    let position = clock.elapsed().as_secs_f64();
-
-    let mut metrics = 0.0;
-    let mut stretch = Vec::with_capacity(passes + 1);
-    let mut measure = |out: &Frame, metrics: &mut f64| {
-        let clock = Instant::now();
-        let mut acc = StretchAccumulator::default();
-        acc.add_frame(system.topology(), &rest, out);
-        let st = acc.stats();
-        stretch.push((acc, st));
-        *metrics += clock.elapsed().as_secs_f64();
-    };
-    measure(&out, &mut metrics);
-    let mut pass_times = Vec::with_capacity(passes);
-    for _ in 0..passes {
-        let clock = Instant::now();
-        let r = fp.normal_rotations(&out);
-        out = fp.solve(&r);
-        pass_times.push(clock.elapsed().as_secs_f64());
-        measure(&out, &mut metrics);
-    }
-    drop(fp);
-    Ok(FrameOutcome {
-        t,
-        rest,
-        out,
-        stretch,
-        read,
-        blend,
-        factor,
-        position,
-        passes: pass_times,
-        metrics,
-    })
 }

@@ -9,6 +9,7 @@ pub mod params;
 pub mod per_anchor;
 pub mod position;
 pub mod so3;
+pub mod stages;
 pub mod weights;
 pub mod windows;
 

@@ -1,10 +1,11 @@
 //! The weight solve of one time window in either mode, returning the window's blended rotation-vector field
 //! X = Σ_a w_a φ_a (one 3-vector per node).
 
-use super::fused::{self, CgStats};
+use super::fused::CgStats;
 use super::operator::{Coefficients, SpaceTimeOperator};
 use super::params::{DeformParams, WeightMode};
-use super::per_anchor::{self, BlockWorkspace, PartialBlend, WindowAnchor};
+use super::per_anchor::{BlockWorkspace, PartialBlend, WindowAnchor};
+use super::stages;
 use super::windows::Window;
 use crate::error::{Error, Result};
 use crate::folds::AnchorSet;
@@ -87,19 +88,13 @@ pub fn solve_window(
     };
     let field = match params.mode {
         WeightMode::Fused => {
-            let b = problem.fused_rhs();
-            let (x, cg) = fused::solve3(
-                &problem.op,
-                &b,
-                params.cg_tolerance,
-                params.cg_max_iterations,
-            )?;
+            let (x, cg) = stages::fused_window_field(problem, params)?;
             stats.cg_iterations = cg.iterations;
             stats.max_relative_residual = cg.relative_residual;
             x
         }
         WeightMode::PerAnchor => {
-            let blocks = per_anchor::plan_blocks(problem.anchors.len(), params.anchor_block);
+            let blocks = stages::anchor_blocks(problem, params);
             stats.blocks = blocks.len();
             let mut field = vec![[0.0; 3]; problem.op.n_nodes()];
             let mut cg = CgStats::default();
@@ -121,14 +116,11 @@ pub fn solve_window(
                         let mut ws = pool[slot].lock().map_err(|_| {
                             Error::numeric("weights (per-anchor)", "a worker thread panicked")
                         })?;
-                        solve_block_range(problem, range.clone(), params, &mut ws)
+                        stages::anchor_block(problem, range.clone(), params, &mut ws)
                     })
                     .collect();
                 for p in partials {
-                    let p = p?;
-                    per_anchor::accumulate(&mut field, &p);
-                    per_anchor::merge_stats(&mut cg, &p);
-                    stats.node_updates += p.node_updates;
+                    stages::reduce_into(&mut field, &mut cg, &mut stats.node_updates, &p?);
                 }
             }
             stats.cg_iterations = cg.iterations;
@@ -138,20 +130,4 @@ pub fn solve_window(
     };
     stats.seconds = t0.elapsed().as_secs_f64();
     Ok((field, stats))
-}
-
-/// Solves the anchor columns `range` of a window: the unit of work a cluster worker runs.
-pub fn solve_block_range(
-    problem: &WindowProblem,
-    range: std::ops::Range<usize>,
-    params: &DeformParams,
-    ws: &mut BlockWorkspace,
-) -> Result<PartialBlend> {
-    per_anchor::solve_block(
-        &problem.op,
-        &problem.anchors[range],
-        params.cg_tolerance,
-        params.cg_max_iterations,
-        ws,
-    )
 }

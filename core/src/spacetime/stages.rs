@@ -1,0 +1,301 @@
+//! The deformation as separately callable stages, so the single-machine driver ([`super::deform`]) and a cluster
+//! of workers run the very same arithmetic (one implementation, bit-identical results):
+//!
+//! 1. **weights** of one window — fused: [`fused_window_field`] (3 right-hand sides, DESIGN §4); per-anchor:
+//!    [`anchor_block`] for each anchor-column block ([`anchor_blocks`]), the paper's formulation;
+//! 2. **reduce** of a per-anchor window — [`reduce_blocks`]: the partial blends summed in block order;
+//! 3. **cross-fade** of the windows covering a frame — [`crossfade_frame`] (Popa et al. 2009 §5.3);
+//! 4. **positioning + stretch reduction** of one frame — [`position_frame`] (§5.4, §5.5).
+//!
+//! Every stage is a pure function of its inputs: where a stage runs (which thread, which machine, how many
+//! times) cannot change its output bits, provided the callers sum blocks in block order and windows in window
+//! order, as these functions do.
+
+use super::blend::{self, fade_into};
+use super::fused::{self, CgStats};
+use super::params::DeformParams;
+use super::per_anchor::{self, BlockWorkspace, PartialBlend};
+use super::position::PositionSystem;
+use super::weights::WindowProblem;
+use super::windows::{crossfade_weight, Window};
+use crate::error::{Error, Result};
+use crate::mesh::{Frame, FrameSource};
+use crate::metrics::{StretchAccumulator, StretchStats};
+use crate::vec3::V3;
+use std::ops::Range;
+use std::time::Instant;
+
+/// Fused mode: the window's blended rotation-vector field X (one 3-vector per node, frame-major) from the
+/// 3-right-hand-side solve M X = c_a E Φ.
+pub fn fused_window_field(
+    problem: &WindowProblem,
+    params: &DeformParams,
+) -> Result<(Vec<V3>, CgStats)> {
+    let b = problem.fused_rhs();
+    fused::solve3(
+        &problem.op,
+        &b,
+        params.cg_tolerance,
+        params.cg_max_iterations,
+    )
+}
+
+/// Per-anchor mode: the anchor-column ranges of a window's blocks (`params.anchor_block` columns each, in
+/// anchor order).
+pub fn anchor_blocks(problem: &WindowProblem, params: &DeformParams) -> Vec<Range<usize>> {
+    per_anchor::plan_blocks(problem.anchors.len(), params.anchor_block)
+}
+
+/// Per-anchor mode: solves the anchor columns `range` of the window (one CG column each) and returns their
+/// partial blend Σ_{a∈range} w_a φ_a — the unit of work a cluster worker runs.
+pub fn anchor_block(
+    problem: &WindowProblem,
+    range: Range<usize>,
+    params: &DeformParams,
+    ws: &mut BlockWorkspace,
+) -> Result<PartialBlend> {
+    let anchors = problem.anchors.get(range.clone()).ok_or_else(|| {
+        Error::param(
+            "anchor block",
+            format!(
+                "columns {range:?} are outside the window's {} anchors",
+                problem.anchors.len()
+            ),
+        )
+    })?;
+    per_anchor::solve_block(
+        &problem.op,
+        anchors,
+        params.cg_tolerance,
+        params.cg_max_iterations,
+        ws,
+    )
+}
+
+/// Per-anchor mode: the window field as the sum of its blocks' partial blends, added in the order given (pass
+/// them in block order), starting from zero. Also returns the merged CG statistics.
+pub fn reduce_blocks<'a>(
+    n_nodes: usize,
+    partials: impl IntoIterator<Item = &'a PartialBlend>,
+) -> Result<(Vec<V3>, CgStats, u64)> {
+    let mut field = vec![[0.0; 3]; n_nodes];
+    let mut cg = CgStats::default();
+    let mut updates = 0u64;
+    for p in partials {
+        if let Some(&bad) = p.nodes.iter().find(|&&g| g as usize >= n_nodes) {
+            return Err(Error::param(
+                "partial blend",
+                format!("node {bad} is outside the window's {n_nodes} nodes"),
+            ));
+        }
+        reduce_into(&mut field, &mut cg, &mut updates, p);
+    }
+    Ok((field, cg, updates))
+}
+
+/// Adds one partial blend (the next in block order) into a window field and its statistics.
+pub fn reduce_into(field: &mut [V3], cg: &mut CgStats, updates: &mut u64, p: &PartialBlend) {
+    per_anchor::accumulate(field, p);
+    per_anchor::merge_stats(cg, p);
+    *updates += p.node_updates;
+}
+
+/// The cross-faded rotation-vector field of frame `t`: Σ_k a_k(t) X_k(t) over the windows k covering `t`, in
+/// window order, starting from zero, with a_k the normalised tent weights of [`crossfade_weight`].
+/// `frame_of_window(k)` returns window k's field restricted to frame `t` (`n_tri` vectors).
+pub fn crossfade_frame<'a>(
+    windows: &[Window],
+    t: usize,
+    n_tri: usize,
+    mut frame_of_window: impl FnMut(usize) -> Result<&'a [V3]>,
+) -> Result<Vec<V3>> {
+    let mut acc = vec![[0.0; 3]; n_tri];
+    for (k, w) in windows.iter().enumerate() {
+        if t < w.start || t >= w.end() {
+            continue;
+        }
+        let src = frame_of_window(k)?;
+        if src.len() != n_tri {
+            return Err(Error::param(
+                "window field",
+                format!(
+                    "window {k} gives {} vectors for frame {t}, expected {n_tri}",
+                    src.len()
+                ),
+            ));
+        }
+        fade_into(&mut acc, crossfade_weight(windows, k, t), src);
+    }
+    Ok(acc)
+}
+
+/// Indices of the windows covering frame `t`.
+pub fn windows_covering(windows: &[Window], t: usize) -> Vec<usize> {
+    (0..windows.len())
+        .filter(|&k| windows[k].start <= t && t < windows[k].end())
+        .collect()
+}
+
+/// One frame positioned and stretch-reduced, with its stretch after each step and the seconds each step took.
+pub struct PositionedFrame {
+    pub t: usize,
+    /// The original (captured) geometry.
+    pub rest: Frame,
+    /// The output geometry.
+    pub out: Frame,
+    /// Stretch after positioning (index 0) and after each pass, as accumulators (for exact sequence totals) and
+    /// as the frame's own figures.
+    pub stretch: Vec<(StretchAccumulator, StretchStats)>,
+    pub read: f64,
+    pub blend: f64,
+    pub factor: f64,
+    pub position: f64,
+    pub passes: Vec<f64>,
+    pub metrics: f64,
+}
+
+/// Positions frame `t` of `source` from its cross-faded rotation-vector field `phi` (Alexa blend, gradient-
+/// domain solve), then runs `passes` stretch-reduction passes reusing the frame's factorisation, measuring
+/// stretch after each step.
+pub fn position_frame(
+    system: &PositionSystem,
+    source: &dyn FrameSource,
+    t: usize,
+    phi: &[V3],
+    passes: usize,
+) -> Result<PositionedFrame> {
+    let clock = Instant::now();
+    let rest = source.read_frame(t)?;
+    let read = clock.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
+    let fp = system.factor_frame(&rest).map_err(|e| match e {
+        Error::Numeric { stage, msg } => Error::numeric(
+            stage,
+            format!("frame {t} ({}): {msg}", source.describe_frame(t)),
+        ),
+        e => e.at(None, Some(t)),
+    })?;
+    let factor = clock.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
+    let rotations = blend::rotations(phi);
+    let blend = clock.elapsed().as_secs_f64();
+
+    let clock = Instant::now();
+    let mut out = fp.solve(&rotations);
+    let position = clock.elapsed().as_secs_f64();
+
+    let mut metrics = 0.0;
+    let mut stretch = Vec::with_capacity(passes + 1);
+    let mut measure = |out: &Frame, metrics: &mut f64| {
+        let clock = Instant::now();
+        let mut acc = StretchAccumulator::default();
+        acc.add_frame(system.topology(), &rest, out);
+        let st = acc.stats();
+        stretch.push((acc, st));
+        *metrics += clock.elapsed().as_secs_f64();
+    };
+    measure(&out, &mut metrics);
+    let mut pass_times = Vec::with_capacity(passes);
+    for _ in 0..passes {
+        let clock = Instant::now();
+        let r = fp.normal_rotations(&out);
+        out = fp.solve(&r);
+        pass_times.push(clock.elapsed().as_secs_f64());
+        measure(&out, &mut metrics);
+    }
+    drop(fp);
+    Ok(PositionedFrame {
+        t,
+        rest,
+        out,
+        stretch,
+        read,
+        blend,
+        factor,
+        position,
+        passes: pass_times,
+        metrics,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::progress::NoProgress;
+    use crate::spacetime::blend::CrossFade;
+    use crate::spacetime::weights::solve_window;
+    use crate::spacetime::windows::plan_windows;
+    use crate::spacetime::WeightMode;
+    use crate::synth::{demo, DemoSpec};
+
+    fn bits(v: &[V3]) -> Vec<u64> {
+        v.iter().flatten().map(|x| x.to_bits()).collect()
+    }
+
+    /// Stages called one by one (as cluster tasks call them) give the bits of the streaming driver's path.
+    #[test]
+    fn stages_reproduce_the_driver_bit_for_bit() {
+        let (seq, anchors) = demo(&DemoSpec {
+            triangles: 800,
+            frames: 12,
+            ..Default::default()
+        })
+        .unwrap();
+        let topo = seq.topology.clone();
+        let n_tri = topo.n_triangles();
+        let params = DeformParams {
+            window: 5,
+            shift: 3,
+            mode: WeightMode::PerAnchor,
+            anchor_block: 7,
+            ..Default::default()
+        };
+        let windows = plan_windows(12, params.window, params.shift);
+        let mut fade = CrossFade::new(windows.clone(), n_tri);
+        let mut streamed = Vec::new();
+        let mut fields = Vec::new();
+        for w in &windows {
+            let problem = WindowProblem::new(&topo, &anchors, *w, params.coefficients);
+            let (field, _) = solve_window(&problem, &params, &NoProgress).unwrap();
+            // Per-anchor: blocks one by one, reduced in block order.
+            let mut ws = BlockWorkspace::new(problem.op.n_nodes());
+            let partials: Vec<PartialBlend> = anchor_blocks(&problem, &params)
+                .into_iter()
+                .map(|r| anchor_block(&problem, r, &params, &mut ws).unwrap())
+                .collect();
+            assert!(partials.len() > 1, "the test needs several blocks");
+            let (reduced, _, _) = reduce_blocks(problem.op.n_nodes(), &partials).unwrap();
+            assert_eq!(bits(&reduced), bits(&field));
+            // Fused: the stage is the driver's solve.
+            let fused = DeformParams {
+                mode: WeightMode::Fused,
+                ..params.clone()
+            };
+            let (f1, _) = fused_window_field(&problem, &fused).unwrap();
+            let (f2, _) = solve_window(&problem, &fused, &NoProgress).unwrap();
+            assert_eq!(bits(&f1), bits(&f2));
+            streamed.extend(fade.push(&field));
+            fields.push(field);
+        }
+        assert_eq!(streamed.len(), 12);
+        for (t, phi) in streamed {
+            let faded = crossfade_frame(&windows, t, n_tri, |k| {
+                let lt = t - windows[k].start;
+                Ok(&fields[k][lt * n_tri..(lt + 1) * n_tri])
+            })
+            .unwrap();
+            assert_eq!(bits(&faded), bits(&phi), "frame {t}");
+        }
+        let err = anchor_block(
+            &WindowProblem::new(&topo, &anchors, windows[0], params.coefficients),
+            0..100_000,
+            &params,
+            &mut BlockWorkspace::new(1),
+        )
+        .err()
+        .unwrap();
+        assert!(err.to_string().contains("outside"), "{err}");
+    }
+}

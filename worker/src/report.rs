@@ -1,0 +1,143 @@
+//! Talking back to the coordinator: registration (with the protocol version) and heartbeats. A coordinator
+//! that is down is retried with backoff; one that restarted (answers `known: false`) gets a new registration.
+
+use crate::running::Tasks;
+use crate::{WorkerConfig, WorkerError};
+use crease_proto as pb;
+use crease_proto::coordinator_client::CoordinatorClient;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::sync::Mutex;
+use tonic::transport::{Channel, Endpoint};
+
+pub struct Reporter {
+    coordinator: String,
+    name: String,
+    address: String,
+    capacity: u32,
+    protocol_version: u32,
+    tasks: Arc<Tasks>,
+    /// The current registration: (client, worker id).
+    current: Mutex<Option<(CoordinatorClient<Channel>, String)>>,
+}
+
+impl Reporter {
+    pub fn new(config: &WorkerConfig, address: String, tasks: Arc<Tasks>) -> Self {
+        Reporter {
+            coordinator: config.coordinator.clone(),
+            name: config.name.clone(),
+            address,
+            capacity: config.capacity,
+            protocol_version: config.protocol_version,
+            tasks,
+            current: Mutex::new(None),
+        }
+    }
+
+    /// Registers, then heartbeats forever; re-registers when the coordinator forgot us. Returns only when the
+    /// coordinator refuses the worker.
+    pub async fn run(&self) -> Result<(), WorkerError> {
+        let mut backoff = Duration::from_millis(100);
+        loop {
+            let interval = match self.register().await {
+                Ok(interval) => {
+                    backoff = Duration::from_millis(100);
+                    interval
+                }
+                Err(RegisterError::Refused(msg)) => return Err(WorkerError::Refused(msg)),
+                Err(RegisterError::Unreachable(msg)) => {
+                    eprintln!(
+                        "worker `{}`: coordinator {} unreachable ({msg}); retrying in {:.1}s",
+                        self.name,
+                        self.coordinator,
+                        backoff.as_secs_f64()
+                    );
+                    tokio::time::sleep(backoff).await;
+                    backoff = (backoff * 2).min(Duration::from_secs(2));
+                    continue;
+                }
+            };
+            // Heartbeats until the coordinator does not know us any more.
+            loop {
+                tokio::time::sleep(interval).await;
+                match self.beat().await {
+                    Some(true) | None => {}
+                    Some(false) => {
+                        eprintln!(
+                            "worker `{}`: the coordinator does not know this worker (restarted?); registering again",
+                            self.name
+                        );
+                        break;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Heartbeats (announcing the drain) until dropped.
+    pub async fn keep_beating(&self) {
+        loop {
+            tokio::time::sleep(Duration::from_millis(500)).await;
+            let _ = self.beat().await;
+        }
+    }
+
+    /// Tells the coordinator at once that no new task should come (SIGTERM).
+    pub async fn announce_draining(&self) {
+        let _ = self.beat().await;
+    }
+
+    /// One heartbeat: Some(known) when the coordinator answered.
+    async fn beat(&self) -> Option<bool> {
+        let current = self.current.lock().await.clone();
+        let (mut client, id) = current?;
+        let r = client
+            .heartbeat(pb::HeartbeatRequest {
+                worker_id: id,
+                draining: self.tasks.draining(),
+                running: self.tasks.running() as u32,
+            })
+            .await
+            .ok()?;
+        Some(r.into_inner().known)
+    }
+
+    async fn register(&self) -> Result<Duration, RegisterError> {
+        let endpoint = Endpoint::from_shared(self.coordinator.clone())
+            .map_err(|e| RegisterError::Refused(format!("coordinator URL `{}`: {e}", self.coordinator)))?
+            .connect_timeout(Duration::from_secs(2));
+        let channel = endpoint
+            .connect()
+            .await
+            .map_err(|e| RegisterError::Unreachable(e.to_string()))?;
+        let mut client = CoordinatorClient::new(channel);
+        let resp = client
+            .register_worker(pb::RegisterWorkerRequest {
+                protocol_version: self.protocol_version,
+                capacity: self.capacity,
+                address: self.address.clone(),
+                name: self.name.clone(),
+            })
+            .await;
+        match resp {
+            Ok(r) => {
+                let r = r.into_inner();
+                eprintln!(
+                    "worker `{}`: registered as {} with {}",
+                    self.name, r.worker_id, self.coordinator
+                );
+                *self.current.lock().await = Some((client, r.worker_id));
+                Ok(Duration::from_millis(u64::from(r.heartbeat_interval_ms.max(50))))
+            }
+            Err(s) if s.code() == tonic::Code::InvalidArgument => {
+                Err(RegisterError::Refused(s.message().to_string()))
+            }
+            Err(s) => Err(RegisterError::Unreachable(s.message().to_string())),
+        }
+    }
+}
+
+enum RegisterError {
+    Refused(String),
+    Unreachable(String),
+}

@@ -1,0 +1,208 @@
+//! Running tasks: the table of tasks in flight (so `Cancel` and the drain can stop them), the progress sink
+//! that turns crease-core progress into stream events, and the run of one task.
+
+use crease_core::progress::Progress;
+use crease_jobs::{ExecContext, TaskError, TaskSpec};
+use crease_proto as pb;
+use std::collections::HashMap;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+use tokio::sync::{mpsc, Notify};
+
+/// Identifies one attempt of one task.
+pub type AttemptId = (String, String, u32);
+
+type Sender = mpsc::UnboundedSender<Result<pb::TaskEvent, tonic::Status>>;
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Tasks in flight on this worker.
+pub struct Tasks {
+    cache_dir: PathBuf,
+    in_flight: Mutex<HashMap<AttemptId, Arc<AtomicBool>>>,
+    draining: AtomicBool,
+    idle: Notify,
+}
+
+impl Tasks {
+    pub fn new(cache_dir: PathBuf) -> Self {
+        Tasks {
+            cache_dir,
+            in_flight: Mutex::new(HashMap::new()),
+            draining: AtomicBool::new(false),
+            idle: Notify::new(),
+        }
+    }
+
+    pub fn running(&self) -> usize {
+        lock(&self.in_flight).len()
+    }
+
+    pub fn draining(&self) -> bool {
+        self.draining.load(Ordering::SeqCst)
+    }
+
+    pub fn set_draining(&self) {
+        self.draining.store(true, Ordering::SeqCst);
+    }
+
+    /// Asks one attempt to stop; false when it is not running here.
+    pub fn cancel(&self, id: &AttemptId) -> bool {
+        match lock(&self.in_flight).get(id) {
+            Some(flag) => {
+                flag.store(true, Ordering::SeqCst);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Asks every running attempt to stop (drain timeout); returns how many.
+    pub fn cancel_all(&self) -> usize {
+        let map = lock(&self.in_flight);
+        for flag in map.values() {
+            flag.store(true, Ordering::SeqCst);
+        }
+        map.len()
+    }
+
+    /// Waits until no task runs, at most `timeout`; true when idle.
+    pub async fn wait_idle(&self, timeout: Duration) -> bool {
+        let deadline = tokio::time::Instant::now() + timeout;
+        loop {
+            let notified = self.idle.notified();
+            if self.running() == 0 {
+                return true;
+            }
+            if tokio::time::timeout_at(deadline, notified).await.is_err() {
+                return self.running() == 0;
+            }
+        }
+    }
+
+    /// Starts one attempt; its events (progress, then one result or failure) go to `tx`.
+    pub fn start(self: &Arc<Self>, task: pb::Task, tx: Sender) {
+        let id: AttemptId = (task.job_id.clone(), task.task_key.clone(), task.attempt);
+        let cancel = Arc::new(AtomicBool::new(false));
+        lock(&self.in_flight).insert(id.clone(), Arc::clone(&cancel));
+        let this = Arc::clone(self);
+        tokio::spawn(async move {
+            let progress = Arc::new(StreamProgress {
+                tx: tx.clone(),
+                cancel: Arc::clone(&cancel),
+                last_sent: Mutex::new(HashMap::new()),
+            });
+            let result = run_one(&task, &this.cache_dir, progress).await;
+            let event = match result {
+                Ok(output) => pb::task_event::Event::Result(pb::TaskResult {
+                    output: serde_json::to_vec(&output).unwrap_or_default(),
+                }),
+                Err(e) => pb::task_event::Event::Failure(pb::TaskFailure {
+                    retryable: e.retryable,
+                    cancelled: e.is_cancelled(),
+                    reason: e.reason,
+                }),
+            };
+            let _ = tx.send(Ok(pb::TaskEvent { event: Some(event) }));
+            lock(&this.in_flight).remove(&id);
+            this.idle.notify_waiters();
+        });
+    }
+}
+
+async fn run_one(
+    task: &pb::Task,
+    cache_dir: &std::path::Path,
+    progress: Arc<StreamProgress>,
+) -> Result<crease_jobs::TaskOutput, TaskError> {
+    let spec = TaskSpec::from_payload(&task.kind, &task.payload)
+        .map_err(|e| TaskError::fatal(format!("task `{}`: {}", task.task_key, e.reason)))?;
+    if let Some(ms) = test_delay(&task.kind) {
+        let end = Instant::now() + Duration::from_millis(ms);
+        while Instant::now() < end {
+            if progress.cancelled() {
+                return Err(TaskError::cancelled());
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+    let ctx = ExecContext {
+        progress: progress.clone(),
+        cache_dir: cache_dir.to_path_buf(),
+    };
+    let out = crease_jobs::execute(&spec, &ctx).await;
+    // A task that finished after it was told to stop still reports its result: outputs are deterministic, so
+    // a completed task is as good as any other run of it.
+    out.map_err(|mut e| {
+        if !e.is_cancelled() && !e.reason.contains(&task.task_key) {
+            e.reason = format!("task `{}`: {}", task.task_key, e.reason);
+        }
+        e
+    })
+}
+
+/// The `CREASE_TEST_TASK_DELAY` hook (see the crate docs).
+fn test_delay(kind: &str) -> Option<u64> {
+    let v = std::env::var("CREASE_TEST_TASK_DELAY").ok()?;
+    v.split(',').find_map(|part| {
+        let (k, ms) = part.split_once('=')?;
+        (k.trim() == kind || k.trim() == "*")
+            .then(|| ms.trim().parse().ok())
+            .flatten()
+    })
+}
+
+/// Progress of one task as stream events, at most ten per second per stage; `cancelled()` is true once the
+/// task was cancelled or the coordinator stopped listening (it restarted or gave up on the attempt).
+struct StreamProgress {
+    tx: Sender,
+    cancel: Arc<AtomicBool>,
+    last_sent: Mutex<HashMap<String, (Instant, u64, u64)>>,
+}
+
+impl StreamProgress {
+    fn send(&self, stage: &str, done: u64, total: u64, note: &str) {
+        let _ = self.tx.send(Ok(pb::TaskEvent {
+            event: Some(pb::task_event::Event::Progress(pb::TaskProgress {
+                stage: stage.to_string(),
+                done,
+                total,
+                note: note.to_string(),
+            })),
+        }));
+    }
+}
+
+impl Progress for StreamProgress {
+    fn begin(&self, stage: &str, total: u64) {
+        lock(&self.last_sent).insert(stage.to_string(), (Instant::now(), 0, total));
+        self.send(stage, 0, total, "");
+    }
+
+    fn advance(&self, stage: &str, n: u64) {
+        let mut map = lock(&self.last_sent);
+        let entry = map
+            .entry(stage.to_string())
+            .or_insert((Instant::now(), 0, 0));
+        entry.1 += n;
+        let finished = entry.2 > 0 && entry.1 >= entry.2;
+        if finished || entry.0.elapsed() >= Duration::from_millis(100) {
+            entry.0 = Instant::now();
+            let (done, total) = (entry.1, entry.2);
+            drop(map);
+            self.send(stage, done, total, "");
+        }
+    }
+
+    fn note(&self, msg: &str) {
+        self.send("note", 0, 0, msg);
+    }
+
+    fn cancelled(&self) -> bool {
+        self.cancel.load(Ordering::SeqCst) || self.tx.is_closed()
+    }
+}

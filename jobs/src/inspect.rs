@@ -40,10 +40,16 @@ pub async fn inspect_input(spec: &JobSpec) -> Result<InputInfo, JobError> {
         .await
         .map_err(|e| JobError::input(&spec.input, format!("inspection panicked: {e}")))??;
     // Output: usable, and not the input directory (the output files have the input's names).
-    let storage = Storage::open(&spec.output)
-        .map_err(|e| JobError::spec("output", e.to_string()))?;
-    if let (Some(out), Location::Local(inp)) = (storage.local_path(), parse_location(&spec.input, "input")?) {
-        let in_dir = if inp.is_dir() { inp.clone() } else { inp.parent().map(Path::to_path_buf).unwrap_or_default() };
+    let storage =
+        Storage::open(&spec.output).map_err(|e| JobError::spec("output", e.to_string()))?;
+    if let (Some(out), Location::Local(inp)) =
+        (storage.local_path(), parse_location(&spec.input, "input")?)
+    {
+        let in_dir = if inp.is_dir() {
+            inp.clone()
+        } else {
+            inp.parent().map(Path::to_path_buf).unwrap_or_default()
+        };
         if same_dir(out, &in_dir) {
             return Err(JobError::spec(
                 "output",

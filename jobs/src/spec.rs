@@ -5,6 +5,7 @@
 //! that `crease run` uses, so a two-line job file deforms a sequence exactly as `crease run` would.
 
 use crate::error::JobError;
+use crate::storage::parse_location;
 use crease_core::spacetime::DeformParams;
 use serde::{Deserialize, Serialize};
 
@@ -143,7 +144,82 @@ impl JobSpec {
 
     /// Checks everything that can be checked without touching storage, naming the field at fault.
     pub fn validate(&self) -> Result<(), JobError> {
-        Err(JobError::spec("job", "not implemented yet"))
+        parse_location(&self.input, "input")?;
+        parse_location(&self.output, "output")?;
+        if let FoldSpec::Anchors { uri } = &self.folds {
+            parse_location(uri, "folds.uri")?;
+        }
+        self.deform.validate().map_err(|e| match e {
+            crease_core::Error::Param { name, msg } => {
+                let field = match name.as_str() {
+                    "c_s" | "c_t" | "c_i" | "c_a" => format!("deform.coefficients.{name}"),
+                    _ => format!("deform.{name}"),
+                };
+                JobError::spec(field, msg)
+            }
+            e => JobError::spec("deform", e.to_string()),
+        })?;
+        if self.deform.anchor_block != self.partition.anchor_block {
+            return Err(JobError::spec(
+                "deform.anchor_block",
+                format!(
+                    "is {} but partition.anchor_block is {}; the block size is set in [partition] only",
+                    self.deform.anchor_block, self.partition.anchor_block
+                ),
+            ));
+        }
+        let at_least_one = |field: &str, v: usize| {
+            if v == 0 {
+                Err(JobError::spec(field, "must be at least 1"))
+            } else {
+                Ok(())
+            }
+        };
+        at_least_one("partition.anchor_block", self.partition.anchor_block)?;
+        at_least_one(
+            "partition.frames_per_chunk",
+            self.partition.frames_per_chunk,
+        )?;
+        at_least_one(
+            "partition.fold_frames_per_chunk",
+            self.partition.fold_frames_per_chunk,
+        )?;
+        at_least_one("max_task_attempts", self.max_task_attempts as usize)?;
+        at_least_one(
+            "max_task_failures_per_job",
+            self.max_task_failures_per_job as usize,
+        )?;
+        if !(16..=4096).contains(&self.preview.size) {
+            return Err(JobError::spec(
+                "preview.size",
+                format!(
+                    "must be between 16 and 4096 pixels, got {}",
+                    self.preview.size
+                ),
+            ));
+        }
+        if let Some(t) = &self.client_token {
+            if t.is_empty() || t.len() > 256 {
+                return Err(JobError::spec(
+                    "client_token",
+                    "must be 1 to 256 characters when given",
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The name shown for the job: `name`, or the input's last path segment.
+    pub fn display_name(&self) -> String {
+        if !self.name.is_empty() {
+            return self.name.clone();
+        }
+        self.input
+            .trim_end_matches('/')
+            .rsplit('/')
+            .next()
+            .unwrap_or("job")
+            .to_string()
     }
 
     /// The deformation parameters tasks run with (`partition.anchor_block` is the block size).

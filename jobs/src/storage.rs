@@ -46,9 +46,9 @@ pub fn parse_location(uri: &str, field: &str) -> Result<Location, JobError> {
     let url = url::Url::parse(uri)
         .map_err(|e| JobError::spec(field, format!("`{uri}` is not a valid URI: {e}")))?;
     if url.scheme() == "file" {
-        let p = url.to_file_path().map_err(|_| {
-            JobError::spec(field, format!("`{uri}` is not a valid local file URI"))
-        })?;
+        let p = url
+            .to_file_path()
+            .map_err(|_| JobError::spec(field, format!("`{uri}` is not a valid local file URI")))?;
         return Ok(Location::Local(p));
     }
     Ok(Location::Remote(url))
@@ -85,8 +85,9 @@ impl Storage {
         match parse_location(uri, "uri")? {
             Location::Local(dir) => {
                 if create {
-                    std::fs::create_dir_all(&dir)
-                        .map_err(|e| JobError::storage(uri, format!("cannot create {}: {e}", dir.display())))?;
+                    std::fs::create_dir_all(&dir).map_err(|e| {
+                        JobError::storage(uri, format!("cannot create {}: {e}", dir.display()))
+                    })?;
                 }
                 if !dir.is_dir() {
                     return Err(JobError::storage(
@@ -254,7 +255,12 @@ pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf
                 (metas, parts, false)
             };
             for m in &metas {
-                let rel: PathBuf = m.location.parts().skip(base_parts).map(|p| p.as_ref().to_string()).collect();
+                let rel: PathBuf = m
+                    .location
+                    .parts()
+                    .skip(base_parts)
+                    .map(|p| p.as_ref().to_string())
+                    .collect();
                 let dest = local.join(&rel);
                 if std::fs::metadata(&dest).is_ok_and(|d| d.len() == m.size) {
                     continue;
@@ -267,8 +273,9 @@ pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf
                     .await
                     .map_err(|e| JobError::input(uri, e))?;
                 if let Some(parent) = dest.parent() {
-                    std::fs::create_dir_all(parent)
-                        .map_err(|e| JobError::input(uri, format!("cache {}: {e}", parent.display())))?;
+                    std::fs::create_dir_all(parent).map_err(|e| {
+                        JobError::input(uri, format!("cache {}: {e}", parent.display()))
+                    })?;
                 }
                 crease_core::fsutil::write_atomic(&dest, &bytes)
                     .map_err(|e| JobError::input(uri, format!("cache: {e}")))?;

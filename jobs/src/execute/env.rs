@@ -1,0 +1,161 @@
+//! What every task opens the same way: the job's output storage, its input sequence and its anchors.
+
+use super::ExecContext;
+use crate::error::{JobError, TaskError};
+use crate::keys;
+use crate::spec::{FoldSpec, JobSpec};
+use crate::storage::{fetch_input_to_cache, Storage};
+use bytes::Bytes;
+use crease_core::folds::AnchorSet;
+use crease_core::mesh::io::{open_sequence, OpenedSequence};
+use crease_core::npy::{self, NpyElement};
+use crease_core::progress::Progress;
+use crease_core::spacetime::windows::Window;
+use crease_core::spacetime::DeformParams;
+use std::path::{Path, PathBuf};
+
+/// A task's view of its job, used from the blocking thread the task runs on.
+pub struct TaskEnv<'a> {
+    pub job: &'a JobSpec,
+    pub params: DeformParams,
+    pub out: Storage,
+    pub ctx: &'a ExecContext,
+    handle: tokio::runtime::Handle,
+}
+
+/// Storage and input problems may pass (a flaky mount, a store outage): retryable.
+pub fn storage_err(e: JobError) -> TaskError {
+    TaskError::transient(e.to_string())
+}
+
+impl<'a> TaskEnv<'a> {
+    pub fn new(
+        job: &'a JobSpec,
+        ctx: &'a ExecContext,
+        handle: tokio::runtime::Handle,
+    ) -> Result<Self, TaskError> {
+        let out = Storage::open(&job.output).map_err(storage_err)?;
+        Ok(TaskEnv {
+            job,
+            params: job.params(),
+            out,
+            ctx,
+            handle,
+        })
+    }
+
+    pub fn progress(&self) -> &dyn Progress {
+        self.ctx.progress.as_ref()
+    }
+
+    /// Stops with [`TaskError::cancelled`] when the worker or the job asked to stop.
+    pub fn check_cancelled(&self) -> Result<(), TaskError> {
+        if self.ctx.progress.cancelled() {
+            Err(TaskError::cancelled())
+        } else {
+            Ok(())
+        }
+    }
+
+    pub fn get(&self, key: &str) -> Result<Bytes, TaskError> {
+        self.handle.block_on(self.out.get(key)).map_err(storage_err)
+    }
+
+    pub fn put(&self, key: &str, bytes: impl Into<Bytes>) -> Result<(), TaskError> {
+        self.handle
+            .block_on(self.out.put(key, bytes))
+            .map_err(storage_err)
+    }
+
+    pub fn delete(&self, key: &str) -> Result<(), TaskError> {
+        self.handle
+            .block_on(self.out.delete(key))
+            .map_err(storage_err)
+    }
+
+    pub fn block_on<F: std::future::Future>(&self, f: F) -> F::Output {
+        self.handle.block_on(f)
+    }
+
+    /// Writes an array as `.npy` under `key`.
+    pub fn put_npy<T: NpyElement>(
+        &self,
+        key: &str,
+        shape: &[usize],
+        data: &[T],
+    ) -> Result<(), TaskError> {
+        self.put(key, npy::to_bytes(shape, data))
+    }
+
+    /// Reads an `.npy` array written by a dependency; a malformed one is fatal (it would be read again as is).
+    pub fn get_npy<T: NpyElement>(&self, key: &str) -> Result<(Vec<usize>, Vec<T>), TaskError> {
+        let bytes = self.get(key)?;
+        npy::from_bytes::<T>(Path::new(&self.out.describe(key)), &bytes)
+            .map_err(|e| TaskError::fatal(e.to_string()))
+    }
+
+    /// Reads a JSON sidecar written by a dependency.
+    pub fn get_json<T: serde::de::DeserializeOwned>(&self, key: &str) -> Result<T, TaskError> {
+        let bytes = self.get(key)?;
+        serde_json::from_slice(&bytes)
+            .map_err(|e| TaskError::fatal(format!("{}: malformed: {e}", self.out.describe(key))))
+    }
+
+    pub fn put_json<T: serde::Serialize>(&self, key: &str, value: &T) -> Result<(), TaskError> {
+        let text = serde_json::to_vec_pretty(value)
+            .map_err(|e| TaskError::fatal(format!("{}: {e}", self.out.describe(key))))?;
+        self.put(key, text)
+    }
+
+    /// Local path of the input sequence (remote inputs are fetched into the cache once).
+    pub fn input_path(&self) -> Result<PathBuf, TaskError> {
+        self.block_on(fetch_input_to_cache(&self.job.input, &self.ctx.cache_dir))
+            .map_err(storage_err)
+    }
+
+    /// Opens the input sequence (topology read and validated; frames are read on demand).
+    pub fn open_input(&self) -> Result<OpenedSequence, TaskError> {
+        let path = self.input_path()?;
+        open_sequence(&path)
+            .map_err(|e| TaskError::from_core(&format!("input {}", self.job.input), e))
+    }
+
+    /// The job's anchors: none, the anchors file, or the detected `anchors.json`.
+    pub fn anchors(&self, n_frames: usize, n_triangles: usize) -> Result<AnchorSet, TaskError> {
+        match &self.job.folds {
+            FoldSpec::None => Ok(AnchorSet::empty(n_frames)),
+            FoldSpec::Anchors { uri } => {
+                let path = self
+                    .block_on(fetch_input_to_cache(uri, &self.ctx.cache_dir))
+                    .map_err(storage_err)?;
+                AnchorSet::read(&path, n_frames, n_triangles)
+                    .map_err(|e| TaskError::from_core(&format!("anchors {uri}"), e))
+            }
+            #[allow(unreachable_patterns)]
+            _ => {
+                let bytes = self.get(keys::ANCHORS)?;
+                let text = String::from_utf8_lossy(&bytes);
+                let label = PathBuf::from(self.out.describe(keys::ANCHORS));
+                AnchorSet::parse(&text, Some(&label), n_frames, n_triangles)
+                    .map_err(|e| TaskError::from_core("detected anchors", e))
+            }
+        }
+    }
+
+    /// The job's time windows over `n` frames.
+    pub fn windows(&self, n: usize) -> Vec<Window> {
+        crate::plan::job_windows(self.job, n)
+    }
+
+    /// Window `k` of `n` frames, or a fatal error naming it.
+    pub fn window(&self, n: usize, k: usize) -> Result<(Vec<Window>, Window), TaskError> {
+        let windows = self.windows(n);
+        let w = *windows.get(k).ok_or_else(|| {
+            TaskError::fatal(format!(
+                "window {k} does not exist: the job has {} windows over {n} frames",
+                windows.len()
+            ))
+        })?;
+        Ok((windows, w))
+    }
+}

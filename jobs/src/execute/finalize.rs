@@ -1,0 +1,244 @@
+//! The finalize task: write the output sequence in the input's layout from the stored positions, the previews,
+//! and `report.json` — last, so that its presence means the output is complete (the same contract as
+//! `crease run`). A stale report from an earlier run is removed first, so it never vouches for outputs this run
+//! is still rewriting.
+
+use super::env::{storage_err, TaskEnv};
+use super::position::FrameTimings;
+use super::weights::WindowRecord;
+use crate::error::TaskError;
+use crate::keys;
+use crate::spec::FoldSpec;
+use crease_core::mesh::io::create_sink;
+use crease_core::mesh::{Frame, FrameSource};
+use crease_core::metrics::StretchAccumulator;
+use crease_core::spacetime::deform::StageTimings;
+use crease_core::spacetime::weights::WindowStats;
+use crease_core::spacetime::DeformReport;
+use crease_core::{preview, render};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
+    let job = env.job;
+    let params = &env.params;
+    env.delete(keys::REPORT)?;
+    let opened = env.open_input()?;
+    let source: &dyn FrameSource = opened.source.as_ref();
+    let topo = source.topology().clone();
+    let n = source.n_frames();
+    let anchors = env.anchors(n, topo.n_triangles())?;
+    let core_err = |what: &str| {
+        let what = what.to_string();
+        move |e| TaskError::from_core(&format!("finalize: {what}"), e)
+    };
+
+    // Local outputs are written in place; remote ones are staged in the cache and uploaded.
+    let (dir, staged) = match env.out.local_path() {
+        Some(p) => (p.to_path_buf(), false),
+        None => {
+            let d = env
+                .ctx
+                .cache_dir
+                .join("outputs")
+                .join(format!("{:016x}", fnv(job.output.as_bytes())));
+            let _ = std::fs::remove_dir_all(&d);
+            (d, true)
+        }
+    };
+    let mut sink = create_sink(&opened.layout, &dir).map_err(core_err("output"))?;
+    let keep: Vec<usize> = if job.preview.frames.is_empty() {
+        let mut k: Vec<usize> = (1..=4).map(|i| (i * n / 5).min(n - 1)).collect();
+        k.dedup();
+        k
+    } else {
+        job.preview.frames.clone()
+    };
+    let mut timings = StageTimings {
+        stretch_passes: vec![0.0; params.stretch_passes],
+        ..Default::default()
+    };
+    let mut seq_stretch = vec![StretchAccumulator::default(); params.stretch_passes + 1];
+    let mut frame_stretch = vec![Vec::new(); n];
+    let mut kept: Vec<(usize, Frame, Frame)> = Vec::new();
+    env.progress().begin("finalize", n as u64);
+    for t in 0..n {
+        env.check_cancelled()?;
+        let key = keys::positions(t);
+        let (shape, data) = env.get_npy::<f64>(&key)?;
+        if shape != [topo.n_vertices(), 3] {
+            return Err(TaskError::fatal(format!(
+                "{}: shape {shape:?}, expected ({}, 3)",
+                env.out.describe(&key),
+                topo.n_vertices()
+            )));
+        }
+        let out: Frame = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let tw = Instant::now();
+        sink.write_frame(t, &out).map_err(core_err("output"))?;
+        timings.write += tw.elapsed().as_secs_f64();
+
+        let key = keys::frame_stretch(t);
+        let (_, words) = env.get_npy::<u64>(&key)?;
+        let mut at = 0;
+        for acc in seq_stretch.iter_mut() {
+            let (a, used) = StretchAccumulator::from_words(&words[at..]).ok_or_else(|| {
+                TaskError::fatal(format!(
+                    "{}: not {} stretch accumulators",
+                    env.out.describe(&key),
+                    params.stretch_passes + 1
+                ))
+            })?;
+            at += used;
+            acc.merge(&a);
+            frame_stretch[t].push(a.stats());
+        }
+        let ft: FrameTimings = env.get_json(&keys::frame_timings(t))?;
+        timings.symbolic += ft.symbolic;
+        timings.read += ft.read;
+        timings.blend += ft.blend;
+        timings.factor += ft.factor;
+        timings.position += ft.position;
+        timings.metrics += ft.metrics;
+        for (k, s) in ft.passes.iter().enumerate() {
+            if let Some(x) = timings.stretch_passes.get_mut(k) {
+                *x += s;
+            }
+        }
+        if keep.contains(&t) {
+            let rest = source.read_frame(t).map_err(core_err("preview"))?;
+            kept.push((t, rest, out));
+        }
+        env.progress().advance("finalize", 1);
+    }
+    let files = sink.finish().map_err(core_err("output"))?;
+    let windows: Vec<WindowStats> = (0..env.windows(n).len())
+        .map(|k| {
+            env.get_json::<WindowRecord>(&keys::window_stats(k))
+                .map(Into::into)
+        })
+        .collect::<Result<_, _>>()?;
+    timings.weights = windows.iter().map(|w| w.seconds).sum();
+
+    let t_preview = Instant::now();
+    let focus = kept.first().and_then(|(_, rest, _)| {
+        let anchored = kept
+            .iter()
+            .flat_map(|(t, _, _)| anchors.frame(*t).iter().map(|a| a.triangle));
+        preview::fold_focus(&topo, rest, anchored)
+    });
+    let img = preview::before_after(&topo, &kept, job.preview.size, 0.10, focus);
+    render::save_png(&img, &dir.join(keys::PREVIEW)).map_err(core_err("preview"))?;
+    render::save_png(
+        &preview::stretch_plot(&frame_stretch, 900, 420),
+        &dir.join(keys::STRETCH_PLOT),
+    )
+    .map_err(core_err("stretch plot"))?;
+    let preview_seconds = t_preview.elapsed().as_secs_f64();
+
+    let mut written: Vec<String> = files
+        .iter()
+        .filter_map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()))
+        .collect();
+    written.push(keys::PREVIEW.into());
+    written.push(keys::STRETCH_PLOT.into());
+    if staged {
+        upload_dir(env, &dir)?;
+    }
+
+    let report = DeformReport {
+        params: params.clone(),
+        frames: n,
+        vertices: topo.n_vertices(),
+        triangles: topo.n_triangles(),
+        anchors: anchors.total(),
+        windows,
+        stretch: seq_stretch.iter().map(|a| a.stats()).collect(),
+        frame_stretch,
+        timings,
+    };
+    let first = report.stretch.first().copied().unwrap_or_default();
+    let last = report.stretch.last().copied().unwrap_or_default();
+    let per_frame = |s: f64| s / n as f64;
+    let t = &report.timings;
+    let anchors_source = match &job.folds {
+        FoldSpec::None => Value::Null,
+        FoldSpec::Anchors { uri } => json!(uri),
+        #[allow(unreachable_patterns)]
+        other => json!({ "detected": other.kind(), "file": env.out.describe(keys::ANCHORS) }),
+    };
+    let doc = json!({
+        "complete": true,
+        "crease_version": env!("CARGO_PKG_VERSION"),
+        "job": job.display_name(),
+        "input": job.input,
+        "input_layout": opened.layout.kind(),
+        "anchors_file": anchors_source,
+        "output": job.output,
+        "output_files": written.iter().map(|k| env.out.describe(k)).collect::<Vec<_>>(),
+        "preview": [env.out.describe(keys::PREVIEW), env.out.describe(keys::STRETCH_PLOT)],
+        "parameters": params,
+        "partition": job.partition,
+        "summary": {
+            "frames": n,
+            "vertices": topo.n_vertices(),
+            "triangles": topo.n_triangles(),
+            "anchors": report.anchors,
+            "stretch_after_positioning": first,
+            "stretch_final": last,
+            "seconds_per_frame": {
+                "weights": per_frame(t.weights),
+                "blend": per_frame(t.blend),
+                "factor": per_frame(t.factor),
+                "position": per_frame(t.position),
+                "stretch_passes": t.stretch_passes.iter().map(|s| per_frame(*s)).collect::<Vec<_>>(),
+            },
+            "timings_note": "work seconds summed over tasks (report.timings.wall is 0: the job's wall time is in the coordinator's record)",
+            "preview_seconds": preview_seconds,
+        },
+        "report": report,
+    });
+    let text = serde_json::to_string_pretty(&doc)
+        .map_err(|e| TaskError::fatal(format!("finalize: report: {e}")))?;
+    env.put(keys::REPORT, text)?;
+    written.push(keys::REPORT.into());
+    Ok((
+        json!({ "frames": n, "stretch_final": last, "anchors": report.anchors }),
+        written,
+    ))
+}
+
+/// Uploads every plain, non-hidden file of a staging directory under its file name.
+fn upload_dir(env: &TaskEnv, dir: &Path) -> Result<(), TaskError> {
+    let entries = std::fs::read_dir(dir)
+        .map_err(|e| TaskError::transient(format!("staging {}: {e}", dir.display())))?;
+    let mut files: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.is_file()
+                && !p
+                    .file_name()
+                    .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+        })
+        .collect();
+    files.sort();
+    for f in files {
+        let bytes = std::fs::read(&f)
+            .map_err(|e| TaskError::transient(format!("staging {}: {e}", f.display())))?;
+        let name = f
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        env.block_on(env.out.put(&name, bytes))
+            .map_err(storage_err)?;
+    }
+    Ok(())
+}
+
+fn fnv(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x100000001b3)
+    })
+}

@@ -1,0 +1,96 @@
+//! Fold-detection tasks, generic over [`crease_core::folds::FoldDetector`]: `detect` runs the job's detector on
+//! a frame chunk (or the whole sequence) and stores its anchors; `merge` assembles them into `anchors.json`,
+//! whose per-frame anchor counts let the planner size the weight blocks.
+
+use super::env::TaskEnv;
+use crate::detect::detector;
+use crate::error::TaskError;
+use crate::keys;
+use crate::plan::chunk_ranges;
+use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors, Granularity};
+use serde_json::{json, Value};
+use std::ops::Range;
+
+fn job_detector(env: &TaskEnv) -> Result<Box<dyn FoldDetector>, TaskError> {
+    detector(&env.job.folds)
+        .map_err(|e| TaskError::fatal(e.to_string()))?
+        .ok_or_else(|| {
+            TaskError::fatal(format!(
+                "folds of kind `{}` are not detected; this job has no fold tasks",
+                env.job.folds.kind()
+            ))
+        })
+}
+
+/// The frame chunks the detector's tasks cover, in order (the planner uses the same split).
+pub(crate) fn detect_chunks(d: &dyn FoldDetector, n: usize, per_chunk: usize) -> Vec<Range<usize>> {
+    match d.granularity() {
+        Granularity::WholeSequence => vec![0..n],
+        Granularity::PerFrame => chunk_ranges(n, per_chunk),
+    }
+}
+
+pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
+    let d = job_detector(env)?;
+    let opened = env.open_input()?;
+    let n = opened.source.n_frames();
+    let label = format!(
+        "{} fold detection, frames {}..{}",
+        d.name(),
+        frames.start,
+        frames.end
+    );
+    if !detect_chunks(d.as_ref(), n, env.job.partition.fold_frames_per_chunk).contains(&frames) {
+        return Err(TaskError::fatal(format!(
+            "{label}: not one of the job's detection chunks over {n} frames"
+        )));
+    }
+    env.check_cancelled()?;
+    let found = d
+        .detect(opened.source.as_ref(), frames.clone(), env.progress())
+        .map_err(|e| TaskError::from_core(&label, e))?;
+    let expected: Vec<usize> = frames.clone().collect();
+    let got: Vec<usize> = found.iter().map(|f| f.frame).collect();
+    if got != expected {
+        return Err(TaskError::fatal(format!(
+            "{label}: the detector returned frames {got:?}, expected {expected:?}"
+        )));
+    }
+    let key = keys::fold_chunk(frames.start);
+    env.put_json(&key, &found)?;
+    let counts: Vec<usize> = found.iter().map(|f| f.anchors.len()).collect();
+    Ok((json!({ "anchors_per_frame": counts }), vec![key]))
+}
+
+pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
+    let d = job_detector(env)?;
+    let opened = env.open_input()?;
+    let n = opened.source.n_frames();
+    let n_tri = opened.source.topology().n_triangles();
+    let mut frames: Vec<FrameAnchors> = Vec::with_capacity(n);
+    for r in detect_chunks(d.as_ref(), n, env.job.partition.fold_frames_per_chunk) {
+        env.check_cancelled()?;
+        let chunk: Vec<FrameAnchors> = env.get_json(&keys::fold_chunk(r.start))?;
+        frames.extend(chunk);
+    }
+    let set = AnchorSet::from_frame_anchors(frames, n_tri, None)
+        .map_err(|e| TaskError::from_core(&format!("{} fold merge", d.name()), e))?;
+    if set.n_frames() != n {
+        return Err(TaskError::fatal(format!(
+            "{} fold merge: anchors for {} frames, the input has {n}",
+            d.name(),
+            set.n_frames()
+        )));
+    }
+    // What the weight tasks will read back: count from the file's own parse, so planning and solving agree.
+    let text = set.to_json();
+    let label = std::path::PathBuf::from(env.out.describe(keys::ANCHORS));
+    let back = AnchorSet::parse(&text, Some(&label), n, n_tri)
+        .map_err(|e| TaskError::from_core("fold merge", e))?;
+    env.put(keys::ANCHORS, text)?;
+    let counts: Vec<usize> = (0..n).map(|t| back.frame(t).len()).collect();
+    Ok((
+        json!({ "anchors_per_frame": counts, "anchors": back.total() }),
+        vec![keys::ANCHORS.to_string()],
+    ))
+}

@@ -1,0 +1,74 @@
+//! Running one task on a worker: crease-core on a blocking thread, inputs and results through storage.
+//!
+//! Each task kind has its own module named after what it computes: [`folds`] (detection and merge),
+//! [`weights`] (a fused window, an anchor block, the reduce of a window), [`position`] (cross-fade, positioning
+//! and stretch passes of a frame chunk), [`finalize`] (output sequence, previews, report). They share
+//! [`env::TaskEnv`]: the job's storage, input and anchors, opened the same way by every task.
+//!
+//! Determinism: a task reads only what its dependencies wrote under deterministic keys and calls the
+//! [`crease_core::spacetime::stages`] functions in a fixed order, so what it writes does not depend on the
+//! worker, the number of workers, or how many times it ran.
+
+mod env;
+mod exact;
+mod finalize;
+mod folds;
+mod position;
+mod weights;
+
+use crate::error::TaskError;
+use crate::task::{TaskOutput, TaskSpec};
+use crease_core::progress::Progress;
+use env::TaskEnv;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// What a worker provides to every task.
+#[derive(Clone)]
+pub struct ExecContext {
+    /// Progress of the task; `cancelled()` returning true stops the task with [`TaskError::cancelled`].
+    pub progress: Arc<dyn Progress + Send + Sync>,
+    /// Local directory where remote inputs are cached between tasks (and finalize stages remote outputs).
+    pub cache_dir: PathBuf,
+}
+
+/// Executes `task` on a blocking thread of the current tokio runtime. Deterministic: what it writes depends only
+/// on the task, not on the worker or the attempt.
+pub async fn execute(task: &TaskSpec, ctx: &ExecContext) -> Result<TaskOutput, TaskError> {
+    let task = task.clone();
+    let ctx = ctx.clone();
+    let handle = tokio::runtime::Handle::current();
+    let kind = task.kind();
+    tokio::task::spawn_blocking(move || run(&task, &ctx, handle))
+        .await
+        .map_err(|e| TaskError::fatal(format!("{kind} task panicked: {e}")))?
+}
+
+fn run(
+    task: &TaskSpec,
+    ctx: &ExecContext,
+    handle: tokio::runtime::Handle,
+) -> Result<TaskOutput, TaskError> {
+    if ctx.progress.cancelled() {
+        return Err(TaskError::cancelled());
+    }
+    let clock = Instant::now();
+    let env = TaskEnv::new(task.job(), ctx, handle)?;
+    let (summary, written) = match task {
+        TaskSpec::FoldDetect { frames, .. } => folds::detect(&env, frames.clone())?,
+        TaskSpec::FoldMerge { .. } => folds::merge(&env)?,
+        TaskSpec::WeightWindow { window, .. } => weights::fused_window(&env, *window)?,
+        TaskSpec::WeightBlock { window, block, .. } => {
+            weights::anchor_block(&env, *window, *block)?
+        }
+        TaskSpec::Reduce { window, .. } => weights::reduce(&env, *window)?,
+        TaskSpec::Position { frames, .. } => position::position(&env, frames.clone())?,
+        TaskSpec::Finalize { .. } => finalize::finalize(&env)?,
+    };
+    Ok(TaskOutput {
+        summary,
+        work_seconds: clock.elapsed().as_secs_f64(),
+        written,
+    })
+}

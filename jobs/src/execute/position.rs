@@ -1,0 +1,155 @@
+//! Positioning tasks (Popa et al. 2009 §5.4–5.5): for each frame of a chunk, cross-fade the fields of the
+//! windows covering it, position the vertices, run the stretch passes, and store the positions and the stretch
+//! measured after each step.
+
+use super::env::TaskEnv;
+use super::exact;
+use crate::error::TaskError;
+use crate::keys;
+use crease_core::mesh::FrameSource;
+use crease_core::spacetime::position::PositionSystem;
+use crease_core::spacetime::stages::{self, PositionedFrame};
+use crease_core::spacetime::windows::Window;
+use crease_core::vec3::V3;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use serde_json::{json, Value};
+use std::ops::Range;
+
+/// Seconds each step of one frame took (sidecar; the only intermediate whose bytes differ between runs).
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub(crate) struct FrameTimings {
+    #[serde(with = "exact")]
+    pub read: f64,
+    #[serde(with = "exact")]
+    pub blend: f64,
+    #[serde(with = "exact")]
+    pub factor: f64,
+    #[serde(with = "exact")]
+    pub position: f64,
+    pub passes: Vec<f64>,
+    #[serde(with = "exact")]
+    pub metrics: f64,
+    #[serde(with = "exact")]
+    pub symbolic: f64,
+}
+
+/// Positions `frames`.
+pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
+    let label = format!("position frames {}..{}", frames.start, frames.end);
+    let opened = env.open_input()?;
+    let source: &dyn FrameSource = opened.source.as_ref();
+    let n = source.n_frames();
+    if frames.start >= frames.end || frames.end > n {
+        return Err(TaskError::fatal(format!(
+            "{label}: not a frame range of the {n}-frame input"
+        )));
+    }
+    let topo = source.topology().clone();
+    let n_tri = topo.n_triangles();
+    let clock = std::time::Instant::now();
+    let system = PositionSystem::new(topo, env.params.pinning)
+        .map_err(|e| TaskError::from_core(&label, e))?;
+    let symbolic = clock.elapsed().as_secs_f64();
+    let windows = env.windows(n);
+    let passes = env.params.stretch_passes;
+    env.progress().begin("position", frames.len() as u64);
+    let mut written = Vec::new();
+    let mut stretch_final = Vec::new();
+    // Frames in parallel, in batches of the pool size so memory stays bounded by a few frames.
+    let batch = rayon::current_num_threads().max(1);
+    let all: Vec<usize> = frames.clone().collect();
+    for chunk in all.chunks(batch) {
+        env.check_cancelled()?;
+        let fields: Vec<Vec<V3>> = chunk
+            .iter()
+            .map(|&t| load_faded(env, &windows, t, n_tri))
+            .collect::<Result<_, _>>()?;
+        let done: Vec<Result<PositionedFrame, TaskError>> = chunk
+            .par_iter()
+            .zip(fields.par_iter())
+            .map(|(&t, phi)| {
+                if env.ctx.progress.cancelled() {
+                    return Err(TaskError::cancelled());
+                }
+                let r = stages::position_frame(&system, source, t, phi, passes)
+                    .map_err(|e| TaskError::from_core(&label, e));
+                env.progress().advance("position", 1);
+                r
+            })
+            .collect();
+        for p in done {
+            let p = p?;
+            let t = p.t;
+            let flat: Vec<f64> = p.out.iter().flatten().copied().collect();
+            let words: Vec<u64> = p
+                .stretch
+                .iter()
+                .flat_map(|(acc, _)| acc.to_words())
+                .collect();
+            let timings = FrameTimings {
+                read: p.read,
+                blend: p.blend,
+                factor: p.factor,
+                position: p.position,
+                passes: p.passes.clone(),
+                metrics: p.metrics,
+                symbolic: if t == frames.start { symbolic } else { 0.0 },
+            };
+            let (kp, ks, kt) = (
+                keys::positions(t),
+                keys::frame_stretch(t),
+                keys::frame_timings(t),
+            );
+            env.put_npy(&kp, &[p.out.len(), 3], &flat)?;
+            env.put_npy(&ks, &[words.len()], &words)?;
+            env.put_json(&kt, &timings)?;
+            written.extend([kp, ks, kt]);
+            if let Some((_, st)) = p.stretch.last() {
+                stretch_final.push(json!({"frame": t, "l2": st.l2, "max": st.max}));
+            }
+        }
+    }
+    env.progress().end("position");
+    Ok((
+        json!({ "frames": [frames.start, frames.end], "stretch_final": stretch_final }),
+        written,
+    ))
+}
+
+/// The cross-faded rotation-vector field of frame `t`, from the stored fields of the windows covering it.
+fn load_faded(
+    env: &TaskEnv,
+    windows: &[Window],
+    t: usize,
+    n_tri: usize,
+) -> Result<Vec<V3>, TaskError> {
+    let mut slices: Vec<(usize, Vec<V3>)> = Vec::new();
+    for k in stages::windows_covering(windows, t) {
+        let key = keys::window_field(k, t);
+        let (shape, data) = env.get_npy::<f64>(&key)?;
+        if shape != [n_tri, 3] {
+            return Err(TaskError::fatal(format!(
+                "{}: shape {shape:?}, expected ({n_tri}, 3)",
+                env.out.describe(&key)
+            )));
+        }
+        slices.push((
+            k,
+            data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        ));
+    }
+    stages::crossfade_frame(windows, t, n_tri, |k| {
+        slices
+            .iter()
+            .find(|(j, _)| *j == k)
+            .map(|(_, v)| v.as_slice())
+            .ok_or_else(|| {
+                crease_core::Error::param(
+                    "window field",
+                    format!("window {k} missing for frame {t}"),
+                )
+            })
+    })
+    .map_err(|e| TaskError::fatal(format!("frame {t}: {e}")))
+}

@@ -1,0 +1,223 @@
+//! Weight tasks (Popa et al. 2009 §5.3): a fused window, one anchor block of a window, and the reduce that sums
+//! a window's blocks. Each window's field is stored frame by frame, so a positioning task reads only the frames
+//! it positions.
+
+use super::env::TaskEnv;
+use super::exact;
+use crate::error::TaskError;
+use crate::keys;
+use crease_core::spacetime::fused::CgStats;
+use crease_core::spacetime::per_anchor::{plan_blocks, BlockWorkspace, PartialBlend};
+use crease_core::spacetime::stages;
+use crease_core::spacetime::weights::{WindowProblem, WindowStats};
+use crease_core::spacetime::windows::Window;
+use crease_core::vec3::V3;
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+use std::time::Instant;
+
+/// CG statistics of one anchor block (sidecar of its partial blend).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct BlockStats {
+    columns: usize,
+    iterations: usize,
+    #[serde(with = "exact")]
+    max_relative_residual: f64,
+    node_updates: u64,
+    #[serde(with = "exact")]
+    seconds: f64,
+}
+
+/// [`WindowStats`] with exact floats, as stored next to a window's field.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(crate) struct WindowRecord {
+    pub start: usize,
+    pub len: usize,
+    pub anchors: usize,
+    pub blocks: usize,
+    pub cg_iterations: usize,
+    #[serde(with = "exact")]
+    pub max_relative_residual: f64,
+    pub node_updates: u64,
+    #[serde(with = "exact")]
+    pub seconds: f64,
+}
+
+impl From<WindowRecord> for WindowStats {
+    fn from(r: WindowRecord) -> Self {
+        WindowStats {
+            start: r.start,
+            len: r.len,
+            anchors: r.anchors,
+            blocks: r.blocks,
+            cg_iterations: r.cg_iterations,
+            max_relative_residual: r.max_relative_residual,
+            node_updates: r.node_updates,
+            seconds: r.seconds,
+        }
+    }
+}
+
+fn label(k: usize, w: &Window) -> String {
+    format!("window {k} (frames {}..{})", w.start, w.end())
+}
+
+/// Fused mode: the 3-right-hand-side solve of window `k`.
+pub fn fused_window(env: &TaskEnv, k: usize) -> Result<(Value, Vec<String>), TaskError> {
+    let opened = env.open_input()?;
+    let topo = opened.source.topology().clone();
+    let n = opened.source.n_frames();
+    let anchors = env.anchors(n, topo.n_triangles())?;
+    let (_, w) = env.window(n, k)?;
+    env.check_cancelled()?;
+    let clock = Instant::now();
+    let problem = WindowProblem::new(&topo, &anchors, w, env.params.coefficients);
+    let (field, cg) = stages::fused_window_field(&problem, &env.params)
+        .map_err(|e| TaskError::from_core(&label(k, &w), e))?;
+    let record = WindowRecord {
+        start: w.start,
+        len: w.len,
+        anchors: problem.anchors.len(),
+        blocks: 0,
+        cg_iterations: cg.iterations,
+        max_relative_residual: cg.relative_residual,
+        node_updates: 0,
+        seconds: clock.elapsed().as_secs_f64(),
+    };
+    drop(problem);
+    write_window(env, k, w, topo.n_triangles(), &field, &record)
+}
+
+/// Per-anchor mode: block `b` of window `k` → its partial blend.
+pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<String>), TaskError> {
+    let opened = env.open_input()?;
+    let topo = opened.source.topology().clone();
+    let n = opened.source.n_frames();
+    let anchors = env.anchors(n, topo.n_triangles())?;
+    let (_, w) = env.window(n, k)?;
+    env.check_cancelled()?;
+    let clock = Instant::now();
+    let problem = WindowProblem::new(&topo, &anchors, w, env.params.coefficients);
+    let blocks = stages::anchor_blocks(&problem, &env.params);
+    let range = blocks.get(b).cloned().ok_or_else(|| {
+        TaskError::fatal(format!(
+            "{}: block {b} does not exist ({} anchors make {} blocks of {})",
+            label(k, &w),
+            problem.anchors.len(),
+            blocks.len(),
+            env.params.anchor_block
+        ))
+    })?;
+    let mut ws = BlockWorkspace::new(problem.op.n_nodes());
+    let partial = stages::anchor_block(&problem, range.clone(), &env.params, &mut ws)
+        .map_err(|e| TaskError::from_core(&format!("{} block {b}", label(k, &w)), e))?;
+    let seconds = clock.elapsed().as_secs_f64();
+    let mut rows = Vec::with_capacity(partial.nodes.len() * 4);
+    for (&g, v) in partial.nodes.iter().zip(&partial.values) {
+        rows.extend_from_slice(&[g as f64, v[0], v[1], v[2]]);
+    }
+    let stats = BlockStats {
+        columns: range.len(),
+        iterations: partial.iterations,
+        max_relative_residual: partial.max_relative_residual,
+        node_updates: partial.node_updates,
+        seconds,
+    };
+    let (pk, sk) = (keys::block_partial(k, b), keys::block_stats(k, b));
+    env.put_npy(&pk, &[partial.nodes.len(), 4], &rows)?;
+    env.put_json(&sk, &stats)?;
+    Ok((
+        serde_json::to_value(&stats).unwrap_or_default(),
+        vec![pk, sk],
+    ))
+}
+
+/// Per-anchor mode: window `k`'s field as the sum of its blocks' partial blends, in block order.
+pub fn reduce(env: &TaskEnv, k: usize) -> Result<(Value, Vec<String>), TaskError> {
+    let opened = env.open_input()?;
+    let topo = opened.source.topology().clone();
+    let n = opened.source.n_frames();
+    let n_tri = topo.n_triangles();
+    let anchors = env.anchors(n, n_tri)?;
+    let (_, w) = env.window(n, k)?;
+    let n_anchors: usize = (w.start..w.end()).map(|t| anchors.frame(t).len()).sum();
+    let n_blocks = plan_blocks(n_anchors, env.params.anchor_block).len();
+    let n_nodes = w.len * n_tri;
+    let mut field = vec![[0.0; 3]; n_nodes];
+    let mut cg = CgStats::default();
+    let mut record = WindowRecord {
+        start: w.start,
+        len: w.len,
+        anchors: n_anchors,
+        blocks: n_blocks,
+        cg_iterations: 0,
+        max_relative_residual: 0.0,
+        node_updates: 0,
+        seconds: 0.0,
+    };
+    env.progress().begin("reduce", n_blocks as u64);
+    for b in 0..n_blocks {
+        env.check_cancelled()?;
+        let key = keys::block_partial(k, b);
+        let (shape, rows) = env.get_npy::<f64>(&key)?;
+        let stats: BlockStats = env.get_json(&keys::block_stats(k, b))?;
+        if shape.len() != 2 || shape[1] != 4 {
+            return Err(TaskError::fatal(format!(
+                "{}: shape {shape:?}, expected (n, 4)",
+                env.out.describe(&key)
+            )));
+        }
+        let mut partial = PartialBlend {
+            nodes: Vec::with_capacity(shape[0]),
+            values: Vec::with_capacity(shape[0]),
+            iterations: stats.iterations,
+            max_relative_residual: stats.max_relative_residual,
+            node_updates: stats.node_updates,
+        };
+        for r in rows.chunks_exact(4) {
+            let g = r[0];
+            if !(g >= 0.0 && g < n_nodes as f64 && g.fract() == 0.0) {
+                return Err(TaskError::fatal(format!(
+                    "{}: node {g} is not one of the window's {n_nodes} nodes",
+                    env.out.describe(&key)
+                )));
+            }
+            partial.nodes.push(g as u32);
+            partial.values.push([r[1], r[2], r[3]]);
+        }
+        stages::reduce_into(&mut field, &mut cg, &mut record.node_updates, &partial);
+        record.seconds += stats.seconds;
+        env.progress().advance("reduce", 1);
+    }
+    env.progress().end("reduce");
+    record.cg_iterations = cg.iterations;
+    record.max_relative_residual = cg.relative_residual;
+    write_window(env, k, w, n_tri, &field, &record)
+}
+
+/// Stores a window's field frame by frame plus its statistics.
+fn write_window(
+    env: &TaskEnv,
+    k: usize,
+    w: Window,
+    n_tri: usize,
+    field: &[V3],
+    record: &WindowRecord,
+) -> Result<(Value, Vec<String>), TaskError> {
+    let mut written = Vec::with_capacity(w.len + 1);
+    for lt in 0..w.len {
+        env.check_cancelled()?;
+        let key = keys::window_field(k, w.start + lt);
+        let flat: Vec<f64> = field[lt * n_tri..(lt + 1) * n_tri]
+            .iter()
+            .flatten()
+            .copied()
+            .collect();
+        env.put_npy(&key, &[n_tri, 3], &flat)?;
+        written.push(key);
+    }
+    let key = keys::window_stats(k);
+    env.put_json(&key, record)?;
+    written.push(key);
+    Ok((serde_json::to_value(record).unwrap_or_default(), written))
+}

@@ -1,6 +1,8 @@
 //! `crease`: puts fine, temporally coherent folds back into captured garment mesh sequences.
 
 mod bench;
+mod cluster;
+mod local;
 mod progress;
 mod run;
 
@@ -28,6 +30,20 @@ enum Command {
     Demo(run::DemoArgs),
     /// Paper-scale benchmark: seconds per frame per stage, peak memory, both weight modes.
     Bench(bench::BenchArgs),
+    /// Run the coordinator: job queue (SQLite), scheduler and gRPC service.
+    Coordinator(cluster::CoordinatorArgs),
+    /// Run a worker that registers with a coordinator and executes its tasks.
+    Worker(cluster::WorkerArgs),
+    /// Submit a job (job.toml, or --input/--output flags); prints the job id.
+    Submit(cluster::SubmitArgs),
+    /// Status of one job (or all jobs).
+    Status(cluster::StatusArgs),
+    /// Follow a job's progress until it ends.
+    Watch(cluster::JobArgs),
+    /// Cancel a job.
+    Cancel(cluster::JobArgs),
+    /// List the coordinator's jobs.
+    Jobs(cluster::JobsArgs),
 }
 
 fn main() {
@@ -45,6 +61,13 @@ fn main() {
         Command::Run(a) => run::run(a),
         Command::Demo(a) => run::demo(a),
         Command::Bench(a) => bench::bench(a),
+        Command::Coordinator(a) => cluster::coordinator(a),
+        Command::Worker(a) => cluster::worker(a),
+        Command::Submit(a) => cluster::submit(a),
+        Command::Status(a) => cluster::status(a),
+        Command::Watch(a) => cluster::watch(a),
+        Command::Cancel(a) => cluster::cancel(a),
+        Command::Jobs(a) => cluster::jobs(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -1,14 +1,16 @@
 //! `crease run` and `crease demo`.
 
+use crate::local::LocalCluster;
 use crate::progress::CliProgress;
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use crease_coordinator::JobClient;
 use crease_core::folds::AnchorSet;
-use crease_core::mesh::io::{create_sink, open_sequence, write_obj_sequence};
+use crease_core::fsutil;
+use crease_core::mesh::io::{open_sequence, write_obj_sequence};
 use crease_core::mesh::FrameSource;
-use crease_core::spacetime::{deform, Coefficients, DeformParams, Pinning, WeightMode};
+use crease_core::spacetime::{Coefficients, DeformParams, Pinning, WeightMode};
 use crease_core::synth::{self, DemoSpec};
-use crease_core::{fsutil, preview, render};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -109,6 +111,12 @@ pub struct RunArgs {
     /// No progress bars or log lines.
     #[arg(long)]
     pub quiet: bool,
+    /// Workers of the single-node cluster (each a gRPC server on 127.0.0.1).
+    #[arg(long, default_value_t = 1)]
+    pub local_workers: usize,
+    /// Tasks each local worker runs at the same time.
+    #[arg(long, default_value_t = 2)]
+    pub local_capacity: u32,
 }
 
 #[derive(Args, Debug)]
@@ -165,6 +173,8 @@ pub fn demo(a: DemoArgs) -> Result<()> {
     Ok(())
 }
 
+/// `crease run`: single-node mode. The job goes through an in-process coordinator and workers on 127.0.0.1
+/// (see [`crate::local`]), the same path a farm runs, so a laptop run and a cluster run write the same bytes.
 pub fn run(a: RunArgs) -> Result<()> {
     let params = a.deform.params();
     params.validate()?;
@@ -186,6 +196,11 @@ pub fn run(a: RunArgs) -> Result<()> {
             a.out.clone().unwrap_or_else(|| PathBuf::from("crease-out")),
         ),
     };
+    if a.local_workers == 0 || a.local_capacity == 0 {
+        bail!("--local-workers and --local-capacity must be at least 1");
+    }
+    // Read the header of the input and the anchors here too: the banner needs the sizes, and errors in them
+    // read the same as before the cluster existed.
     let opened = open_sequence(&input).with_context(|| format!("opening {}", input.display()))?;
     let source: &dyn FrameSource = opened.source.as_ref();
     let topo = source.topology().clone();
@@ -197,6 +212,11 @@ pub fn run(a: RunArgs) -> Result<()> {
             out.display()
         );
     }
+    for &f in &a.preview_frames {
+        if f >= n {
+            bail!("--preview-frames: frame {f} is out of range (the sequence has {n} frames, 0-based)");
+        }
+    }
     fsutil::create_dir_all(&out)?;
     // A report from an earlier run must not vouch for what this run may leave half-written.
     let report_path = out.join("report.json");
@@ -207,19 +227,6 @@ pub fn run(a: RunArgs) -> Result<()> {
             return Err(e).with_context(|| format!("removing stale {}", report_path.display()))
         }
     }
-    let mut sink = create_sink(&opened.layout, &out)?;
-    let keep: Vec<usize> = if a.preview_frames.is_empty() {
-        let mut k: Vec<usize> = (1..=4).map(|i| (i * n / 5).min(n - 1)).collect();
-        k.dedup();
-        k
-    } else {
-        for &f in &a.preview_frames {
-            if f >= n {
-                bail!("--preview-frames: frame {f} is out of range (the sequence has {n} frames, 0-based)");
-            }
-        }
-        a.preview_frames.clone()
-    };
     let progress = CliProgress::new(a.quiet);
     progress.println(&format!(
         "crease: {} frames, {} vertices, {} triangles, {} anchors, mode {}",
@@ -229,75 +236,66 @@ pub fn run(a: RunArgs) -> Result<()> {
         anchors.total(),
         params.mode
     ));
-    let (report, kept) = deform(source, &anchors, &params, sink.as_mut(), &progress, &keep)?;
-    let files = sink.finish()?;
-
-    let t_preview = std::time::Instant::now();
-    let preview_path = out.join("preview.png");
-    let focus = kept.frames.first().and_then(|(_, rest, _)| {
-        let anchored = kept
-            .frames
-            .iter()
-            .flat_map(|(t, _, _)| anchors.frame(*t).iter().map(|a| a.triangle));
-        preview::fold_focus(&topo, rest, anchored)
+    drop(opened);
+    let abs = |p: &Path| {
+        std::path::absolute(p)
+            .with_context(|| format!("resolving {}", p.display()))
+            .map(|p| p.display().to_string())
+    };
+    let spec = json!({
+        "name": input.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default(),
+        "input": abs(&input)?,
+        "output": abs(&out)?,
+        "folds": { "kind": "anchors", "uri": abs(&anchors_path)? },
+        "deform": params,
+        "partition": { "anchor_block": params.anchor_block },
+        "preview": { "frames": a.preview_frames, "size": a.preview_size },
     });
-    let img = preview::before_after(&topo, &kept.frames, a.preview_size, 0.10, focus);
-    render::save_png(&img, &preview_path)?;
-    let plot_path = out.join("stretch.png");
-    render::save_png(
-        &preview::stretch_plot(&report.frame_stretch, 900, 420),
-        &plot_path,
-    )?;
-    let preview_seconds = t_preview.elapsed().as_secs_f64();
-
-    let last = report.stretch.last().copied().unwrap_or_default();
-    let first = report.stretch.first().copied().unwrap_or_default();
-    let per_frame = |s: f64| s / n as f64;
-    let t = &report.timings;
-    let doc = json!({
-        "complete": true,
-        "crease_version": env!("CARGO_PKG_VERSION"),
-        "input": input,
-        "input_layout": opened.layout.kind(),
-        "anchors_file": anchors_path,
-        "output_files": files,
-        "preview": [preview_path, plot_path],
-        "parameters": params,
-        "summary": {
-            "frames": n,
-            "vertices": topo.n_vertices(),
-            "triangles": topo.n_triangles(),
-            "anchors": anchors.total(),
-            "stretch_after_positioning": first,
-            "stretch_final": last,
-            "seconds_per_frame": {
-                "weights": per_frame(t.weights),
-                "blend": per_frame(t.blend),
-                "factor": per_frame(t.factor),
-                "position": per_frame(t.position),
-                "stretch_passes": t.stretch_passes.iter().map(|s| per_frame(*s)).collect::<Vec<_>>(),
-                "wall": per_frame(t.wall),
-            },
-            "preview_seconds": preview_seconds,
-        },
-        "report": report,
+    let cache = std::env::temp_dir().join(format!("crease-local-cache-{}", std::process::id()));
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .context("starting the async runtime")?;
+    let status = rt.block_on(async {
+        let cluster = LocalCluster::start(a.local_workers, a.local_capacity, cache.clone()).await?;
+        let result = async {
+            let (id, _) = cluster.client.submit(spec.to_string(), "json").await?;
+            crate::cluster::follow(&cluster.client, &id, &progress).await
+        }
+        .await;
+        cluster.stop().await;
+        result
     });
-    let text = serde_json::to_string_pretty(&doc)?;
-    fsutil::write_atomic(&report_path, text.as_bytes())?;
+    let _ = std::fs::remove_dir_all(&cache);
+    let status = status?;
+    if status.state != "done" {
+        bail!("{}", status.message);
+    }
+    let report: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(&report_path)
+            .with_context(|| format!("reading {}", report_path.display()))?,
+    )
+    .with_context(|| format!("parsing {}", report_path.display()))?;
+    let stretch = &report["report"]["stretch"];
+    let pick =
+        |i: Option<&serde_json::Value>, k: &str| i.and_then(|v| v[k].as_f64()).unwrap_or(f64::NAN);
+    let passes = stretch.as_array().map(Vec::as_slice).unwrap_or(&[]);
+    let (first, last) = (passes.first(), passes.last());
     progress.println(&format!(
         "stretch after positioning: L2 {:.6}, max {:.2}% | after {} pass(es): L2 {:.6}, max {:.2}%, p99 {:.2}%",
-        first.l2,
-        first.max * 100.0,
+        pick(first, "l2"),
+        pick(first, "max") * 100.0,
         params.stretch_passes,
-        last.l2,
-        last.max * 100.0,
-        last.p99 * 100.0
+        pick(last, "l2"),
+        pick(last, "max") * 100.0,
+        pick(last, "p99") * 100.0
     ));
     progress.println(&format!(
-        "wrote {} frames, report.json, preview.png, stretch.png to {} ({:.2}s/frame wall)",
+        "wrote {} frames, report.json, preview.png, stretch.png to {} ({} tasks, {:.2}s of work)",
         n,
         out.display(),
-        per_frame(t.wall)
+        status.tasks_total,
+        status.work_seconds
     ));
     Ok(())
 }

@@ -1,0 +1,437 @@
+//! Cluster subcommands: `crease coordinator`, `crease worker`, `crease submit`, `crease status`,
+//! `crease watch`, `crease cancel`, `crease jobs`. The client commands are written once against
+//! [`JobClient`], so they behave the same against a remote coordinator and in single-node mode.
+
+use crate::progress::CliProgress;
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use crease_coordinator::{CoordinatorConfig, JobClient, RemoteClient, Scheduler};
+use crease_proto as pb;
+use futures::StreamExt;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::time::Duration;
+
+const DEFAULT_COORDINATOR: &str = "http://127.0.0.1:7070";
+
+fn runtime() -> Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .context("starting the async runtime")
+}
+
+/// Resolves on SIGTERM or Ctrl-C.
+pub async fn shutdown_signal() {
+    #[cfg(unix)]
+    {
+        use tokio::signal::unix::{signal, SignalKind};
+        match signal(SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = term.recv() => {}
+                    _ = tokio::signal::ctrl_c() => {}
+                }
+            }
+            Err(_) => {
+                let _ = tokio::signal::ctrl_c().await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = tokio::signal::ctrl_c().await;
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct CoordinatorArgs {
+    /// Address to listen on (port 0 = any free port; the bound address is printed).
+    #[arg(long, default_value = "127.0.0.1:7070")]
+    pub listen: SocketAddr,
+    /// Queue file (SQLite). Jobs survive a restart of the coordinator.
+    #[arg(long, default_value = "crease-queue.sqlite")]
+    pub db: PathBuf,
+    /// Heartbeat interval asked of workers, in milliseconds.
+    #[arg(long, default_value_t = 1000)]
+    pub heartbeat_ms: u64,
+    /// A worker silent this long (milliseconds) is lost and its tasks run elsewhere.
+    #[arg(long, default_value_t = 5000)]
+    pub worker_timeout_ms: u64,
+    /// Seconds a job with work left waits for a worker before it fails.
+    #[arg(long, default_value_t = 120.0)]
+    pub grace_secs: f64,
+    /// Failed attempts of one job on one worker after which that worker gets no more of the job's tasks.
+    #[arg(long, default_value_t = 2)]
+    pub blacklist_after: u32,
+    /// First retry delay in milliseconds (doubles per attempt).
+    #[arg(long, default_value_t = 200)]
+    pub retry_backoff_ms: u64,
+}
+
+pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
+    if !(a.grace_secs.is_finite() && a.grace_secs >= 0.0) {
+        bail!(
+            "--grace-secs must be a non-negative number, got {}",
+            a.grace_secs
+        );
+    }
+    let config = CoordinatorConfig {
+        db: Some(a.db.clone()),
+        heartbeat_interval: Duration::from_millis(a.heartbeat_ms.max(10)),
+        worker_timeout: Duration::from_millis(a.worker_timeout_ms.max(20)),
+        no_worker_grace: Duration::from_secs_f64(a.grace_secs),
+        blacklist_after: a.blacklist_after.max(1),
+        retry_backoff: Duration::from_millis(a.retry_backoff_ms),
+        ..CoordinatorConfig::default()
+    };
+    runtime()?.block_on(async move {
+        let scheduler = Scheduler::open(config)
+            .with_context(|| format!("opening the queue {}", a.db.display()))?;
+        let (addr, serve) =
+            crease_coordinator::server::serve(scheduler, a.listen, shutdown_signal())
+                .await
+                .with_context(|| format!("listening on {}", a.listen))?;
+        eprintln!("coordinator listening on {addr} (queue {})", a.db.display());
+        serve.await.context("coordinator gRPC server")?;
+        eprintln!("coordinator stopped");
+        Ok(())
+    })
+}
+
+#[derive(Args, Debug)]
+pub struct WorkerArgs {
+    /// Coordinator URL.
+    #[arg(long, env = "CREASE_COORDINATOR", default_value = DEFAULT_COORDINATOR)]
+    pub coordinator: String,
+    /// Address of this worker's gRPC server (port 0 = any free port).
+    #[arg(long, default_value = "127.0.0.1:0")]
+    pub listen: SocketAddr,
+    /// URL the coordinator reaches this worker at (default: http://<bound address>).
+    #[arg(long)]
+    pub advertise: Option<String>,
+    /// Name shown in logs (default: worker-<pid>).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Tasks run at the same time.
+    #[arg(long, default_value_t = 1)]
+    pub capacity: u32,
+    /// Cache for remote inputs (default: a directory under the system temp dir).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+    /// On SIGTERM, seconds running tasks may take to finish before they are handed back.
+    #[arg(long, default_value_t = 30.0)]
+    pub drain_secs: f64,
+    /// Protocol version to announce (testing only).
+    #[arg(long, hide = true, default_value_t = crease_proto::PROTOCOL_VERSION)]
+    pub protocol_version: u32,
+}
+
+pub fn worker(a: WorkerArgs) -> Result<()> {
+    if a.capacity == 0 {
+        bail!("--capacity must be at least 1");
+    }
+    if !(a.drain_secs.is_finite() && a.drain_secs >= 0.0) {
+        bail!(
+            "--drain-secs must be a non-negative number, got {}",
+            a.drain_secs
+        );
+    }
+    let name = a
+        .name
+        .unwrap_or_else(|| format!("worker-{}", std::process::id()));
+    let cache_dir = a.cache_dir.unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("crease-worker-cache-{}", std::process::id()))
+    });
+    let config = crease_worker::WorkerConfig {
+        coordinator: a.coordinator,
+        listen: a.listen,
+        advertise: a.advertise,
+        name,
+        capacity: a.capacity,
+        cache_dir,
+        drain_timeout: Duration::from_secs_f64(a.drain_secs),
+        protocol_version: a.protocol_version,
+    };
+    runtime()?.block_on(crease_worker::run(config, shutdown_signal()))?;
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct ClientArgs {
+    /// Coordinator URL.
+    #[arg(long, env = "CREASE_COORDINATOR", default_value = DEFAULT_COORDINATOR)]
+    pub coordinator: String,
+}
+
+#[derive(Args, Debug)]
+pub struct SubmitArgs {
+    /// Job spec (TOML, or JSON when the name ends in .json). Or give --input and --output instead.
+    pub job: Option<PathBuf>,
+    #[command(flatten)]
+    pub client: ClientArgs,
+    /// Input sequence (without a job file).
+    #[arg(long)]
+    pub input: Option<String>,
+    /// Output location (without a job file).
+    #[arg(long)]
+    pub output: Option<String>,
+    /// Anchors file (without a job file; omit for no folds).
+    #[arg(long)]
+    pub anchors: Option<String>,
+    /// Weight mode (without a job file): fused or per-anchor.
+    #[arg(long)]
+    pub mode: Option<String>,
+    /// Priority (without a job file; higher runs first).
+    #[arg(long)]
+    pub priority: Option<i32>,
+    /// Client token for idempotent submission (without a job file).
+    #[arg(long)]
+    pub client_token: Option<String>,
+    /// Follow the job until it ends (exit status 1 if it fails or is cancelled).
+    #[arg(long)]
+    pub watch: bool,
+}
+
+/// Absolute form of a plain path (URIs with a scheme are left alone), so the coordinator and workers do not
+/// depend on the submitter's working directory.
+fn absolute(uri: &str) -> String {
+    if uri.contains("://") {
+        return uri.to_string();
+    }
+    std::path::absolute(uri)
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|_| uri.to_string())
+}
+
+pub fn submit(a: SubmitArgs) -> Result<()> {
+    let (text, format) = match (&a.job, &a.input, &a.output) {
+        (Some(path), None, None) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("reading the job spec {}", path.display()))?;
+            let json = path.extension().is_some_and(|e| e == "json");
+            (text, if json { "json" } else { "toml" })
+        }
+        (None, Some(input), Some(output)) => {
+            let mut spec =
+                serde_json::json!({ "input": absolute(input), "output": absolute(output) });
+            if let Some(an) = &a.anchors {
+                spec["folds"] = serde_json::json!({ "kind": "anchors", "uri": absolute(an) });
+            }
+            if let Some(m) = &a.mode {
+                spec["deform"] = serde_json::json!({ "mode": m });
+            }
+            if let Some(p) = a.priority {
+                spec["priority"] = p.into();
+            }
+            if let Some(t) = &a.client_token {
+                spec["client_token"] = t.clone().into();
+            }
+            (spec.to_string(), "json")
+        }
+        (Some(_), _, _) => bail!("give either a job file or --input/--output, not both"),
+        _ => bail!("give a job file (crease submit job.toml) or both --input and --output"),
+    };
+    runtime()?.block_on(async move {
+        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let (id, created) = client.submit(text, format).await?;
+        if created {
+            eprintln!("submitted {id}");
+        } else {
+            eprintln!("{id} was already submitted with this client token");
+        }
+        println!("{id}");
+        if a.watch {
+            let progress = CliProgress::new(false);
+            let status = follow(&client, &id, &progress).await?;
+            finish_status(&status)?;
+        }
+        Ok(())
+    })
+}
+
+#[derive(Args, Debug)]
+pub struct StatusArgs {
+    /// Job id (all jobs when omitted).
+    pub job: Option<String>,
+    #[command(flatten)]
+    pub client: ClientArgs,
+    /// List every task of the job.
+    #[arg(long)]
+    pub tasks: bool,
+    /// Machine-readable output.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn status(a: StatusArgs) -> Result<()> {
+    runtime()?.block_on(async move {
+        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        match &a.job {
+            Some(id) => {
+                let s = client.status(id, a.tasks || a.json).await?;
+                if a.json {
+                    println!("{}", serde_json::to_string_pretty(&status_json(&s))?);
+                } else {
+                    print_status(&s, a.tasks);
+                }
+            }
+            None => print_jobs(&client.list().await?, a.json)?,
+        }
+        Ok(())
+    })
+}
+
+#[derive(Args, Debug)]
+pub struct JobArgs {
+    pub job: String,
+    #[command(flatten)]
+    pub client: ClientArgs,
+}
+
+pub fn watch(a: JobArgs) -> Result<()> {
+    runtime()?.block_on(async move {
+        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let progress = CliProgress::new(false);
+        let status = follow(&client, &a.job, &progress).await?;
+        finish_status(&status)
+    })
+}
+
+pub fn cancel(a: JobArgs) -> Result<()> {
+    runtime()?.block_on(async move {
+        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let state = client.cancel(&a.job).await?;
+        println!("{} {state}", a.job);
+        Ok(())
+    })
+}
+
+#[derive(Args, Debug)]
+pub struct JobsArgs {
+    #[command(flatten)]
+    pub client: ClientArgs,
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn jobs(a: JobsArgs) -> Result<()> {
+    runtime()?.block_on(async move {
+        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        print_jobs(&client.list().await?, a.json)
+    })
+}
+
+/// Follows a job's event stream with a task progress bar (or log lines) until it ends; returns its final
+/// status.
+pub async fn follow(
+    client: &impl JobClient,
+    job_id: &str,
+    progress: &CliProgress,
+) -> Result<pb::JobStatus> {
+    use crease_core::progress::Progress;
+    let mut stream = client.watch(job_id).await?;
+    let mut total = 0u64;
+    let mut last: Option<pb::JobStatus> = None;
+    while let Some(ev) = stream.next().await {
+        let ev = ev?;
+        match ev.kind.as_str() {
+            "snapshot" | "task_done" => {
+                if ev.total != total && ev.total > 0 {
+                    if total > 0 {
+                        progress.end("tasks");
+                    }
+                    total = ev.total;
+                    progress.begin("tasks", total);
+                    progress.advance("tasks", ev.done);
+                } else if ev.kind == "task_done" {
+                    progress.advance("tasks", 1);
+                }
+                if let Some(s) = ev.status {
+                    last = Some(s);
+                }
+            }
+            "task_retry" => {
+                progress.println(&format!("{job_id}: task `{}`: {}", ev.task_key, ev.message))
+            }
+            "job_waiting" | "job_failed" | "job_cancelled" => {
+                progress.println(&format!("{job_id}: {}", ev.message))
+            }
+            _ => {}
+        }
+    }
+    if total > 0 {
+        progress.end("tasks");
+    }
+    match last {
+        Some(s) => Ok(s),
+        None => Ok(client.status(job_id, false).await?),
+    }
+}
+
+/// Ok for a done job; an error carrying the job's reason otherwise.
+pub fn finish_status(s: &pb::JobStatus) -> Result<()> {
+    match s.state.as_str() {
+        "done" => {
+            eprintln!(
+                "{} done: {} tasks, {:.2}s of work",
+                s.job_id, s.tasks_total, s.work_seconds
+            );
+            Ok(())
+        }
+        state => bail!("job {} {state}: {}", s.job_id, s.message),
+    }
+}
+
+fn status_json(s: &pb::JobStatus) -> serde_json::Value {
+    serde_json::json!({
+        "job_id": s.job_id, "name": s.name, "state": s.state, "priority": s.priority,
+        "tasks_total": s.tasks_total, "tasks_done": s.tasks_done, "tasks_running": s.tasks_running,
+        "tasks_failed": s.tasks_failed, "message": s.message, "output": s.output,
+        "work_seconds": s.work_seconds,
+        "tasks": s.tasks.iter().map(|t| serde_json::json!({
+            "key": t.key, "kind": t.kind, "state": t.state, "attempts": t.attempts,
+            "last_error": t.last_error, "worker": t.worker, "work_seconds": t.work_seconds,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+fn print_status(s: &pb::JobStatus, tasks: bool) {
+    println!(
+        "{} `{}` {}: {}/{} tasks done, {} running, {} failed{}",
+        s.job_id,
+        s.name,
+        s.state,
+        s.tasks_done,
+        s.tasks_total,
+        s.tasks_running,
+        s.tasks_failed,
+        if s.message.is_empty() {
+            String::new()
+        } else {
+            format!(" — {}", s.message)
+        }
+    );
+    if tasks {
+        for t in &s.tasks {
+            println!(
+                "  {:<28} {:<10} attempts {} {}",
+                t.key, t.state, t.attempts, t.last_error
+            );
+        }
+    }
+}
+
+fn print_jobs(jobs: &[pb::JobStatus], json: bool) -> Result<()> {
+    if json {
+        let v: Vec<_> = jobs.iter().map(status_json).collect();
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else if jobs.is_empty() {
+        println!("no jobs");
+    } else {
+        for s in jobs {
+            print_status(s, false);
+        }
+    }
+    Ok(())
+}

@@ -95,7 +95,10 @@ impl Scheduler {
 
     /// The dispatch loop: runs until the process ends.
     pub async fn run(self: Arc<Self>) {
-        let tick = self.config.heartbeat_interval.min(Duration::from_millis(200));
+        let tick = self
+            .config
+            .heartbeat_interval
+            .min(Duration::from_millis(200));
         loop {
             tokio::select! {
                 _ = self.wake.notified() => {}
@@ -134,8 +137,8 @@ impl Scheduler {
         let defs = crease_jobs::plan(&spec, &info)
             .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         // A report left by an earlier run must not vouch for this job while it runs.
-        let out = Storage::open(&spec.output)
-            .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
+        let out =
+            Storage::open(&spec.output).map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         out.delete(crease_jobs::keys::REPORT)
             .await
             .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
@@ -151,8 +154,10 @@ impl Scheduler {
         };
         let job = NewJob {
             name,
-            spec_json: serde_json::to_string(&spec).map_err(|e| ApiError::Internal(e.to_string()))?,
-            info_json: serde_json::to_string(&info).map_err(|e| ApiError::Internal(e.to_string()))?,
+            spec_json: serde_json::to_string(&spec)
+                .map_err(|e| ApiError::Internal(e.to_string()))?,
+            info_json: serde_json::to_string(&info)
+                .map_err(|e| ApiError::Internal(e.to_string()))?,
             output: spec.output.clone(),
             priority: spec.priority,
             client_token: spec.client_token.clone(),
@@ -228,7 +233,9 @@ impl Scheduler {
                     _ = poll.tick() => {}
                 }
                 let Some(sched) = this.upgrade() else { return };
-                let Ok(s) = sched.status(&id, false) else { return };
+                let Ok(s) = sched.status(&id, false) else {
+                    return;
+                };
                 if terminal(&s) {
                     let _ = tx.send(snapshot(s)).await;
                     return;
@@ -259,12 +266,13 @@ impl Scheduler {
                 req.name
             )));
         }
-        let endpoint = tonic::transport::Endpoint::from_shared(req.address.clone()).map_err(|e| {
-            ApiError::Invalid(format!(
-                "worker `{}`: address `{}` is not a URL: {e}",
-                req.name, req.address
-            ))
-        })?;
+        let endpoint =
+            tonic::transport::Endpoint::from_shared(req.address.clone()).map_err(|e| {
+                ApiError::Invalid(format!(
+                    "worker `{}`: address `{}` is not a URL: {e}",
+                    req.name, req.address
+                ))
+            })?;
         let client = WorkerClient::new(endpoint.connect_lazy());
         let id = {
             let mut n = lock(&self.next_worker);
@@ -391,7 +399,10 @@ impl Scheduler {
         let reported = match client.execute(req).await {
             Err(status) => {
                 // The worker never started the task (unreachable or draining): not the task's fault.
-                self.drop_worker(&wid, &format!("did not take task `{}`: {}", claim.key, status.message()));
+                self.drop_worker(
+                    &wid,
+                    &format!("did not take task `{}`: {}", claim.key, status.message()),
+                );
                 Reported::Failed(Failure {
                     retryable: true,
                     counts: false,
@@ -446,7 +457,10 @@ impl Scheduler {
             w.running = w.running.saturating_sub(1);
         }
         if let Err(e) = self.report(&claim, &wid, reported).await {
-            eprintln!("coordinator: job {} task `{}`: {e}", claim.job_id, claim.key);
+            eprintln!(
+                "coordinator: job {} task `{}`: {e}",
+                claim.job_id, claim.key
+            );
         }
         self.wake.notify_one();
     }
@@ -503,9 +517,14 @@ impl Scheduler {
                     self.finish(job_id).await?;
                 }
             }
-            Outcome::Retry { attempt } => {
-                self.emit(job_id, "task_retry", key, &format!("attempt {attempt} failed"), 0, 0)
-            }
+            Outcome::Retry { attempt } => self.emit(
+                job_id,
+                "task_retry",
+                key,
+                &format!("attempt {attempt} failed"),
+                0,
+                0,
+            ),
             Outcome::JobFailed { message } => {
                 self.emit(job_id, "job_failed", key, &message, 0, 0);
                 self.stop_running(job_id);
@@ -564,7 +583,9 @@ impl Scheduler {
 
     /// Tells workers to stop the running tasks of a job that ended (cancelled or failed).
     fn stop_running(&self, job_id: &str) {
-        let running = lock(&self.store).running_tasks(Some(job_id)).unwrap_or_default();
+        let running = lock(&self.store)
+            .running_tasks(Some(job_id))
+            .unwrap_or_default();
         for (job, key, attempt, wid) in running {
             let client = lock(&self.workers).get(&wid).map(|w| w.client.clone());
             if let Some(mut client) = client {

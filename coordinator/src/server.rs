@@ -50,7 +50,9 @@ impl Coordinator for CoordinatorService {
         req: Request<pb::GetJobRequest>,
     ) -> Result<Response<pb::JobStatus>, Status> {
         let r = req.into_inner();
-        Ok(Response::new(self.scheduler.status(&r.job_id, r.with_tasks)?))
+        Ok(Response::new(
+            self.scheduler.status(&r.job_id, r.with_tasks)?,
+        ))
     }
 
     async fn list_jobs(

@@ -112,7 +112,10 @@ pub async fn run(
     let drain = async {
         if !state.wait_idle(config.drain_timeout).await {
             let n = state.cancel_all();
-            eprintln!("worker `{}`: handing back {n} unfinished task(s)", config.name);
+            eprintln!(
+                "worker `{}`: handing back {n} unfinished task(s)",
+                config.name
+            );
             state.wait_idle(Duration::from_secs(10)).await;
         }
     };

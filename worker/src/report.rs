@@ -104,7 +104,9 @@ impl Reporter {
 
     async fn register(&self) -> Result<Duration, RegisterError> {
         let endpoint = Endpoint::from_shared(self.coordinator.clone())
-            .map_err(|e| RegisterError::Refused(format!("coordinator URL `{}`: {e}", self.coordinator)))?
+            .map_err(|e| {
+                RegisterError::Refused(format!("coordinator URL `{}`: {e}", self.coordinator))
+            })?
             .connect_timeout(Duration::from_secs(2));
         let channel = endpoint
             .connect()
@@ -127,7 +129,9 @@ impl Reporter {
                     self.name, r.worker_id, self.coordinator
                 );
                 *self.current.lock().await = Some((client, r.worker_id));
-                Ok(Duration::from_millis(u64::from(r.heartbeat_interval_ms.max(50))))
+                Ok(Duration::from_millis(u64::from(
+                    r.heartbeat_interval_ms.max(50),
+                )))
             }
             Err(s) if s.code() == tonic::Code::InvalidArgument => {
                 Err(RegisterError::Refused(s.message().to_string()))

@@ -66,7 +66,10 @@ impl JobState {
     }
     /// Done, failed and cancelled jobs never change again.
     pub fn is_terminal(self) -> bool {
-        matches!(self, JobState::Done | JobState::Failed | JobState::Cancelled)
+        matches!(
+            self,
+            JobState::Done | JobState::Failed | JobState::Cancelled
+        )
     }
 }
 
@@ -320,7 +323,10 @@ impl Store {
             "UPDATE tasks SET state = 'queued', worker = '' WHERE state = 'running'",
             [],
         )?;
-        tx.execute("UPDATE workers SET state = 'lost' WHERE state != 'lost'", [])?;
+        tx.execute(
+            "UPDATE workers SET state = 'lost' WHERE state != 'lost'",
+            [],
+        )?;
         tx.commit()?;
         Ok(n)
     }
@@ -370,7 +376,13 @@ impl Store {
             ],
         )?;
         insert_tasks(&tx, &id, &job.tasks)?;
-        event(&tx, &id, "job_submitted", "", &format!("{} tasks", job.tasks.len()))?;
+        event(
+            &tx,
+            &id,
+            "job_submitted",
+            "",
+            &format!("{} tasks", job.tasks.len()),
+        )?;
         tx.commit()?;
         Ok((id, true))
     }
@@ -436,7 +448,13 @@ impl Store {
             "UPDATE jobs SET state = 'running', message = '' WHERE id = ?1 AND state IN ('queued', 'waiting')",
             params![job_id],
         )?;
-        event(&tx, job_id, "task_started", key, &format!("attempt {attempt} on {worker}"))?;
+        event(
+            &tx,
+            job_id,
+            "task_started",
+            key,
+            &format!("attempt {attempt} on {worker}"),
+        )?;
         tx.commit()?;
         Ok(Some(Claim {
             job_id: job_id.to_string(),
@@ -462,7 +480,13 @@ impl Store {
     ) -> Result<Outcome> {
         let tx = self.conn.transaction()?;
         if !is_current(&tx, job_id, key, attempt)? {
-            event(&tx, job_id, "stale_report", key, &format!("attempt {attempt} ignored"))?;
+            event(
+                &tx,
+                job_id,
+                "stale_report",
+                key,
+                &format!("attempt {attempt} ignored"),
+            )?;
             tx.commit()?;
             return Ok(Outcome::Stale);
         }
@@ -474,7 +498,13 @@ impl Store {
         )?;
         close_attempt(&tx, job_id, key, attempt, "done", "")?;
         insert_tasks(&tx, job_id, more)?;
-        event(&tx, job_id, "task_done", key, &format!("attempt {attempt}, {work_seconds:.3}s"))?;
+        event(
+            &tx,
+            job_id,
+            "task_done",
+            key,
+            &format!("attempt {attempt}, {work_seconds:.3}s"),
+        )?;
         let left: u32 = tx.query_row(
             "SELECT COUNT(*) FROM tasks WHERE job_id = ?1 AND state != 'done'",
             params![job_id],
@@ -482,7 +512,9 @@ impl Store {
         )?;
         let _ = t;
         tx.commit()?;
-        Ok(Outcome::Done { job_done: left == 0 })
+        Ok(Outcome::Done {
+            job_done: left == 0,
+        })
     }
 
     /// Marks a job done (called once every task is done and every final output exists).
@@ -515,7 +547,13 @@ impl Store {
     ) -> Result<Outcome> {
         let tx = self.conn.transaction()?;
         if !is_current(&tx, job_id, key, attempt)? {
-            event(&tx, job_id, "stale_report", key, &format!("attempt {attempt} ignored"))?;
+            event(
+                &tx,
+                job_id,
+                "stale_report",
+                key,
+                &format!("attempt {attempt} ignored"),
+            )?;
             tx.commit()?;
             return Ok(Outcome::Stale);
         }
@@ -529,7 +567,11 @@ impl Store {
             tx.commit()?;
             return Ok(Outcome::Cancelled);
         }
-        let outcome_name = if failure.cancelled { "handed-back" } else { "failed" };
+        let outcome_name = if failure.cancelled {
+            "handed-back"
+        } else {
+            "failed"
+        };
         close_attempt(&tx, job_id, key, attempt, outcome_name, &failure.reason)?;
         tx.execute(
             "UPDATE tasks SET last_error = ?3 WHERE job_id = ?1 AND key = ?2",
@@ -559,7 +601,10 @@ impl Store {
         let over_job_limit = failure.counts && failures >= job.max_failures;
         let outcome = if fatal || out_of_attempts || over_job_limit {
             let why = if fatal {
-                format!("task `{key}` failed (not retryable) on attempt {attempt}: {}", failure.reason)
+                format!(
+                    "task `{key}` failed (not retryable) on attempt {attempt}: {}",
+                    failure.reason
+                )
             } else if out_of_attempts {
                 format!(
                     "task `{key}` failed {counted} time(s), the limit is {}: {}",
@@ -639,20 +684,35 @@ impl Store {
         )?;
         if n > 0 {
             let tx = self.conn.transaction()?;
-            event(&tx, job_id, if waiting { "job_waiting" } else { "job_resumed" }, "", message)?;
+            event(
+                &tx,
+                job_id,
+                if waiting {
+                    "job_waiting"
+                } else {
+                    "job_resumed"
+                },
+                "",
+                message,
+            )?;
             tx.commit()?;
         }
         Ok(())
     }
 
     /// Running tasks (job, key, attempt, worker), for cancel and lost-worker handling.
-    pub fn running_tasks(&self, job_id: Option<&str>) -> Result<Vec<(String, String, u32, String)>> {
+    pub fn running_tasks(
+        &self,
+        job_id: Option<&str>,
+    ) -> Result<Vec<(String, String, u32, String)>> {
         let mut stmt = self.conn.prepare_cached(
             "SELECT job_id, key, attempts, worker FROM tasks
              WHERE state = 'running' AND (?1 IS NULL OR job_id = ?1)",
         )?;
         let rows = stmt
-            .query_map(params![job_id], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?)))?
+            .query_map(params![job_id], |r| {
+                Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?))
+            })?
             .collect::<rusqlite::Result<Vec<_>>>()?;
         Ok(rows)
     }
@@ -670,9 +730,9 @@ impl Store {
     }
 
     fn jobs_where(&self, cond: &str) -> Result<Vec<JobRow>> {
-        let mut stmt = self
-            .conn
-            .prepare(&format!("SELECT {JOB_COLS} FROM jobs WHERE {cond} ORDER BY seq"))?;
+        let mut stmt = self.conn.prepare(&format!(
+            "SELECT {JOB_COLS} FROM jobs WHERE {cond} ORDER BY seq"
+        ))?;
         let rows = stmt
             .query_map([], job_from_row)?
             .collect::<rusqlite::Result<Vec<_>>>()?;
@@ -689,7 +749,11 @@ impl Store {
             "SELECT state, COUNT(*), COALESCE(SUM(work_seconds), 0) FROM tasks WHERE job_id = ?1 GROUP BY state",
         )?;
         let rows = stmt.query_map(params![job_id], |r| {
-            Ok((r.get::<_, String>(0)?, r.get::<_, u32>(1)?, r.get::<_, f64>(2)?))
+            Ok((
+                r.get::<_, String>(0)?,
+                r.get::<_, u32>(1)?,
+                r.get::<_, f64>(2)?,
+            ))
         })?;
         for row in rows {
             let (state, n, secs) = row?;
@@ -750,7 +814,13 @@ impl Store {
     }
 
     /// Records a worker registration.
-    pub fn register_worker(&mut self, id: &str, name: &str, address: &str, capacity: u32) -> Result<()> {
+    pub fn register_worker(
+        &mut self,
+        id: &str,
+        name: &str,
+        address: &str,
+        capacity: u32,
+    ) -> Result<()> {
         self.conn.execute(
             "INSERT OR REPLACE INTO workers (id, name, address, capacity, registered, state)
              VALUES (?1, ?2, ?3, ?4, ?5, 'live')",
@@ -761,8 +831,10 @@ impl Store {
 
     /// Marks a worker lost (missed heartbeats, broken stream) or gone (drained).
     pub fn set_worker_state(&mut self, id: &str, state: &str) -> Result<()> {
-        self.conn
-            .execute("UPDATE workers SET state = ?2 WHERE id = ?1", params![id, state])?;
+        self.conn.execute(
+            "UPDATE workers SET state = ?2 WHERE id = ?1",
+            params![id, state],
+        )?;
         Ok(())
     }
 
@@ -782,7 +854,8 @@ impl Store {
     }
 }
 
-const JOB_COLS: &str = "id, name, spec, info, output, priority, state, message, max_task_attempts, \
+const JOB_COLS: &str =
+    "id, name, spec, info, output, priority, state, message, max_task_attempts, \
                         max_failures, failures, submitted, finished";
 
 fn job_from_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<JobRow> {

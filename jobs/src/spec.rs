@@ -159,7 +159,11 @@ impl JobSpec {
             }
             e => JobError::spec("deform", e.to_string()),
         })?;
-        if self.deform.anchor_block != self.partition.anchor_block {
+        // The block size lives in [partition]; `deform.anchor_block` is accepted only when left at its default
+        // or equal, so that a value set there is never silently ignored.
+        if self.deform.anchor_block != DeformParams::default().anchor_block
+            && self.deform.anchor_block != self.partition.anchor_block
+        {
             return Err(JobError::spec(
                 "deform.anchor_block",
                 format!(

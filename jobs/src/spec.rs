@@ -128,16 +128,24 @@ impl Default for PreviewOptions {
 impl JobSpec {
     /// Parses a TOML job file and validates it.
     pub fn from_toml_str(text: &str) -> Result<Self, JobError> {
-        let spec: JobSpec =
-            toml::from_str(text).map_err(|e| JobError::spec("job.toml", e.to_string()))?;
+        let spec: JobSpec = toml::from_str(text).map_err(|e| {
+            let field = e
+                .span()
+                .and_then(|span| toml_field_at(text, span.start))
+                .unwrap_or_else(|| "job.toml".to_string());
+            JobError::spec(field, e.to_string())
+        })?;
         spec.validate()?;
         Ok(spec)
     }
 
     /// Parses a JSON job spec and validates it.
     pub fn from_json_str(text: &str) -> Result<Self, JobError> {
-        let spec: JobSpec =
-            serde_json::from_str(text).map_err(|e| JobError::spec("job (JSON)", e.to_string()))?;
+        let spec: JobSpec = serde_json::from_str(text).map_err(|e| {
+            let field = json_key_before(text, e.line(), e.column())
+                .unwrap_or_else(|| "job (JSON)".to_string());
+            JobError::spec(field, e.to_string())
+        })?;
         spec.validate()?;
         Ok(spec)
     }
@@ -233,4 +241,42 @@ impl JobSpec {
             ..self.deform.clone()
         }
     }
+}
+
+/// The dotted name (`partition.anchor_block`) of the key on the line holding byte `offset` of a TOML text, so
+/// that parse errors name the field even when the message only quotes the value.
+fn toml_field_at(text: &str, offset: usize) -> Option<String> {
+    let before = text.get(..offset.min(text.len()))?;
+    let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+    let line = text[line_start..].lines().next().unwrap_or("");
+    let key = line
+        .split_once('=')
+        .map(|(k, _)| k.trim().trim_matches('"'));
+    let table = before[..line_start]
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('[') && l.ends_with(']'))
+        .map(|l| l.trim_matches(|c| c == '[' || c == ']').trim().to_string());
+    match (table, key) {
+        (Some(t), Some(k)) if !k.is_empty() => Some(format!("{t}.{k}")),
+        (None, Some(k)) if !k.is_empty() => Some(k.to_string()),
+        (Some(t), _) => Some(t),
+        _ => None,
+    }
+}
+
+/// The last object key (`"name":`) before line `line`, column `column` (1-based) of a JSON text: the field
+/// a value error is about.
+fn json_key_before(text: &str, line: usize, column: usize) -> Option<String> {
+    let line_start: usize = text
+        .split_inclusive('\n')
+        .take(line.saturating_sub(1))
+        .map(str::len)
+        .sum();
+    let before = text.get(..(line_start + column).min(text.len()))?;
+    let colon = before.rfind(':')?;
+    let key_end = before[..colon].trim_end().strip_suffix('"')?;
+    let key_start = key_end.rfind('"')?;
+    Some(key_end[key_start + 1..].to_string())
 }

@@ -20,7 +20,6 @@ use crate::inspect::InputInfo;
 use crate::keys;
 use crate::spec::JobSpec;
 use crate::task::{TaskDef, TaskOutput, TaskSpec};
-use crease_core::folds::Granularity;
 use crease_core::spacetime::per_anchor::plan_blocks;
 use crease_core::spacetime::windows::{plan_windows, Window};
 use crease_core::spacetime::WeightMode;
@@ -47,10 +46,8 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
             job.folds.kind()
         ))
     })?;
-    let chunks: Vec<std::ops::Range<usize>> = match detector.granularity() {
-        Granularity::WholeSequence => vec![0..n],
-        Granularity::PerFrame => chunk_ranges(n, job.partition.fold_frames_per_chunk),
-    };
+    let chunks =
+        detect::detection_chunks(detector.as_ref(), n, job.partition.fold_frames_per_chunk);
     let mut tasks: Vec<TaskDef> = chunks
         .iter()
         .map(|r| TaskDef {

@@ -48,7 +48,7 @@ fn malformed_specs_name_the_field() {
     assert!(e.contains("priorty"), "{e}");
     let e = toml_err("output = \"/data/out\"\n");
     assert!(e.contains("input"), "{e}");
-    let e = toml_err(&format!("input = \"\"\noutput = \"/o\"\n"));
+    let e = toml_err("input = \"\"\noutput = \"/o\"\n");
     assert!(e.contains("`input`"), "{e}");
     let e = toml_err(&format!("{base}max_task_attempts = 0\n"));
     assert!(e.contains("max_task_attempts"), "{e}");

@@ -63,7 +63,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let mut frame_stretch = vec![Vec::new(); n];
     let mut kept: Vec<(usize, Frame, Frame)> = Vec::new();
     env.progress().begin("finalize", n as u64);
-    for t in 0..n {
+    for (t, stretch_of_t) in frame_stretch.iter_mut().enumerate() {
         env.check_cancelled()?;
         let key = keys::positions(t);
         let (shape, data) = env.get_npy::<f64>(&key)?;
@@ -92,7 +92,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             })?;
             at += used;
             acc.merge(&a);
-            frame_stretch[t].push(a.stats());
+            stretch_of_t.push(a.stats());
         }
         let ft: FrameTimings = env.get_json(&keys::frame_timings(t))?;
         timings.symbolic += ft.symbolic;

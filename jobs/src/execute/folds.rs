@@ -3,11 +3,10 @@
 //! whose per-frame anchor counts let the planner size the weight blocks.
 
 use super::env::TaskEnv;
-use crate::detect::detector;
+use crate::detect::{detection_chunks, detector};
 use crate::error::TaskError;
 use crate::keys;
-use crate::plan::chunk_ranges;
-use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors, Granularity};
+use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors};
 use serde_json::{json, Value};
 use std::ops::Range;
 
@@ -22,14 +21,6 @@ fn job_detector(env: &TaskEnv) -> Result<Box<dyn FoldDetector>, TaskError> {
         })
 }
 
-/// The frame chunks the detector's tasks cover, in order (the planner uses the same split).
-pub(crate) fn detect_chunks(d: &dyn FoldDetector, n: usize, per_chunk: usize) -> Vec<Range<usize>> {
-    match d.granularity() {
-        Granularity::WholeSequence => vec![0..n],
-        Granularity::PerFrame => chunk_ranges(n, per_chunk),
-    }
-}
-
 pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
     let d = job_detector(env)?;
     let opened = env.open_input()?;
@@ -40,7 +31,7 @@ pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>
         frames.start,
         frames.end
     );
-    if !detect_chunks(d.as_ref(), n, env.job.partition.fold_frames_per_chunk).contains(&frames) {
+    if !detection_chunks(d.as_ref(), n, env.job.partition.fold_frames_per_chunk).contains(&frames) {
         return Err(TaskError::fatal(format!(
             "{label}: not one of the job's detection chunks over {n} frames"
         )));
@@ -68,7 +59,7 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let n = opened.source.n_frames();
     let n_tri = opened.source.topology().n_triangles();
     let mut frames: Vec<FrameAnchors> = Vec::with_capacity(n);
-    for r in detect_chunks(d.as_ref(), n, env.job.partition.fold_frames_per_chunk) {
+    for r in detection_chunks(d.as_ref(), n, env.job.partition.fold_frames_per_chunk) {
         env.check_cancelled()?;
         let chunk: Vec<FrameAnchors> = env.get_json(&keys::fold_chunk(r.start))?;
         frames.extend(chunk);

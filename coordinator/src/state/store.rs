@@ -974,3 +974,233 @@ fn event(tx: &Connection, job_id: &str, kind: &str, key: &str, message: &str) ->
     )?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn task(key: &str, deps: &[&str]) -> NewTask {
+        NewTask {
+            key: key.into(),
+            kind: "test".into(),
+            payload: "{}".into(),
+            deps: deps.iter().map(|d| d.to_string()).collect(),
+            expands: false,
+        }
+    }
+
+    fn job(priority: i32, tasks: Vec<NewTask>) -> NewJob {
+        NewJob {
+            name: "j".into(),
+            spec_json: "{}".into(),
+            info_json: "{}".into(),
+            output: "/tmp/x".into(),
+            priority,
+            client_token: None,
+            max_task_attempts: 3,
+            max_failures: 10,
+            tasks,
+        }
+    }
+
+    fn err(retryable: bool) -> Failure {
+        Failure {
+            retryable,
+            counts: true,
+            cancelled: false,
+            reason: "boom".into(),
+        }
+    }
+
+    fn keys(store: &Store) -> Vec<String> {
+        store
+            .ready_tasks(100)
+            .unwrap()
+            .into_iter()
+            .map(|t| format!("{}:{}", t.job_id, t.key))
+            .collect()
+    }
+
+    #[test]
+    fn priority_first_then_fifo_then_dependencies() {
+        let mut s = Store::in_memory().unwrap();
+        let (a, _) = s
+            .insert_job(&job(0, vec![task("x", &[]), task("y", &["x"])]))
+            .unwrap();
+        let (b, _) = s.insert_job(&job(5, vec![task("x", &[])])).unwrap();
+        let (c, _) = s.insert_job(&job(0, vec![task("x", &[])])).unwrap();
+        assert_eq!(
+            keys(&s),
+            vec![format!("{b}:x"), format!("{a}:x"), format!("{c}:x")]
+        );
+        let cl = s.claim(&a, "x", "w1").unwrap().unwrap();
+        assert_eq!(cl.attempt, 1);
+        assert!(!keys(&s).contains(&format!("{a}:y")), "y waits for x");
+        let out = s.complete(&a, "x", 1, "{}", 0.5, &[]).unwrap();
+        assert_eq!(out, Outcome::Done { job_done: false });
+        assert!(keys(&s).contains(&format!("{a}:y")));
+    }
+
+    #[test]
+    fn stale_reports_are_ignored() {
+        let mut s = Store::in_memory().unwrap();
+        let (a, _) = s.insert_job(&job(0, vec![task("x", &[])])).unwrap();
+        s.claim(&a, "x", "w1").unwrap().unwrap();
+        // The coordinator gave up on attempt 1 (worker lost) and re-queued it.
+        assert_eq!(
+            s.fail(&a, "x", 1, "w1", &err(true), 0.0).unwrap(),
+            Outcome::Retry { attempt: 1 }
+        );
+        let cl = s.claim(&a, "x", "w2").unwrap().unwrap();
+        assert_eq!(cl.attempt, 2);
+        // The late report of attempt 1 changes nothing.
+        assert_eq!(
+            s.complete(&a, "x", 1, "{}", 1.0, &[]).unwrap(),
+            Outcome::Stale
+        );
+        assert_eq!(s.tasks(&a).unwrap()[0].state, TaskState::Running);
+        assert_eq!(
+            s.complete(&a, "x", 2, "{}", 1.0, &[]).unwrap(),
+            Outcome::Done { job_done: true }
+        );
+        assert!(s.finish_job(&a).unwrap());
+        assert_eq!(s.job(&a).unwrap().state, JobState::Done);
+    }
+
+    #[test]
+    fn retries_up_to_the_limit_then_the_job_fails_naming_the_task() {
+        let mut s = Store::in_memory().unwrap();
+        let (a, _) = s.insert_job(&job(0, vec![task("pos/f0003", &[])])).unwrap();
+        for attempt in 1..=2 {
+            s.claim(&a, "pos/f0003", "w1").unwrap().unwrap();
+            assert_eq!(
+                s.fail(&a, "pos/f0003", attempt, "w1", &err(true), 0.0)
+                    .unwrap(),
+                Outcome::Retry { attempt }
+            );
+        }
+        s.claim(&a, "pos/f0003", "w1").unwrap().unwrap();
+        match s.fail(&a, "pos/f0003", 3, "w1", &err(true), 0.0).unwrap() {
+            Outcome::JobFailed { message } => {
+                assert!(
+                    message.contains("pos/f0003") && message.contains("boom"),
+                    "{message}"
+                )
+            }
+            o => panic!("{o:?}"),
+        }
+        assert_eq!(s.job(&a).unwrap().state, JobState::Failed);
+        assert_eq!(s.worker_failures(&a, "w1").unwrap(), 3);
+    }
+
+    #[test]
+    fn non_retryable_failures_fail_at_once_and_hand_backs_do_not_count() {
+        let mut s = Store::in_memory().unwrap();
+        let (a, _) = s.insert_job(&job(0, vec![task("x", &[])])).unwrap();
+        // Hand-backs (drain) and restarts do not use up attempts.
+        for attempt in 1..=5 {
+            s.claim(&a, "x", "w1").unwrap().unwrap();
+            let handed_back = Failure {
+                retryable: true,
+                counts: false,
+                cancelled: true,
+                reason: "cancelled".into(),
+            };
+            assert_eq!(
+                s.fail(&a, "x", attempt, "w1", &handed_back, 0.0).unwrap(),
+                Outcome::Retry { attempt }
+            );
+        }
+        s.claim(&a, "x", "w1").unwrap().unwrap();
+        assert!(matches!(
+            s.fail(&a, "x", 6, "w1", &err(false), 0.0).unwrap(),
+            Outcome::JobFailed { .. }
+        ));
+    }
+
+    #[test]
+    fn job_failure_limit_counts_over_all_tasks() {
+        let mut s = Store::in_memory().unwrap();
+        let mut j = job(0, vec![task("a", &[]), task("b", &[])]);
+        j.max_failures = 2;
+        let (id, _) = s.insert_job(&j).unwrap();
+        s.claim(&id, "a", "w1").unwrap().unwrap();
+        s.claim(&id, "b", "w1").unwrap().unwrap();
+        assert!(matches!(
+            s.fail(&id, "a", 1, "w1", &err(true), 0.0).unwrap(),
+            Outcome::Retry { .. }
+        ));
+        match s.fail(&id, "b", 1, "w1", &err(true), 0.0).unwrap() {
+            Outcome::JobFailed { message } => assert!(message.contains("limit of 2"), "{message}"),
+            o => panic!("{o:?}"),
+        }
+    }
+
+    #[test]
+    fn cancel_drops_queued_tasks_and_closes_running_ones_on_report() {
+        let mut s = Store::in_memory().unwrap();
+        let (a, _) = s
+            .insert_job(&job(0, vec![task("x", &[]), task("y", &[])]))
+            .unwrap();
+        s.claim(&a, "x", "w1").unwrap().unwrap();
+        assert_eq!(s.cancel_job(&a).unwrap(), JobState::Cancelled);
+        assert!(s.ready_tasks(10).unwrap().is_empty());
+        assert_eq!(s.running_tasks(Some(&a)).unwrap().len(), 1);
+        let stopped = Failure {
+            retryable: true,
+            counts: false,
+            cancelled: true,
+            reason: "cancelled".into(),
+        };
+        assert_eq!(
+            s.fail(&a, "x", 1, "w1", &stopped, 0.0).unwrap(),
+            Outcome::Cancelled
+        );
+        assert!(s.running_tasks(Some(&a)).unwrap().is_empty());
+        assert_eq!(s.cancel_job(&a).unwrap(), JobState::Cancelled);
+    }
+
+    #[test]
+    fn restart_recovery_requeues_running_tasks_and_keeps_done_ones() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("q.sqlite");
+        let a = {
+            let mut s = Store::open(&path).unwrap();
+            let (a, _) = s
+                .insert_job(&job(0, vec![task("x", &[]), task("y", &[])]))
+                .unwrap();
+            s.claim(&a, "x", "w1").unwrap().unwrap();
+            s.complete(&a, "x", 1, "{}", 0.1, &[]).unwrap();
+            s.claim(&a, "y", "w1").unwrap().unwrap();
+            a
+        };
+        let mut s = Store::open(&path).unwrap();
+        assert_eq!(s.recover().unwrap(), 1);
+        let tasks = s.tasks(&a).unwrap();
+        assert_eq!(tasks[0].state, TaskState::Done);
+        assert_eq!(tasks[0].attempts, 1);
+        assert_eq!(tasks[1].state, TaskState::Queued);
+        // The interrupted attempt does not count against the task.
+        let cl = s.claim(&a, "y", "w2").unwrap().unwrap();
+        assert_eq!(cl.attempt, 2);
+        assert_eq!(s.job(&a).unwrap().failures, 0);
+    }
+
+    #[test]
+    fn client_token_makes_submit_idempotent_and_expansion_is_atomic() {
+        let mut s = Store::in_memory().unwrap();
+        let mut j = job(0, vec![task("merge", &[])]);
+        j.client_token = Some("tok".into());
+        let (a, created) = s.insert_job(&j).unwrap();
+        assert!(created);
+        let (b, created) = s.insert_job(&j).unwrap();
+        assert_eq!((a.clone(), false), (b, created));
+        s.claim(&a, "merge", "w1").unwrap().unwrap();
+        let more = vec![task("w/0", &["merge"]), task("fin", &["w/0"])];
+        assert_eq!(
+            s.complete(&a, "merge", 1, "{}", 0.0, &more).unwrap(),
+            Outcome::Done { job_done: false }
+        );
+        assert_eq!(keys(&s), vec![format!("{a}:w/0")]);
+    }
+}

@@ -152,6 +152,7 @@ pub fn worker(a: WorkerArgs) -> Result<()> {
         cache_dir,
         drain_timeout: Duration::from_secs_f64(a.drain_secs),
         protocol_version: a.protocol_version,
+        log: true,
     };
     runtime()?.block_on(crease_worker::run(config, shutdown_signal()))?;
     Ok(())

@@ -26,6 +26,7 @@ impl LocalCluster {
             db: None,
             heartbeat_interval: Duration::from_millis(500),
             worker_timeout: Duration::from_secs(10),
+            log: false,
             ..CoordinatorConfig::default()
         };
         let scheduler = Scheduler::open(config).context("starting the in-process coordinator")?;
@@ -56,6 +57,7 @@ impl LocalCluster {
                 cache_dir: cache_dir.clone(),
                 drain_timeout: Duration::from_secs(5),
                 protocol_version: crease_proto::PROTOCOL_VERSION,
+                log: false,
             };
             stops.insert(0, tx);
             handles.insert(

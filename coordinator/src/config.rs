@@ -19,6 +19,8 @@ pub struct CoordinatorConfig {
     /// First retry delay; doubles per attempt up to `retry_backoff_max`.
     pub retry_backoff: Duration,
     pub retry_backoff_max: Duration,
+    /// Log registrations, lost workers and retries to stderr.
+    pub log: bool,
 }
 
 impl Default for CoordinatorConfig {
@@ -31,6 +33,7 @@ impl Default for CoordinatorConfig {
             blacklist_after: 2,
             retry_backoff: Duration::from_millis(200),
             retry_backoff_max: Duration::from_secs(10),
+            log: true,
         }
     }
 }

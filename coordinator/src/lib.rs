@@ -8,6 +8,15 @@
 //! of its tasks while another worker can take them; after a restart the tasks that were running are queued
 //! again; with no live worker a job reports `waiting` and fails after the grace period.
 
+/// `eprintln!` when `$on` (logging is off in local single-node mode, where the CLI owns stderr).
+macro_rules! log {
+    ($on:expr, $($t:tt)*) => {
+        if $on {
+            eprintln!($($t)*)
+        }
+    };
+}
+
 pub mod client;
 pub mod config;
 pub mod scheduler;

@@ -74,7 +74,7 @@ impl Scheduler {
         };
         let requeued = store.recover()?;
         if requeued > 0 {
-            eprintln!("coordinator: recovered the queue, {requeued} task(s) that were running are queued again");
+            log!(config.log, "coordinator: recovered the queue, {requeued} task(s) that were running are queued again");
         }
         let next = store.worker_count()?;
         let (events, _) = broadcast::channel(4096);
@@ -105,7 +105,7 @@ impl Scheduler {
                 _ = tokio::time::sleep(tick) => {}
             }
             if let Err(e) = self.tick() {
-                eprintln!("coordinator: {e}");
+                log!(self.config.log, "coordinator: {e}");
             }
         }
     }
@@ -290,9 +290,12 @@ impl Scheduler {
             draining: false,
             client,
         });
-        eprintln!(
+        log!(
+            self.config.log,
             "coordinator: worker {id} `{}` at {} registered, capacity {}",
-            req.name, req.address, req.capacity
+            req.name,
+            req.address,
+            req.capacity
         );
         self.wake.notify_one();
         Ok(pb::RegisterWorkerResponse {
@@ -308,7 +311,7 @@ impl Scheduler {
             Some(w) => {
                 w.last_seen = Instant::now();
                 if req.draining && !w.draining {
-                    eprintln!("coordinator: worker {} is draining", w.id);
+                    log!(self.config.log, "coordinator: worker {} is draining", w.id);
                 }
                 w.draining = req.draining;
                 pb::HeartbeatResponse { known: true }
@@ -457,9 +460,11 @@ impl Scheduler {
             w.running = w.running.saturating_sub(1);
         }
         if let Err(e) = self.report(&claim, &wid, reported).await {
-            eprintln!(
+            log!(
+                self.config.log,
                 "coordinator: job {} task `{}`: {e}",
-                claim.job_id, claim.key
+                claim.job_id,
+                claim.key
             );
         }
         self.wake.notify_one();
@@ -548,9 +553,13 @@ impl Scheduler {
         let outcome =
             lock(&self.store).fail(&claim.job_id, &claim.key, claim.attempt, wid, f, backoff)?;
         if matches!(outcome, Outcome::Retry { .. }) {
-            eprintln!(
+            log!(
+                self.config.log,
                 "coordinator: job {} task `{}` attempt {} failed on {wid}: {}",
-                claim.job_id, claim.key, claim.attempt, f.reason
+                claim.job_id,
+                claim.key,
+                claim.attempt,
+                f.reason
             );
         }
         Ok(outcome)
@@ -606,7 +615,7 @@ impl Scheduler {
     /// heartbeat is answered `known: false` and it registers again.
     fn drop_worker(&self, wid: &str, why: &str) {
         if lock(&self.workers).remove(wid).is_some() {
-            eprintln!("coordinator: worker {wid} dropped: {why}");
+            log!(self.config.log, "coordinator: worker {wid} dropped: {why}");
             let _ = lock(&self.store).set_worker_state(wid, "lost");
         }
     }

@@ -9,6 +9,15 @@
 //! makes the worker wait (cancellably) before running tasks of those kinds, so a test can kill a worker or
 //! cancel a job while a task is known to be in flight on tiny inputs.
 
+/// `eprintln!` when `$on` (logging is off in local single-node mode, where the CLI owns stderr).
+macro_rules! log {
+    ($on:expr, $($t:tt)*) => {
+        if $on {
+            eprintln!($($t)*)
+        }
+    };
+}
+
 pub mod report;
 pub mod running;
 pub mod servant;
@@ -38,6 +47,8 @@ pub struct WorkerConfig {
     pub drain_timeout: Duration,
     /// Protocol version announced at registration (tests announce a wrong one).
     pub protocol_version: u32,
+    /// Log registration, drain and shutdown to stderr.
+    pub log: bool,
 }
 
 /// Errors that stop a worker.
@@ -86,9 +97,12 @@ pub async fn run(
                 let _ = stop_rx.await;
             }),
     );
-    eprintln!(
+    log!(
+        config.log,
         "worker `{}`: listening on {addr}, coordinator {}, capacity {}",
-        config.name, config.coordinator, config.capacity
+        config.name,
+        config.coordinator,
+        config.capacity
     );
     let reporter = report::Reporter::new(&config, advertise, Arc::clone(&state));
     let outcome = tokio::select! {
@@ -101,7 +115,8 @@ pub async fn run(
     }
     // Drain: no new tasks; let running ones finish, then hand the rest back.
     state.set_draining();
-    eprintln!(
+    log!(
+        config.log,
         "worker `{}`: draining ({} task(s) running, up to {:.0}s)",
         config.name,
         state.running(),
@@ -112,7 +127,8 @@ pub async fn run(
     let drain = async {
         if !state.wait_idle(config.drain_timeout).await {
             let n = state.cancel_all();
-            eprintln!(
+            log!(
+                config.log,
                 "worker `{}`: handing back {n} unfinished task(s)",
                 config.name
             );
@@ -129,6 +145,6 @@ pub async fn run(
         Ok(Err(e)) => return Err(WorkerError::Serve(e.to_string())),
         Err(e) => return Err(WorkerError::Serve(e.to_string())),
     }
-    eprintln!("worker `{}`: stopped", config.name);
+    log!(config.log, "worker `{}`: stopped", config.name);
     Ok(())
 }

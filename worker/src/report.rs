@@ -17,6 +17,7 @@ pub struct Reporter {
     capacity: u32,
     protocol_version: u32,
     tasks: Arc<Tasks>,
+    log: bool,
     /// The current registration: (client, worker id).
     current: Mutex<Option<(CoordinatorClient<Channel>, String)>>,
 }
@@ -30,6 +31,7 @@ impl Reporter {
             capacity: config.capacity,
             protocol_version: config.protocol_version,
             tasks,
+            log: config.log,
             current: Mutex::new(None),
         }
     }
@@ -46,7 +48,8 @@ impl Reporter {
                 }
                 Err(RegisterError::Refused(msg)) => return Err(WorkerError::Refused(msg)),
                 Err(RegisterError::Unreachable(msg)) => {
-                    eprintln!(
+                    log!(
+                        self.log,
                         "worker `{}`: coordinator {} unreachable ({msg}); retrying in {:.1}s",
                         self.name,
                         self.coordinator,
@@ -63,7 +66,7 @@ impl Reporter {
                 match self.beat().await {
                     Some(true) | None => {}
                     Some(false) => {
-                        eprintln!(
+                        log!(self.log,
                             "worker `{}`: the coordinator does not know this worker (restarted?); registering again",
                             self.name
                         );
@@ -124,9 +127,12 @@ impl Reporter {
         match resp {
             Ok(r) => {
                 let r = r.into_inner();
-                eprintln!(
+                log!(
+                    self.log,
                     "worker `{}`: registered as {} with {}",
-                    self.name, r.worker_id, self.coordinator
+                    self.name,
+                    r.worker_id,
+                    self.coordinator
                 );
                 *self.current.lock().await = Some((client, r.worker_id));
                 Ok(Duration::from_millis(u64::from(

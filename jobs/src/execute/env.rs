@@ -7,12 +7,17 @@ use crate::spec::{FoldSpec, JobSpec};
 use crate::storage::{fetch_input_to_cache, Storage};
 use bytes::Bytes;
 use crease_core::folds::AnchorSet;
-use crease_core::mesh::io::{open_sequence, OpenedSequence};
+use crease_core::mesh::io::{detect_layout, open_layout, OpenedSequence};
 use crease_core::npy::{self, NpyElement};
 use crease_core::progress::Progress;
 use crease_core::spacetime::windows::Window;
 use crease_core::spacetime::DeformParams;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+/// Recently opened inputs (see [`TaskEnv::open_input`]).
+#[allow(clippy::type_complexity)]
+static OPENED: Mutex<Vec<(PathBuf, u64, Arc<OpenedSequence>)>> = Mutex::new(Vec::new());
 
 /// A task's view of its job, used from the blocking thread the task runs on.
 pub struct TaskEnv<'a> {
@@ -113,11 +118,37 @@ impl<'a> TaskEnv<'a> {
             .map_err(storage_err)
     }
 
-    /// Opens the input sequence (topology read and validated; frames are read on demand).
-    pub fn open_input(&self) -> Result<OpenedSequence, TaskError> {
+    /// Opens the input sequence (topology read and validated; frames are read on demand). The tasks of a job
+    /// running on one worker share the opened input through a small per-process cache, keyed by the input's
+    /// path and the size and modification time of each of its files, so an input changed in place is reopened.
+    pub fn open_input(&self) -> Result<Arc<OpenedSequence>, TaskError> {
         let path = self.input_path()?;
-        open_sequence(&path)
-            .map_err(|e| TaskError::from_core(&format!("input {}", self.job.input), e))
+        let err = |e| TaskError::from_core(&format!("input {}", self.job.input), e);
+        let layout = detect_layout(&path).map_err(err)?;
+        let stamp = layout
+            .input_files()
+            .iter()
+            .fold(0xcbf29ce484222325u64, |h, f| {
+                let m = std::fs::metadata(f).ok();
+                let len = m.as_ref().map_or(0, |m| m.len());
+                let mtime = m
+                    .and_then(|m| m.modified().ok())
+                    .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+                    .map_or(0, |d| d.as_nanos() as u64);
+                [len, mtime]
+                    .iter()
+                    .flat_map(|x| x.to_le_bytes())
+                    .fold(h, |h, b| (h ^ b as u64).wrapping_mul(0x100000001b3))
+            });
+        let mut cache = OPENED.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((_, _, o)) = cache.iter().find(|(p, s, _)| *p == path && *s == stamp) {
+            return Ok(o.clone());
+        }
+        let source = open_layout(&layout).map_err(err)?;
+        let opened = Arc::new(OpenedSequence { source, layout });
+        cache.insert(0, (path, stamp, opened.clone()));
+        cache.truncate(2);
+        Ok(opened)
     }
 
     /// The job's anchors: none, the anchors file, or the detected `anchors.json`.

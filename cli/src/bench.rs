@@ -48,6 +48,18 @@ pub struct BenchArgs {
     /// Write all results as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Run the per-anchor case as a cluster job on loopback instead (see `--cluster-workers`).
+    #[arg(long)]
+    pub cluster: bool,
+    /// Worker counts of the cluster benchmark.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4")]
+    pub cluster_workers: Vec<usize>,
+    /// Mesh size (triangles) of the cluster benchmark.
+    #[arg(long, default_value_t = 100_000)]
+    pub cluster_triangles: usize,
+    /// Anchor columns per weight block (task) in the cluster benchmark.
+    #[arg(long, default_value_t = 256)]
+    pub cluster_anchor_block: usize,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -76,7 +88,11 @@ fn reset_peak_rss() {
     let _ = std::fs::write("/proc/self/clear_refs", "5");
 }
 
-fn case_input(triangles: usize, frames: usize, anchors: usize) -> Result<(Sequence, AnchorSet)> {
+pub(crate) fn case_input(
+    triangles: usize,
+    frames: usize,
+    anchors: usize,
+) -> Result<(Sequence, AnchorSet)> {
     let spec = DemoSpec {
         triangles,
         frames,
@@ -88,6 +104,9 @@ fn case_input(triangles: usize, frames: usize, anchors: usize) -> Result<(Sequen
 }
 
 pub fn bench(a: BenchArgs) -> Result<()> {
+    if a.cluster {
+        return crate::bench_cluster::bench_cluster(&a);
+    }
     if a.frames < 2 || a.repeats == 0 {
         anyhow::bail!("--frames must be ≥ 2 and --repeats ≥ 1");
     }

@@ -244,7 +244,7 @@ pub fn submit(a: SubmitArgs) -> Result<()> {
         println!("{id}");
         if a.watch {
             let progress = CliProgress::new(false);
-            let status = follow(&client, &id, &progress).await?;
+            let status = follow(&client, &id, Some(&progress)).await?;
             finish_status(&status)?;
         }
         Ok(())
@@ -294,7 +294,7 @@ pub fn watch(a: JobArgs) -> Result<()> {
     runtime()?.block_on(async move {
         let client = RemoteClient::connect(&a.client.coordinator).await?;
         let progress = CliProgress::new(false);
-        let status = follow(&client, &a.job, &progress).await?;
+        let status = follow(&client, &a.job, Some(&progress)).await?;
         finish_status(&status)
     })
 }
@@ -328,9 +328,12 @@ pub fn jobs(a: JobsArgs) -> Result<()> {
 pub async fn follow(
     client: &impl JobClient,
     job_id: &str,
-    progress: &CliProgress,
+    progress: Option<&CliProgress>,
 ) -> Result<pb::JobStatus> {
     use crease_core::progress::Progress;
+    let quiet = CliProgress::new(true);
+    let shown = progress.is_some();
+    let progress = progress.unwrap_or(&quiet);
     let mut stream = client.watch(job_id).await?;
     let mut total = 0u64;
     let mut last: Option<pb::JobStatus> = None;
@@ -338,7 +341,8 @@ pub async fn follow(
         let ev = ev?;
         match ev.kind.as_str() {
             "snapshot" | "task_done" => {
-                if ev.total != total && ev.total > 0 {
+                if !shown {
+                } else if ev.total != total && ev.total > 0 {
                     if total > 0 {
                         progress.end("tasks");
                     }
@@ -355,13 +359,13 @@ pub async fn follow(
             "task_retry" => {
                 progress.println(&format!("{job_id}: task `{}`: {}", ev.task_key, ev.message))
             }
-            "job_waiting" | "job_failed" | "job_cancelled" => {
+            "job_waiting" | "job_failed" | "job_cancelled" if shown => {
                 progress.println(&format!("{job_id}: {}", ev.message))
             }
             _ => {}
         }
     }
-    if total > 0 {
+    if shown && total > 0 {
         progress.end("tasks");
     }
     match last {

@@ -779,6 +779,7 @@ fn status_of(store: &Store, job: &JobRow, with_tasks: bool) -> Result<pb::JobSta
                 last_error: t.last_error,
                 worker: t.worker,
                 work_seconds: t.work_seconds,
+                wall_seconds: t.wall_seconds,
             })
             .collect()
     } else {

@@ -140,6 +140,8 @@ pub struct TaskRow {
     pub last_error: String,
     pub worker: String,
     pub work_seconds: f64,
+    /// Wall time of the successful attempt, dispatch to report (0 until done).
+    pub wall_seconds: f64,
 }
 
 /// A task handed to a worker: the attempt number identifies this try.
@@ -392,7 +394,7 @@ impl Store {
     pub fn ready_tasks(&self, limit: usize) -> Result<Vec<TaskRow>> {
         let mut stmt = self.conn.prepare_cached(
             "SELECT t.job_id, t.key, t.kind, t.payload, t.expands, t.state, t.attempts, t.last_error,
-                    t.worker, t.work_seconds
+                    t.worker, t.work_seconds, 0.0
              FROM tasks t JOIN jobs j ON j.id = t.job_id
              WHERE t.state = 'queued' AND j.state IN ('queued', 'running', 'waiting')
                AND t.not_before <= ?1
@@ -772,8 +774,10 @@ impl Store {
 
     pub fn tasks(&self, job_id: &str) -> Result<Vec<TaskRow>> {
         let mut stmt = self.conn.prepare_cached(
-            "SELECT job_id, key, kind, payload, expands, state, attempts, last_error, worker, work_seconds
-             FROM tasks WHERE job_id = ?1 ORDER BY seq",
+            "SELECT job_id, key, kind, payload, expands, state, attempts, last_error, worker, work_seconds,
+                    (SELECT COALESCE(SUM(a.finished - a.started), 0) FROM attempts a
+                     WHERE a.job_id = t.job_id AND a.task_key = t.key AND a.outcome = 'done')
+             FROM tasks t WHERE job_id = ?1 ORDER BY seq",
         )?;
         let rows = stmt
             .query_map(params![job_id], task_row)?
@@ -905,6 +909,7 @@ fn task_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<TaskRow> {
         last_error: r.get(7)?,
         worker: r.get(8)?,
         work_seconds: r.get(9)?,
+        wall_seconds: r.get(10)?,
     })
 }
 

@@ -1,6 +1,6 @@
 //! The one place that maps a job's [`FoldSpec`] to a fold detector. Adding a detector (video, stretch) is one
 //! match arm here: the planner and the fold-detection tasks only see `dyn FoldDetector` and its
-//! [`Granularity`](crease_core::folds::Granularity).
+//! [`Granularity`].
 
 use crate::error::JobError;
 use crate::plan::chunk_ranges;

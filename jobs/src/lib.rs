@@ -1,8 +1,94 @@
 //! crease-jobs: job specs, planning (job → task graph), storage and task execution on top of crease-core.
 //!
 //! This crate holds everything about a job that does not depend on the transport: the coordinator calls
-//! [`inspect_input`] at submit, [`plan`] / [`expand`] to build the task graph and [`final_outputs`] before marking
-//! a job done; workers call [`execute`]. No gRPC here, so the same code runs in-process in tests.
+//! [`inspect_input`] at submit, [`plan()`] / [`expand`] to build the task graph and [`final_outputs`] before marking
+//! a job done; workers call [`execute()`]. No gRPC here, so the same code runs in-process in tests.
+//!
+//! # Job spec
+//!
+//! A job is a TOML (or JSON) document. Only `input` and `output` are required; every other field defaults to
+//! what `crease run` does (the paper's parameters), so a two-line job deforms exactly like `crease run`.
+//!
+//! ```
+//! let job = crease_jobs::JobSpec::from_toml_str(r#"
+//! name = "sleeve take 3"
+//! input = "/data/capture/sleeve"          # plain path, file://…, later s3://…
+//! output = "file:///data/out/sleeve"
+//! priority = 10                            # higher first; FIFO within a priority
+//! client_token = "sleeve-take-3"           # submitting again with this token returns the same job
+//! max_task_attempts = 3                    # attempts of one task before the job fails
+//! max_task_failures_per_job = 10           # failed attempts over all tasks before the job fails
+//!
+//! [folds]                                  # or: kind = "none"
+//! kind = "anchors"
+//! uri = "/data/capture/sleeve-anchors.json"
+//!
+//! [deform]                                 # any DeformParams field; these are the defaults
+//! mode = "per-anchor"                      # or "fused" (default)
+//! window = 10
+//! shift = 7
+//! cg_tolerance = 1e-3
+//! stretch_passes = 2
+//!
+//! [partition]
+//! anchor_block = 256                       # anchor columns per weight task (per-anchor mode)
+//! frames_per_chunk = 4                     # frames per positioning task
+//! fold_frames_per_chunk = 8                # frames per fold-detection task (per-frame detectors)
+//!
+//! [preview]
+//! frames = [5, 20]                         # default: four spread over the sequence
+//! size = 384
+//! "#).unwrap();
+//! assert_eq!(job.params().anchor_block, 256);
+//! ```
+//!
+//! Errors name the field: `job spec: \`partition.anchor_block\`: …`, `input /data/x: …`.
+//!
+//! # Task graph
+//!
+//! See [`plan`](crate::plan()): per-anchor mode plans one `weight-block` task per (window, anchor block) and a
+//! `reduce` per window that sums the blocks' partial blends in block order; fused mode plans one
+//! `weight-window` task per window. Each `position` task (a chunk of frames) depends on every window covering
+//! its frames; `finalize` depends on all positioning tasks. When folds are detected, `fold-detect` tasks (one per
+//! frame chunk, or one for the whole sequence, as [`FoldDetector::granularity`](crease_core::folds::FoldDetector)
+//! says) and a `fold-merge` task come first; `fold-merge` is marked `expands` and [`expand`] adds the rest once
+//! the anchor counts are known. Adding a detector is one match arm in [`detect::detector`].
+//!
+//! # Storage layout (all keys relative to the job's `output`)
+//!
+//! | key | written by | content |
+//! | --- | --- | --- |
+//! | `<input file names>` | finalize | the output sequence, in the input's layout (OBJ/PLY frames, or OBJ + PC2) |
+//! | `anchors.json` | fold-merge | detected anchors (detection jobs only) |
+//! | `preview.png`, `stretch.png` | finalize | before/after preview, stretch per frame and pass |
+//! | `report.json` | finalize, **last** | `"complete": true`, parameters, per-window stats, stretch, timings |
+//! | `.crease-work/weights/wWWWW/bBBBBB.npy` | weight-block | partial blend, (n, 4) f64 rows `node, x, y, z` |
+//! | `.crease-work/fields/wWWWW/fFFFFFF.npy` | weight-window / reduce | window field at one frame, (triangles, 3) f64 |
+//! | `.crease-work/positions/fFFFFFF.npy` | position | output positions, (vertices, 3) f64 |
+//! | `.crease-work/positions/fFFFFFF.stretch.npy` | position | exact stretch accumulators (u64 words) |
+//! | `.crease-work/**.json` | all | statistics and timings sidecars |
+//!
+//! Keys depend only on the job and the task, and every `.npy` and output file is a pure function of the
+//! task's inputs, so a task that runs twice (lost worker, restart, late duplicate) writes the same bytes.
+//! Timings in the `.json` sidecars and in `report.json` are the only bytes that differ between runs. Puts are
+//! atomic (staged file + rename locally, whole-object puts remotely). `finalize` removes any stale
+//! `report.json` before it rewrites the outputs, so a report is only ever present next to complete outputs.
+//!
+//! # Failures
+//!
+//! [`TaskError::retryable`] says whether another attempt may help: I/O and storage errors are retryable; bad
+//! data (a NaN in a frame, a malformed intermediate, anchors that do not fit), bad parameters and numerical
+//! failures are not, and their reason names the file, frame, window or block. A task stopped through
+//! [`Progress::cancelled`](crease_core::progress::Progress::cancelled) returns [`TaskError::cancelled`]
+//! (retryable: the work itself was fine, e.g. a worker handing its task back at shutdown).
+//!
+//! # Determinism
+//!
+//! Every task calls the same [`crease_core::spacetime::stages`] functions that `crease_core::spacetime::deform`
+//! is built on, summing blocks in block order and windows in window order, so the output files are
+//! byte-identical to a single-machine run whatever the number of workers, the order tasks ran in, or the
+//! partition sizes (the anchor block size is part of the arithmetic in per-anchor mode, as it is for `deform`).
+//! `jobs/tests/pipeline.rs` checks this.
 
 pub mod detect;
 pub mod error;

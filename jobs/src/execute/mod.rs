@@ -1,9 +1,9 @@
 //! Running one task on a worker: crease-core on a blocking thread, inputs and results through storage.
 //!
-//! Each task kind has its own module named after what it computes: [`folds`] (detection and merge),
-//! [`weights`] (a fused window, an anchor block, the reduce of a window), [`position`] (cross-fade, positioning
-//! and stretch passes of a frame chunk), [`finalize`] (output sequence, previews, report). They share
-//! [`env::TaskEnv`]: the job's storage, input and anchors, opened the same way by every task.
+//! Each task kind has its own module named after what it computes: `folds` (detection and merge),
+//! `weights` (a fused window, an anchor block, the reduce of a window), `position` (cross-fade, positioning
+//! and stretch passes of a frame chunk), `finalize` (output sequence, previews, report). They share
+//! `env::TaskEnv`: the job's storage, input and anchors, opened the same way by every task.
 //!
 //! Determinism: a task reads only what its dependencies wrote under deterministic keys and calls the
 //! [`crease_core::spacetime::stages`] functions in a fixed order, so what it writes does not depend on the

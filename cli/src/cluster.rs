@@ -88,12 +88,28 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
     runtime()?.block_on(async move {
         let scheduler = Scheduler::open(config)
             .with_context(|| format!("opening the queue {}", a.db.display()))?;
-        let (addr, serve) =
-            crease_coordinator::server::serve(scheduler, a.listen, shutdown_signal())
-                .await
-                .with_context(|| format!("listening on {}", a.listen))?;
+        let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+        tokio::spawn(async move {
+            shutdown_signal().await;
+            let _ = stop_tx.send(true);
+        });
+        let mut graceful = stop_rx.clone();
+        let (addr, serve) = crease_coordinator::server::serve(scheduler, a.listen, async move {
+            let _ = graceful.changed().await;
+        })
+        .await
+        .with_context(|| format!("listening on {}", a.listen))?;
         eprintln!("coordinator listening on {addr} (queue {})", a.db.display());
-        serve.await.context("coordinator gRPC server")?;
+        // Open WatchJob streams would hold a graceful shutdown forever: give them a moment, then stop anyway
+        // (the queue is in SQLite, so nothing is lost).
+        let mut forced = stop_rx;
+        tokio::select! {
+            r = serve => r.context("coordinator gRPC server")?,
+            _ = async {
+                let _ = forced.changed().await;
+                tokio::time::sleep(Duration::from_secs(3)).await;
+            } => eprintln!("coordinator: closing the remaining client streams"),
+        }
         eprintln!("coordinator stopped");
         Ok(())
     })

@@ -58,7 +58,7 @@
 //!
 //! | key | written by | content |
 //! | --- | --- | --- |
-//! | `<input file names>` | finalize | the output sequence, in the input's layout (OBJ/PLY frames, or OBJ + PC2) |
+//! | `<input file names>` | position (OBJ/PLY frames), finalize (OBJ + PC2) | the output sequence in the input's layout |
 //! | `anchors.json` | fold-merge | detected anchors (detection jobs only) |
 //! | `preview.png`, `stretch.png` | finalize | before/after preview, stretch per frame and pass |
 //! | `report.json` | finalize, **last** | `"complete": true`, parameters, per-window stats, stretch, timings |
@@ -71,8 +71,11 @@
 //! Keys depend only on the job and the task, and every `.npy` and output file is a pure function of the
 //! task's inputs, so a task that runs twice (lost worker, restart, late duplicate) writes the same bytes.
 //! Timings in the `.json` sidecars and in `report.json` are the only bytes that differ between runs. Puts are
-//! atomic (staged file + rename locally, whole-object puts remotely). `finalize` removes any stale
-//! `report.json` before it rewrites the outputs, so a report is only ever present next to complete outputs.
+//! atomic (staged file + rename locally, whole-object puts remotely). A stale `report.json` from an earlier
+//! run into the same output is removed when the job is submitted (coordinator) and again when `finalize`
+//! starts; `finalize` checks that every output file exists and writes the report last, so a report is only ever
+//! present next to complete outputs. Positioning tasks never delete it: a late duplicate of one after the job
+//! finished rewrites identical frame bytes and leaves the report alone.
 //!
 //! # Failures
 //!

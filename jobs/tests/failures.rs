@@ -245,6 +245,16 @@ async fn cancellation_and_malformed_tasks() {
         let err = execute(&task, &ctx).await.unwrap_err();
         assert!(!err.retryable && err.reason.contains(needle), "{err:?}");
     }
+    // Finalize refuses to vouch for an output whose frame files are not all there.
+    std::fs::remove_file(out.join("frame_0005.obj")).unwrap();
+    let err = execute(&TaskSpec::Finalize { job: spec.clone() }, &ctx)
+        .await
+        .unwrap_err();
+    assert!(
+        !err.retryable && err.reason.contains("frame_0005.obj"),
+        "{err:?}"
+    );
+    assert!(!out.join("report.json").exists());
     let err = TaskSpec::from_payload("position", b"{\"kind\": \"finalize\"").unwrap_err();
     assert!(
         !err.retryable && err.reason.contains("malformed"),

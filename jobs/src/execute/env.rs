@@ -190,3 +190,79 @@ impl<'a> TaskEnv<'a> {
         Ok((windows, w))
     }
 }
+
+/// A local directory where a task writes output files with crease-core: the output itself when it is local,
+/// or a staging directory in the cache whose files [`OutputDir::upload`] copies to the remote output.
+pub struct OutputDir {
+    pub path: PathBuf,
+    staged: bool,
+}
+
+impl TaskEnv<'_> {
+    /// The directory `stage` writes output files into (see [`OutputDir`]).
+    pub fn output_dir(&self, stage: &str) -> Result<OutputDir, TaskError> {
+        if let Some(p) = self.out.local_path() {
+            return Ok(OutputDir {
+                path: p.to_path_buf(),
+                staged: false,
+            });
+        }
+        let d = self
+            .ctx
+            .cache_dir
+            .join("outputs")
+            .join(format!("{:016x}", fnv(self.job.output.as_bytes())))
+            .join(stage.replace('/', "_"));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d)
+            .map_err(|e| TaskError::transient(format!("staging {}: {e}", d.display())))?;
+        Ok(OutputDir {
+            path: d,
+            staged: true,
+        })
+    }
+}
+
+impl OutputDir {
+    /// Uploads a staging directory's files (nothing to do for a local output).
+    pub fn upload(&self, env: &TaskEnv) -> Result<(), TaskError> {
+        if self.staged {
+            upload_dir(env, &self.path)?;
+        }
+        Ok(())
+    }
+}
+
+/// Uploads every plain, non-hidden file of a staging directory under its file name.
+fn upload_dir(env: &TaskEnv, dir: &Path) -> Result<(), TaskError> {
+    let entries = std::fs::read_dir(dir)
+        .map_err(|e| TaskError::transient(format!("staging {}: {e}", dir.display())))?;
+    let mut files: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.is_file()
+                && !p
+                    .file_name()
+                    .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+        })
+        .collect();
+    files.sort();
+    for f in files {
+        let bytes = std::fs::read(&f)
+            .map_err(|e| TaskError::transient(format!("staging {}: {e}", f.display())))?;
+        let name = f
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        env.block_on(env.out.put(&name, bytes))
+            .map_err(storage_err)?;
+    }
+    Ok(())
+}
+
+fn fnv(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| {
+        (h ^ b as u64).wrapping_mul(0x100000001b3)
+    })
+}

@@ -17,7 +17,6 @@ use crease_core::spacetime::weights::WindowStats;
 use crease_core::spacetime::DeformReport;
 use crease_core::{preview, render};
 use serde_json::{json, Value};
-use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
@@ -34,20 +33,15 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         move |e| TaskError::from_core(&format!("finalize: {what}"), e)
     };
 
-    // Local outputs are written in place; remote ones are staged in the cache and uploaded.
-    let (dir, staged) = match env.out.local_path() {
-        Some(p) => (p.to_path_buf(), false),
-        None => {
-            let d = env
-                .ctx
-                .cache_dir
-                .join("outputs")
-                .join(format!("{:016x}", fnv(job.output.as_bytes())));
-            let _ = std::fs::remove_dir_all(&d);
-            (d, true)
-        }
+    let out_dir = env.output_dir("finalize")?;
+    let dir = out_dir.path.clone();
+    // Frame-per-file layouts were written frame by frame by the positioning tasks; a point cache is one file
+    // and is written here.
+    let mut sink = if super::position::writes_frames(&opened.layout) {
+        None
+    } else {
+        Some(create_sink(&opened.layout, &dir).map_err(core_err("output"))?)
     };
-    let mut sink = create_sink(&opened.layout, &dir).map_err(core_err("output"))?;
     let keep: Vec<usize> = if job.preview.frames.is_empty() {
         let mut k: Vec<usize> = (1..=4).map(|i| (i * n / 5).min(n - 1)).collect();
         k.dedup();
@@ -65,19 +59,27 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     env.progress().begin("finalize", n as u64);
     for (t, stretch_of_t) in frame_stretch.iter_mut().enumerate() {
         env.check_cancelled()?;
-        let key = keys::positions(t);
-        let (shape, data) = env.get_npy::<f64>(&key)?;
-        if shape != [topo.n_vertices(), 3] {
-            return Err(TaskError::fatal(format!(
-                "{}: shape {shape:?}, expected ({}, 3)",
-                env.out.describe(&key),
-                topo.n_vertices()
-            )));
+        if sink.is_some() || keep.contains(&t) {
+            let key = keys::positions(t);
+            let (shape, data) = env.get_npy::<f64>(&key)?;
+            if shape != [topo.n_vertices(), 3] {
+                return Err(TaskError::fatal(format!(
+                    "{}: shape {shape:?}, expected ({}, 3)",
+                    env.out.describe(&key),
+                    topo.n_vertices()
+                )));
+            }
+            let out: Frame = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            if let Some(sink) = sink.as_mut() {
+                let tw = Instant::now();
+                sink.write_frame(t, &out).map_err(core_err("output"))?;
+                timings.write += tw.elapsed().as_secs_f64();
+            }
+            if keep.contains(&t) {
+                let rest = source.read_frame(t).map_err(core_err("preview"))?;
+                kept.push((t, rest, out));
+            }
         }
-        let out: Frame = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-        let tw = Instant::now();
-        sink.write_frame(t, &out).map_err(core_err("output"))?;
-        timings.write += tw.elapsed().as_secs_f64();
 
         let key = keys::frame_stretch(t);
         let (_, words) = env.get_npy::<u64>(&key)?;
@@ -106,13 +108,31 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
                 *x += s;
             }
         }
-        if keep.contains(&t) {
-            let rest = source.read_frame(t).map_err(core_err("preview"))?;
-            kept.push((t, rest, out));
-        }
         env.progress().advance("finalize", 1);
     }
-    let files = sink.finish().map_err(core_err("output"))?;
+    let names: Vec<String> = match sink.as_mut() {
+        Some(sink) => sink
+            .finish()
+            .map_err(core_err("output"))?
+            .iter()
+            .filter_map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()))
+            .collect(),
+        None => crate::inspect::output_files(&opened.layout),
+    };
+    let mut missing = Vec::new();
+    for name in &names {
+        if !env.block_on(env.out.exists(name)).map_err(storage_err)? {
+            missing.push(name.clone());
+        }
+    }
+    if !missing.is_empty() {
+        return Err(TaskError::fatal(format!(
+            "finalize: {} output frame file(s) missing from {} although their positioning tasks succeeded: {}",
+            missing.len(),
+            job.output,
+            missing.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
+        )));
+    }
     let windows: Vec<WindowStats> = (0..env.windows(n).len())
         .map(|k| {
             env.get_json::<WindowRecord>(&keys::window_stats(k))
@@ -137,15 +157,10 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     .map_err(core_err("stretch plot"))?;
     let preview_seconds = t_preview.elapsed().as_secs_f64();
 
-    let mut written: Vec<String> = files
-        .iter()
-        .filter_map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()))
-        .collect();
+    let mut written = names;
     written.push(keys::PREVIEW.into());
     written.push(keys::STRETCH_PLOT.into());
-    if staged {
-        upload_dir(env, &dir)?;
-    }
+    out_dir.upload(env)?;
 
     let report = DeformReport {
         params: params.clone(),
@@ -207,38 +222,4 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         json!({ "frames": n, "stretch_final": last, "anchors": report.anchors }),
         written,
     ))
-}
-
-/// Uploads every plain, non-hidden file of a staging directory under its file name.
-fn upload_dir(env: &TaskEnv, dir: &Path) -> Result<(), TaskError> {
-    let entries = std::fs::read_dir(dir)
-        .map_err(|e| TaskError::transient(format!("staging {}: {e}", dir.display())))?;
-    let mut files: Vec<PathBuf> = entries
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.is_file()
-                && !p
-                    .file_name()
-                    .is_some_and(|n| n.to_string_lossy().starts_with('.'))
-        })
-        .collect();
-    files.sort();
-    for f in files {
-        let bytes = std::fs::read(&f)
-            .map_err(|e| TaskError::transient(format!("staging {}: {e}", f.display())))?;
-        let name = f
-            .file_name()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .into_owned();
-        env.block_on(env.out.put(&name, bytes))
-            .map_err(storage_err)?;
-    }
-    Ok(())
-}
-
-fn fnv(bytes: &[u8]) -> u64 {
-    bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| {
-        (h ^ b as u64).wrapping_mul(0x100000001b3)
-    })
 }

@@ -6,6 +6,7 @@ use super::env::TaskEnv;
 use super::exact;
 use crate::error::TaskError;
 use crate::keys;
+use crease_core::mesh::io::{create_sink, SequenceLayout};
 use crease_core::mesh::FrameSource;
 use crease_core::spacetime::position::PositionSystem;
 use crease_core::spacetime::stages::{self, PositionedFrame};
@@ -34,6 +35,15 @@ pub(crate) struct FrameTimings {
     pub symbolic: f64,
 }
 
+/// Whether positioning tasks write the output frame files themselves (one file per frame); otherwise
+/// (a point cache, one file for all frames) finalize writes the output from the stored positions.
+pub(crate) fn writes_frames(layout: &SequenceLayout) -> bool {
+    matches!(
+        layout,
+        SequenceLayout::ObjFrames { .. } | SequenceLayout::PlyFrames { .. }
+    )
+}
+
 /// Positions `frames`.
 pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
     let label = format!("position frames {}..{}", frames.start, frames.end);
@@ -55,6 +65,17 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     let passes = env.params.stretch_passes;
     env.progress().begin("position", frames.len() as u64);
     let mut written = Vec::new();
+    // Frame files go straight to the output through the layout's sink (the same writer `crease run` uses).
+    let out_dir = env.output_dir(&format!("position-{}", frames.start))?;
+    let mut sink = if writes_frames(&opened.layout) {
+        Some(
+            create_sink(&opened.layout, &out_dir.path)
+                .map_err(|e| TaskError::from_core(&label, e))?,
+        )
+    } else {
+        None
+    };
+    let names = crate::inspect::output_files(&opened.layout);
     let mut stretch_final = Vec::new();
     // Frames in parallel, in batches of the pool size so memory stays bounded by a few frames.
     let batch = rayon::current_num_threads().max(1);
@@ -105,11 +126,19 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
             env.put_npy(&ks, &[words.len()], &words)?;
             env.put_json(&kt, &timings)?;
             written.extend([kp, ks, kt]);
+            if let Some(sink) = sink.as_mut() {
+                sink.write_frame(t, &p.out)
+                    .map_err(|e| TaskError::from_core(&label, e))?;
+                if let Some(name) = names.get(t) {
+                    written.push(name.clone());
+                }
+            }
             if let Some((_, st)) = p.stretch.last() {
                 stretch_final.push(json!({"frame": t, "l2": st.l2, "max": st.max}));
             }
         }
     }
+    out_dir.upload(env)?;
     env.progress().end("position");
     Ok((
         json!({ "frames": [frames.start, frames.end], "stretch_final": stretch_final }),

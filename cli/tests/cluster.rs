@@ -93,16 +93,22 @@ impl Coordinator {
         format!("http://127.0.0.1:{}", self.port)
     }
 
+    /// Starts a worker and waits until it has registered (its log says so).
     fn worker(&self, name: &str, env: &[(&str, &str)]) -> Proc {
+        let log = self.db.with_file_name(format!("worker-{name}.log"));
         let mut cmd = Command::new(BIN);
         cmd.args(["worker", "--coordinator", &self.url(), "--name", name])
             .args(["--threads", "1", "--drain-secs", "5"])
             .stdout(Stdio::null())
-            .stderr(Stdio::null());
+            .stderr(std::fs::File::create(&log).unwrap());
         for (k, v) in env {
             cmd.env(k, v);
         }
-        Proc(cmd.spawn().expect("start worker"))
+        let p = Proc(cmd.spawn().expect("start worker"));
+        wait_until(&format!("worker {name} to register"), || {
+            std::fs::read_to_string(&log).is_ok_and(|t| t.contains("registered as"))
+        });
+        p
     }
 
     fn cli(&self, args: &[&str]) -> Output {

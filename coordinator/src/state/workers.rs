@@ -85,3 +85,38 @@ impl Workers {
         self.by_id.keys().cloned().collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn entry(id: &str, capacity: u32, running: u32, draining: bool) -> WorkerEntry {
+        let channel = tonic::transport::Endpoint::from_static("http://127.0.0.1:9").connect_lazy();
+        WorkerEntry {
+            id: id.into(),
+            name: id.into(),
+            address: "http://127.0.0.1:9".into(),
+            capacity,
+            running,
+            last_seen: Instant::now(),
+            draining,
+            client: WorkerClient::new(channel),
+        }
+    }
+
+    #[tokio::test]
+    async fn picks_the_worker_with_most_free_slots_and_skips_draining_and_refused_ones() {
+        let mut w = Workers::default();
+        w.insert(entry("w1", 2, 1, false));
+        w.insert(entry("w2", 4, 1, false));
+        w.insert(entry("w3", 8, 0, true));
+        assert_eq!(w.total_free(), 4);
+        assert_eq!(w.live(), 2);
+        assert_eq!(w.pick(|_| true).as_deref(), Some("w2"));
+        // A blacklisted worker is passed over while another can take the task.
+        assert_eq!(w.pick(|e| e.id != "w2").as_deref(), Some("w1"));
+        assert_eq!(w.pick(|e| e.id == "w3"), None);
+        w.get_mut("w1").unwrap().running = 2;
+        assert_eq!(w.pick(|e| e.id != "w2"), None);
+    }
+}

@@ -766,3 +766,62 @@ fn sigterm_drains_a_worker_that_finishes_its_task() {
     let s = c.wait_state(&id, &["done", "failed"]);
     assert_eq!(s["state"], "done", "{s}");
 }
+
+#[test]
+fn sigterm_hands_back_a_task_that_outlasts_the_drain_timeout() {
+    let (dir, anchors) = setup();
+    let d = dir.path();
+    local_run(&fixture(), &anchors, &d.join("reference"), "fused", "1");
+    let c = Coordinator::start(d, &[]);
+    // The worker's drain timeout is 5 s (see `Coordinator::worker`); its weight windows would take 60 s.
+    let mut w = c.worker("slow", &[("CREASE_TEST_TASK_DELAY", "weight-window=60000")]);
+    let job = job_file(
+        d,
+        "handback",
+        &fixture(),
+        &anchors,
+        &d.join("out"),
+        "fused",
+        "",
+    );
+    let id = c.submit(&job);
+    let mut key = String::new();
+    wait_until("a weight window to run", || {
+        match tasks(&c.status(&id))
+            .into_iter()
+            .find(|t| t["kind"] == "weight-window" && t["state"] == "running")
+        {
+            Some(t) => {
+                key = t["key"].as_str().unwrap().to_string();
+                true
+            }
+            None => false,
+        }
+    });
+    let pid = w.pid();
+    assert!(Command::new("kill")
+        .args(["-TERM", &pid.to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = w.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(start.elapsed() < DEADLINE, "worker did not stop on SIGTERM");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "{status}");
+    // Handed back: queued again, not failed.
+    let s = c.status(&id);
+    let t = tasks(&s)
+        .into_iter()
+        .find(|t| t["key"] == key.as_str())
+        .unwrap();
+    assert_eq!(t["state"], "queued", "{s}");
+    let _w2 = c.worker("fast", &[]);
+    let s = c.wait_state(&id, &["done", "failed"]);
+    assert_eq!(s["state"], "done", "{s}");
+    assert_complete_and_identical(&d.join("reference"), &d.join("out"));
+}

@@ -54,6 +54,32 @@ pub fn parse_location(uri: &str, field: &str) -> Result<Location, JobError> {
     Ok(Location::Remote(url))
 }
 
+/// The object store serving `url` and the path of `url` inside it. `memory://<name>/…` URLs name process-wide
+/// in-memory stores (one per `<name>`, created on first use), so in-process runs and tests exercise the
+/// remote-storage path (staged outputs, cached inputs) without a network; every other scheme goes to
+/// `object_store::parse_url` (which knows the schemes the crate was built with).
+pub fn remote_store(
+    url: &url::Url,
+) -> Result<(Arc<dyn ObjectStore>, ObjectPath), object_store::Error> {
+    if url.scheme() == "memory" {
+        static STORES: std::sync::Mutex<Vec<(String, Arc<dyn ObjectStore>)>> =
+            std::sync::Mutex::new(Vec::new());
+        let name = url.host_str().unwrap_or("").to_string();
+        let mut stores = STORES.lock().unwrap_or_else(|p| p.into_inner());
+        let store = match stores.iter().find(|(n, _)| *n == name) {
+            Some((_, s)) => s.clone(),
+            None => {
+                let s: Arc<dyn ObjectStore> = Arc::new(object_store::memory::InMemory::new());
+                stores.push((name, s.clone()));
+                s
+            }
+        };
+        return Ok((store, ObjectPath::from_url_path(url.path())?));
+    }
+    let (store, prefix) = object_store::parse_url(url)?;
+    Ok((Arc::from(store), prefix))
+}
+
 /// A storage root: an object store plus the prefix of the root inside it.
 #[derive(Clone)]
 pub struct Storage {
@@ -105,11 +131,10 @@ impl Storage {
                 })
             }
             Location::Remote(url) => {
-                let (store, prefix) =
-                    object_store::parse_url(&url).map_err(|e| JobError::storage(uri, e))?;
+                let (store, prefix) = remote_store(&url).map_err(|e| JobError::storage(uri, e))?;
                 Ok(Storage {
                     uri: uri.to_string(),
-                    store: Arc::from(store),
+                    store,
                     prefix,
                     local: None,
                 })
@@ -210,16 +235,15 @@ impl Storage {
 }
 
 /// Makes the input at `uri` readable by crease-core from a local path. A local input is used in place (no
-/// copy); a remote one is downloaded once into `cache_dir/<hash of the URI>/` (objects that are already there
-/// with the right size are kept) and the local copy's path is returned. Works for directories and single files
+/// copy); a remote one is downloaded once into `cache_dir/<hash of the URI>/` (objects already there and
+/// unchanged — same size, modification time and e-tag — are kept) and the local copy's path is returned. Works for directories and single files
 /// (a `.pc2` is fetched with its sibling `.obj`).
 pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf, JobError> {
     match parse_location(uri, "input")? {
         Location::Local(p) => Ok(p),
         Location::Remote(url) => {
             let local = cache_dir.join(format!("{:016x}", fnv1a(url.as_str().as_bytes())));
-            let (store, prefix) =
-                object_store::parse_url(&url).map_err(|e| JobError::input(uri, e))?;
+            let (store, prefix) = remote_store(&url).map_err(|e| JobError::input(uri, e))?;
             let parts = prefix.parts().count();
             let metas: Vec<_> = store
                 .list(Some(&prefix))
@@ -262,7 +286,14 @@ pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf
                     .map(|p| p.as_ref().to_string())
                     .collect();
                 let dest = local.join(&rel);
-                if std::fs::metadata(&dest).is_ok_and(|d| d.len() == m.size) {
+                // A cached copy is reused only if the object is unchanged: size, modification time and
+                // e-tag are recorded in a hidden sidecar (hidden files are not part of a sequence).
+                let stamp = format!("{} {} {:?}", m.size, m.last_modified.to_rfc3339(), m.e_tag);
+                let sidecar = dest.with_file_name(format!(
+                    ".{}.crease-cache",
+                    dest.file_name().unwrap_or_default().to_string_lossy()
+                ));
+                if dest.is_file() && std::fs::read_to_string(&sidecar).is_ok_and(|s| s == stamp) {
                     continue;
                 }
                 let bytes = store
@@ -278,6 +309,7 @@ pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf
                     })?;
                 }
                 crease_core::fsutil::write_atomic(&dest, &bytes)
+                    .and_then(|()| crease_core::fsutil::write_atomic(&sidecar, stamp.as_bytes()))
                     .map_err(|e| JobError::input(uri, format!("cache: {e}")))?;
             }
             Ok(if single {

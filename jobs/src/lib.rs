@@ -44,6 +44,11 @@
 //!
 //! Errors name the field: `job spec: \`partition.anchor_block\`: …`, `input /data/x: …`.
 //!
+//! URIs: plain paths (relative ones resolve against the current directory of the process that reads the
+//! spec), `file://…`, and any scheme `object_store` is built with (this build: the local filesystem only), plus
+//! `memory://<name>/…` for process-wide in-memory stores (in-process runs and tests of the remote path).
+//! Remote inputs are fetched once into the worker's cache; remote outputs are staged there and uploaded.
+//!
 //! # Task graph
 //!
 //! See [`plan`](crate::plan()): per-anchor mode plans one `weight-block` task per (window, anchor block) and a

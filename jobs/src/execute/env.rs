@@ -15,6 +15,21 @@ use crease_core::spacetime::DeformParams;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
+/// Recently parsed anchors files (see [`TaskEnv::anchors`]).
+#[allow(clippy::type_complexity)]
+static ANCHORS: Mutex<Vec<(PathBuf, u64, Arc<AnchorSet>)>> = Mutex::new(Vec::new());
+
+/// Size and modification time of a file, hashed: what the per-process caches key on.
+fn file_stamp(path: &Path) -> u64 {
+    let m = std::fs::metadata(path).ok();
+    let len = m.as_ref().map_or(0, |m| m.len());
+    let mtime = m
+        .and_then(|m| m.modified().ok())
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos() as u64);
+    fnv(&[len.to_le_bytes(), mtime.to_le_bytes()].concat())
+}
+
 /// Recently opened inputs (see [`TaskEnv::open_input`]).
 #[allow(clippy::type_complexity)]
 static OPENED: Mutex<Vec<(PathBuf, u64, Arc<OpenedSequence>)>> = Mutex::new(Vec::new());
@@ -129,16 +144,7 @@ impl<'a> TaskEnv<'a> {
             .input_files()
             .iter()
             .fold(0xcbf29ce484222325u64, |h, f| {
-                let m = std::fs::metadata(f).ok();
-                let len = m.as_ref().map_or(0, |m| m.len());
-                let mtime = m
-                    .and_then(|m| m.modified().ok())
-                    .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-                    .map_or(0, |d| d.as_nanos() as u64);
-                [len, mtime]
-                    .iter()
-                    .flat_map(|x| x.to_le_bytes())
-                    .fold(h, |h, b| (h ^ b as u64).wrapping_mul(0x100000001b3))
+                (h ^ file_stamp(f)).wrapping_mul(0x100000001b3)
             });
         let mut cache = OPENED.lock().unwrap_or_else(|p| p.into_inner());
         if let Some((_, _, o)) = cache.iter().find(|(p, s, _)| *p == path && *s == stamp) {
@@ -159,8 +165,17 @@ impl<'a> TaskEnv<'a> {
                 let path = self
                     .block_on(fetch_input_to_cache(uri, &self.ctx.cache_dir))
                     .map_err(storage_err)?;
-                AnchorSet::read(&path, n_frames, n_triangles)
-                    .map_err(|e| TaskError::from_core(&format!("anchors {uri}"), e))
+                // The weight tasks of a job on one worker parse the file once (keyed like the input cache).
+                let stamp = file_stamp(&path) ^ ((n_frames as u64) << 32) ^ n_triangles as u64;
+                let mut cache = ANCHORS.lock().unwrap_or_else(|p| p.into_inner());
+                if let Some((_, _, a)) = cache.iter().find(|(p, s, _)| *p == path && *s == stamp) {
+                    return Ok(AnchorSet::clone(a));
+                }
+                let set = AnchorSet::read(&path, n_frames, n_triangles)
+                    .map_err(|e| TaskError::from_core(&format!("anchors {uri}"), e))?;
+                cache.insert(0, (path, stamp, Arc::new(set.clone())));
+                cache.truncate(2);
+                Ok(set)
             }
             #[allow(unreachable_patterns)]
             _ => {

@@ -1,10 +1,12 @@
 //! `crease run` and `crease demo`.
 
+use crate::folds_stretch::{self, ObjFramesSink, StretchArgs};
 use crate::progress::CliProgress;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use crease_core::folds::AnchorSet;
 use crease_core::mesh::io::{create_sink, open_sequence, write_obj_sequence};
+use crease_core::mesh::subdivide::SubdividedSource;
 use crease_core::mesh::FrameSource;
 use crease_core::spacetime::{deform, Coefficients, DeformParams, Pinning, WeightMode};
 use crease_core::synth::{self, DemoSpec};
@@ -87,9 +89,15 @@ pub struct RunArgs {
     /// Input sequence: a directory of numbered OBJ or PLY frames, or OBJ + PC2. Omit to run the built-in demo.
     #[arg(long)]
     pub input: Option<PathBuf>,
-    /// Anchors file (JSON, see README). Required with --input.
+    /// Anchors file (JSON, see README). Required with --input unless --folds stretch.
     #[arg(long)]
     pub anchors: Option<PathBuf>,
+    /// Where the folds come from: `anchors` (the --anchors file; the default) or `stretch` (estimated from
+    /// the geometry alone, Chen 2011 ch. 4; writes anchors.json, control_lines.obj and folds.png to --out).
+    #[arg(long, value_enum)]
+    pub folds: Option<FoldSource>,
+    #[command(flatten)]
+    pub stretch: StretchArgs,
     /// Output directory (the wrinkled sequence, report.json, preview.png, stretch.png).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -109,6 +117,15 @@ pub struct RunArgs {
     /// No progress bars or log lines.
     #[arg(long)]
     pub quiet: bool,
+}
+
+/// Source of the anchors for `crease run`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FoldSource {
+    /// An anchors file (--anchors).
+    Anchors,
+    /// Fold estimation from the geometry alone (Chen 2011 ch. 4).
+    Stretch,
 }
 
 #[derive(Args, Debug)]
@@ -168,46 +185,57 @@ pub fn demo(a: DemoArgs) -> Result<()> {
 pub fn run(a: RunArgs) -> Result<()> {
     let params = a.deform.params();
     params.validate()?;
+    let stretch = a.folds == Some(FoldSource::Stretch);
+    let stretch_params = if stretch {
+        Some(a.stretch.validated()?)
+    } else {
+        None
+    };
     let (input, anchors_path, out) = match (&a.input, &a.anchors) {
+        (None, _) if stretch => bail!("--folds stretch needs --input (a captured sequence)"),
+        (_, Some(_)) if stretch => {
+            bail!("--anchors and --folds stretch exclude each other: the stretch detector writes its own anchors")
+        }
         (None, _) => {
             let root = a
                 .out
                 .clone()
                 .unwrap_or_else(|| PathBuf::from("crease-demo"));
             let (input, anchors) = write_demo(&root, a.demo_triangles, a.demo_frames)?;
-            (input, anchors, root.join("output"))
+            (input, Some(anchors), root.join("output"))
         }
+        (Some(i), None) if stretch => (
+            i.clone(),
+            None,
+            a.out.clone().unwrap_or_else(|| PathBuf::from("crease-out")),
+        ),
         (Some(_), None) => {
-            bail!("--anchors is required with --input (see README: anchors file format)")
+            bail!("--anchors is required with --input unless --folds stretch (see README: anchors file format)")
         }
         (Some(i), Some(an)) => (
             i.clone(),
-            an.clone(),
+            Some(an.clone()),
             a.out.clone().unwrap_or_else(|| PathBuf::from("crease-out")),
         ),
     };
     let opened = open_sequence(&input).with_context(|| format!("opening {}", input.display()))?;
-    let source: &dyn FrameSource = opened.source.as_ref();
+    let subdivided = match a.stretch.subdivide {
+        0 => None,
+        levels if stretch => Some(SubdividedSource::new(opened.source.as_ref(), levels)?),
+        _ => bail!("--subdivide applies to --folds stretch only"),
+    };
+    let source: &dyn FrameSource = match &subdivided {
+        Some(s) => s,
+        None => opened.source.as_ref(),
+    };
     let topo = source.topology().clone();
     let n = source.n_frames();
-    let anchors = AnchorSet::read(&anchors_path, n, topo.n_triangles())?;
     if same_dir(&input, &out) {
         bail!(
             "--out {} is the input directory; choose another so the input is not overwritten",
             out.display()
         );
     }
-    fsutil::create_dir_all(&out)?;
-    // A report from an earlier run must not vouch for what this run may leave half-written.
-    let report_path = out.join("report.json");
-    match std::fs::remove_file(&report_path) {
-        Ok(()) => {}
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-        Err(e) => {
-            return Err(e).with_context(|| format!("removing stale {}", report_path.display()))
-        }
-    }
-    let mut sink = create_sink(&opened.layout, &out)?;
     let keep: Vec<usize> = if a.preview_frames.is_empty() {
         let mut k: Vec<usize> = (1..=4).map(|i| (i * n / 5).min(n - 1)).collect();
         k.dedup();
@@ -220,7 +248,60 @@ pub fn run(a: RunArgs) -> Result<()> {
         }
         a.preview_frames.clone()
     };
+    let anchors_in = match &anchors_path {
+        Some(p) => Some(AnchorSet::read(p, n, topo.n_triangles())?),
+        None => None,
+    };
+    fsutil::create_dir_all(&out)?;
+    // A report from an earlier run must not vouch for what this run may leave half-written.
+    let report_path = out.join("report.json");
+    match std::fs::remove_file(&report_path) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => {
+            return Err(e).with_context(|| format!("removing stale {}", report_path.display()))
+        }
+    }
+    let mut sink: Box<dyn crease_core::mesh::FrameSink> = if subdivided.is_some() {
+        // The subdivided frames keep the input's file names: never next to the input files.
+        for f in opened.layout.input_files() {
+            if f.parent().is_some_and(|d| same_dir(d, &out)) {
+                bail!(
+                    "--out {} holds the input sequence; choose another directory",
+                    out.display()
+                );
+            }
+        }
+        Box::new(ObjFramesSink::new(
+            &out,
+            &opened.layout.input_files(),
+            n,
+            topo.clone(),
+        )?)
+    } else {
+        create_sink(&opened.layout, &out)?
+    };
     let progress = CliProgress::new(a.quiet);
+    let (anchors, anchors_path, fold_detection) = match (anchors_in, anchors_path) {
+        (Some(set), Some(path)) => (set, path, serde_json::Value::Null),
+        _ => {
+            let params = stretch_params.clone().expect("stretch mode");
+            progress.println(&format!(
+                "crease: estimating folds from the geometry (Chen 2011) on {} frames, {} triangles",
+                n,
+                topo.n_triangles()
+            ));
+            let (set, path, summary) =
+                folds_stretch::detect(source, params, &out, &keep, a.preview_size, &progress)?;
+            progress.println(&format!(
+                "stretch folds: {} folds, {} anchors -> {}",
+                summary["folds"],
+                set.total(),
+                path.display()
+            ));
+            (set, path, summary)
+        }
+    };
     progress.println(&format!(
         "crease: {} frames, {} vertices, {} triangles, {} anchors, mode {}",
         n,
@@ -260,6 +341,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         "input": input,
         "input_layout": opened.layout.kind(),
         "anchors_file": anchors_path,
+        "fold_detection": fold_detection,
         "output_files": files,
         "preview": [preview_path, plot_path],
         "parameters": params,

@@ -11,6 +11,7 @@
 //! to an anonymous temporary file that the forward pass reads back frame by frame.
 
 pub mod lscm;
+pub mod overlay;
 pub mod params;
 pub mod phases;
 pub mod smooth;

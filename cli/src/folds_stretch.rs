@@ -127,8 +127,10 @@ pub fn detect(
     let mut frames: Vec<FrameAnchors> = Vec::with_capacity(source.n_frames());
     let mut shown: Vec<OverlayFrame> = Vec::new();
     let mut n_folds = 0usize;
+    let mut seeds_tried = 0usize;
     detector.run(source, progress, |t, positions, shrink, folds| {
         n_folds += folds.folds.len();
+        seeds_tried += folds.seeds_tried;
         if overlay_frames.contains(&t) {
             shown.push(OverlayFrame {
                 frame: t,
@@ -159,6 +161,7 @@ pub fn detect(
         "source": "stretch",
         "parameters": params,
         "folds": n_folds,
+        "seeds_tried": seeds_tried,
         "anchors": anchors.total(),
         "seconds_per_frame": seconds / n as f64,
         "files": [anchors_path, lines_path, png],

@@ -46,6 +46,8 @@ pub struct FrameFolds {
     pub folds: Vec<TracedFold>,
     /// Sorted by triangle, unique.
     pub anchors: Vec<Anchor>,
+    /// Seeds taken from the queue (each one flattened a patch), folds or not.
+    pub seeds_tried: usize,
 }
 
 /// Traces frames one after the other, carrying the seed memory (O(triangles)).
@@ -104,12 +106,14 @@ impl FoldTracer {
         let mut new_seed = vec![false; n_tri];
         let mut anchors: BTreeMap<u32, Anchor> = BTreeMap::new();
         let mut folds = Vec::new();
+        let mut seeds_tried = 0;
         while let Some((_, _, std::cmp::Reverse(s))) = heap.pop() {
             let s = s as usize;
             if consumed[s] {
                 continue;
             }
             consumed[s] = true;
+            seeds_tried += 1;
             let Some(patch) = self.patch(topo, p, geom, s, params.patch_radius * h) else {
                 continue;
             };
@@ -145,6 +149,7 @@ impl FoldTracer {
         FrameFolds {
             folds,
             anchors: anchors.into_values().collect(),
+            seeds_tried,
         }
     }
 

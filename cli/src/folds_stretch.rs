@@ -2,7 +2,7 @@
 //!
 //! Flags are prefixed `--stretch-` (they only apply to this detector); `--subdivide` runs detection and
 //! deformation on a midpoint-subdivided sequence. Writes `anchors.json` (anchors plus control lines),
-//! `control_lines.obj` (the lines as OBJ polylines, one object per frame) and `folds.png` next to the output.
+//! `folds/control_lines.obj` (the lines as OBJ polylines, one object per frame) and `folds.png` next to the output.
 
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
@@ -151,7 +151,10 @@ pub fn detect(
     let anchors = AnchorSet::from_frame_anchors(frames, topo.n_triangles(), None)?;
     let anchors_path = out.join("anchors.json");
     anchors.write(&anchors_path)?;
-    let lines_path = out.join("control_lines.obj");
+    // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
+    let lines_dir = out.join("folds");
+    fsutil::create_dir_all(&lines_dir)?;
+    let lines_path = lines_dir.join("control_lines.obj");
     write_control_lines(&lines_path, &anchors)?;
     let png = out.join("folds.png");
     let img = overlay(&topo, &shown, overlay_size, 1.0 + 4.0 * params.min_shrink);

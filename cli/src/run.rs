@@ -93,7 +93,7 @@ pub struct RunArgs {
     #[arg(long)]
     pub anchors: Option<PathBuf>,
     /// Where the folds come from: `anchors` (the --anchors file; the default) or `stretch` (estimated from
-    /// the geometry alone, Chen 2011 ch. 4; writes anchors.json, control_lines.obj and folds.png to --out).
+    /// the geometry alone, Chen 2011 ch. 4; writes anchors.json, folds/control_lines.obj and folds.png to --out).
     #[arg(long, value_enum)]
     pub folds: Option<FoldSource>,
     #[command(flatten)]

@@ -60,7 +60,7 @@ impl Default for StretchParams {
             max_turn_deg: 45.0,
             fold_width: 3.0,
             alpha: 3.0,
-            patch_radius: 14.0,
+            patch_radius: 8.0,
             angle_gain: 6.0,
             max_angle_deg: 60.0,
             min_length: 2.0,

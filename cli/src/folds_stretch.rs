@@ -191,8 +191,7 @@ fn write_control_lines(path: &Path, anchors: &AnchorSet) -> Result<()> {
             next += line.len();
         }
     }
-    fsutil::write_atomic(path, s.as_bytes())
-        .with_context(|| format!("writing {}", path.display()))
+    fsutil::write_atomic(path, s.as_bytes()).with_context(|| format!("writing {}", path.display()))
 }
 
 /// Writes plain OBJ frames of a (subdivided) topology that the input layout's sink cannot rewrite, named
@@ -205,7 +204,12 @@ pub struct ObjFramesSink {
 }
 
 impl ObjFramesSink {
-    pub fn new(dir: &Path, input_files: &[PathBuf], n_frames: usize, topology: Arc<Topology>) -> Result<Self> {
+    pub fn new(
+        dir: &Path,
+        input_files: &[PathBuf],
+        n_frames: usize,
+        topology: Arc<Topology>,
+    ) -> Result<Self> {
         fsutil::create_dir_all(dir)?;
         let width = n_frames.to_string().len().max(4);
         let names = if input_files.len() == n_frames {
@@ -232,9 +236,10 @@ impl ObjFramesSink {
 
 impl FrameSink for ObjFramesSink {
     fn write_frame(&mut self, t: usize, positions: &[V3]) -> crease_core::Result<()> {
-        let name = self.names.get(t).ok_or_else(|| {
-            Error::param("frame", format!("output frame {t} is out of range"))
-        })?;
+        let name = self
+            .names
+            .get(t)
+            .ok_or_else(|| Error::param("frame", format!("output frame {t} is out of range")))?;
         let path = self.dir.join(name);
         write_obj(&path, &self.topology, positions)?;
         self.written.push(path);

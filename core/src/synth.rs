@@ -490,3 +490,35 @@ pub fn compressed_sheet(
         .collect();
     Sequence::new(topo, frames)
 }
+
+/// A sleeve-like tube of about `triangles` triangles that is compressed along its axis by up to `amount` and
+/// twisted by up to `twist` radians (end to end) and released again over `frames` frames (a raised-cosine
+/// cycle), with no folds in the geometry: what a capture of a compressed sleeve looks like once its folds are
+/// smoothed away. Benchmarks and tests of the geometric fold estimation use it.
+pub fn compressed_tube(
+    triangles: usize,
+    frames: usize,
+    amount: f64,
+    twist: f64,
+) -> Result<Sequence> {
+    let (radius, length) = (0.07, 0.5);
+    let grid = tube_grid_for(triangles, radius, length);
+    let topo = Arc::new(grid.topology()?);
+    let frames = (0..frames)
+        .map(|t| {
+            let e = 0.5 * (1.0 - (2.0 * PI * t as f64 / frames.max(2) as f64).cos());
+            let mut p = Vec::with_capacity(grid.n_vertices());
+            for r in 0..grid.rows {
+                for c in 0..grid.cols {
+                    let h = r as f64 / (grid.rows - 1) as f64;
+                    // Stronger compression in the middle of the sleeve than at its pinned ends.
+                    let s = h - amount * e * (h - (2.0 * PI * h).sin() / (2.0 * PI));
+                    let th = 2.0 * PI * c as f64 / grid.cols as f64 + twist * e * h;
+                    p.push([radius * th.cos(), radius * th.sin(), s * length]);
+                }
+            }
+            p
+        })
+        .collect();
+    Sequence::new(topo, frames)
+}

@@ -145,7 +145,10 @@ pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<
     let mut normal = [0.0; 3];
     for tri in tris {
         let p = tri.map(|v| positions[v as usize]);
-        normal = vec3::add(normal, vec3::cross(vec3::sub(p[1], p[0]), vec3::sub(p[2], p[0])));
+        normal = vec3::add(
+            normal,
+            vec3::cross(vec3::sub(p[1], p[0]), vec3::sub(p[2], p[0])),
+        );
     }
     let normal = vec3::normalize(normal);
     let o = positions[pin.0];

@@ -55,7 +55,9 @@ pub fn overlay(topo: &Topology, frames: &[OverlayFrame], size: u32, saturate: f6
     }
     let ext = vec3::sub(hi, lo);
     // Up: the bounding box's longest axis reads best horizontally, so up is the shortest of the other two.
-    let longest = (0..3).max_by(|&a, &b| ext[a].total_cmp(&ext[b])).unwrap_or(0);
+    let longest = (0..3)
+        .max_by(|&a, &b| ext[a].total_cmp(&ext[b]))
+        .unwrap_or(0);
     let up_axis = (0..3)
         .filter(|&k| k != longest)
         .max_by(|&a, &b| ext[b].total_cmp(&ext[a]))
@@ -98,7 +100,12 @@ pub fn overlay(topo: &Topology, frames: &[OverlayFrame], size: u32, saturate: f6
                 .map(|(k, cam)| {
                     let img = render(&f.positions, topo, cam, &style);
                     let label = if k == 0 {
-                        format!("FRAME {} {} FOLDS {} ANCHORS", f.frame, f.n_folds, f.anchors.len())
+                        format!(
+                            "FRAME {} {} FOLDS {} ANCHORS",
+                            f.frame,
+                            f.n_folds,
+                            f.anchors.len()
+                        )
                     } else {
                         "FAR SIDE".to_string()
                     };

@@ -48,6 +48,9 @@ pub struct BenchArgs {
     /// Write all results as JSON here.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Run only the stretch-folds stage (geometric fold estimation, Chen 2011).
+    #[arg(long)]
+    pub stretch_folds_only: bool,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -90,6 +93,9 @@ fn case_input(triangles: usize, frames: usize, anchors: usize) -> Result<(Sequen
 pub fn bench(a: BenchArgs) -> Result<()> {
     if a.frames < 2 || a.repeats == 0 {
         anyhow::bail!("--frames must be ≥ 2 and --repeats ≥ 1");
+    }
+    if a.stretch_folds_only {
+        return stretch_folds_stage(&a);
     }
     let threads = rayon::current_num_threads();
     println!(

@@ -447,6 +447,7 @@ pub fn random_anchors(
 /// whole sheet also turns rigidly by `spin` radians per frame about the z axis. This is what a capture that
 /// lost its folds looks like where cloth buckled: the material seems to shrink across the fold direction.
 /// Known answers for fold detection: fold axes perpendicular to (cos φ, sin φ), seeds inside the band.
+#[allow(clippy::too_many_arguments)]
 pub fn compressed_sheet(
     cols: usize,
     rows: usize,

@@ -224,7 +224,7 @@ pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<
             0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]))
         })
         .sum();
-    if !(area_uv > 0.0) {
+    if area_uv.is_nan() || area_uv <= 0.0 {
         return None;
     }
     let s = (area3 / area_uv).sqrt();

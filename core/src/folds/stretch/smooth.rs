@@ -65,7 +65,8 @@ pub fn remove_outliers(
     for (i, f) in field.iter_mut().enumerate() {
         if let Some(t) = f {
             let (v, _) = t.dominant(normals[i]);
-            if !(absolute_change(v) <= max_change) {
+            let c = absolute_change(v);
+            if c.is_nan() || c > max_change {
                 *f = None;
                 dropped += 1;
             } else {

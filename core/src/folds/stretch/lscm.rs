@@ -81,7 +81,10 @@ pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<
             let r = &ring[vi];
             for y in 0..6 {
                 let vj = tri[y % 3];
-                let k = r.iter().position(|&w| w == vj).expect("ring holds the triangle");
+                let k = r
+                    .iter()
+                    .position(|&w| w == vj)
+                    .expect("ring holds the triangle");
                 let at = row_ptr[row] + k + if y < 3 { 0 } else { r.len() };
                 vals[at] += re[x] * re[y] + im[x] * im[y];
             }

@@ -179,9 +179,51 @@ pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<
             }
         }
     }
-    // Preconditioned conjugate gradients on N_ff x_f = b.
+    // Sparse Cholesky of N_ff (a patch has a few hundred vertices: a direct solve is far cheaper than CG,
+    // which converges slowly on a map pinned at only two vertices). CG remains the fallback.
+    if let Some(sol) = direct_solve(m, &row_ptr, &cols, &vals, &fixed, &b) {
+        xf = sol;
+    } else {
+        conjugate_gradients(m, &mat_vec, &precond, &b, &mut xf);
+    }
+    for i in 0..m {
+        if fixed[i].is_none() {
+            x[i] = xf[i];
+        }
+    }
+    let mut uv: Vec<[f64; 2]> = (0..n).map(|k| [x[k], x[n + k]]).collect();
+    if uv.iter().any(|q| !q[0].is_finite() || !q[1].is_finite()) {
+        return None;
+    }
+    // Keep the patch's 3D area.
+    let area_uv: f64 = tris
+        .iter()
+        .map(|t| {
+            let (a, b, c) = (uv[t[0] as usize], uv[t[1] as usize], uv[t[2] as usize]);
+            0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]))
+        })
+        .sum();
+    if area_uv.is_nan() || area_uv <= 0.0 {
+        return None;
+    }
+    let s = (area3 / area_uv).sqrt();
+    for q in &mut uv {
+        q[0] *= s;
+        q[1] *= s;
+    }
+    Some(uv)
+}
+
+/// Jacobi-preconditioned conjugate gradients on the free unknowns, from the initial guess in `xf`.
+fn conjugate_gradients(
+    m: usize,
+    mat_vec: &dyn Fn(&[f64], &mut [f64]),
+    precond: &dyn Fn(&[f64], &mut [f64]),
+    b: &[f64],
+    xf: &mut [f64],
+) {
     let mut r = vec![0.0; m];
-    mat_vec(&xf, &mut r);
+    mat_vec(xf, &mut r);
     for i in 0..m {
         r[i] = b[i] - r[i];
     }
@@ -216,32 +258,88 @@ pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<
             }
         }
     }
+}
+
+/// Solves N_ff x_f = b by sparse Cholesky (faer, AMD ordering, sequential); `None` if it breaks down.
+fn direct_solve(
+    m: usize,
+    row_ptr: &[usize],
+    cols: &[u32],
+    vals: &[f64],
+    fixed: &[Option<f64>],
+    b: &[f64],
+) -> Option<Vec<f64>> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymmetricOrdering};
+    use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+    use faer::{Conj, Mat, Par, Side};
+    let mut free = vec![usize::MAX; m];
+    let mut nf = 0;
     for i in 0..m {
         if fixed[i].is_none() {
-            x[i] = xf[i];
+            free[i] = nf;
+            nf += 1;
         }
     }
-    let mut uv: Vec<[f64; 2]> = (0..n).map(|k| [x[k], x[n + k]]).collect();
-    if uv.iter().any(|q| !q[0].is_finite() || !q[1].is_finite()) {
-        return None;
+    // Lower triangle in CSC: column c of the symmetric matrix is row c of the CSR; keep rows >= c (sorted,
+    // since each CSR row lists the u block then the v block, both sorted).
+    let mut col_ptr = Vec::with_capacity(nf + 1);
+    let mut row_idx: Vec<usize> = Vec::with_capacity(vals.len() / 2);
+    let mut values: Vec<f64> = Vec::with_capacity(vals.len() / 2);
+    col_ptr.push(0);
+    for i in 0..m {
+        let c = free[i];
+        if c == usize::MAX {
+            continue;
+        }
+        for k in row_ptr[i]..row_ptr[i + 1] {
+            let r = free[cols[k] as usize];
+            if r != usize::MAX && r >= c {
+                row_idx.push(r);
+                values.push(vals[k]);
+            }
+        }
+        col_ptr.push(row_idx.len());
     }
-    // Keep the patch's 3D area.
-    let area_uv: f64 = tris
-        .iter()
-        .map(|t| {
-            let (a, b, c) = (uv[t[0] as usize], uv[t[1] as usize], uv[t[2] as usize]);
-            0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]))
-        })
-        .sum();
-    if area_uv.is_nan() || area_uv <= 0.0 {
-        return None;
+    let sym = SymbolicSparseColMatRef::new_checked(nf, nf, &col_ptr, None, &row_idx);
+    let symbolic =
+        factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, Default::default())
+            .ok()?;
+    let mut buf = MemBuffer::try_new(
+        symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+    )
+    .ok()?;
+    let mut l_values = vec![0.0f64; symbolic.len_val()];
+    symbolic
+        .factorize_numeric_llt::<f64>(
+            &mut l_values,
+            SparseColMatRef::new(sym, &values),
+            Side::Lower,
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut buf),
+            Default::default(),
+        )
+        .ok()?;
+    let mut rhs = Mat::<f64>::zeros(nf, 1);
+    for i in 0..m {
+        if free[i] != usize::MAX {
+            rhs[(free[i], 0)] = b[i];
+        }
     }
-    let s = (area3 / area_uv).sqrt();
-    for q in &mut uv {
-        q[0] *= s;
-        q[1] *= s;
+    let llt = LltRef::<usize, f64>::new(&symbolic, &l_values);
+    let mut sbuf = MemBuffer::try_new(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq)).ok()?;
+    llt.solve_in_place_with_conj(Conj::No, rhs.as_mut(), Par::Seq, MemStack::new(&mut sbuf));
+    let mut x = vec![0.0; m];
+    for i in 0..m {
+        if free[i] != usize::MAX {
+            x[i] = rhs[(free[i], 0)];
+            if !x[i].is_finite() {
+                return None;
+            }
+        }
     }
-    Some(uv)
+    Some(x)
 }
 
 #[cfg(test)]

@@ -245,3 +245,25 @@ fn long_sequences_are_streamed_twice_and_folds_keep_cycling() {
         "only {with_folds} of {n} frames have folds"
     );
 }
+
+#[test]
+fn a_compressed_tube_gets_folds_around_its_axis() {
+    // The benchmark's sleeve, small and without twist: compressed along z, then released, over 10 frames.
+    let seq = synth::compressed_tube(2500, 10, 0.3, 0.0).unwrap();
+    let folds = folds_of(&seq, StretchParams::default());
+    assert!(folds[0].0.is_empty(), "nothing at rest");
+    let mut n = 0;
+    for (t, (ff, a)) in folds.iter().enumerate() {
+        assert!(ff.is_empty() || *a > 0);
+        for f in ff {
+            n += 1;
+            // Compression is along the tube's axis (z): fold axes run around it.
+            let off = f.direction[2].abs().asin().to_degrees();
+            assert!(
+                off < 15.0,
+                "frame {t}: fold axis {off:.1}° off the circumferential direction"
+            );
+        }
+    }
+    assert!(n >= 10, "only {n} folds");
+}

@@ -133,17 +133,16 @@ impl FoldTracer {
                 // Region of influence (eq. 4.3), measured from the axis in the plane.
                 let reach = params.alpha * shrink[s] * h;
                 let axis_uv = &fold.1;
-                for (li, &t) in patch.tris.iter().enumerate() {
+                for &t in &patch.tris {
                     let c = self.uv_centroid(topo, &patch, t as usize);
                     if dist_to_polyline(c, axis_uv) <= reach {
                         consumed[t as usize] = true;
                     }
-                    let _ = li;
                 }
                 new_seed[s] = true;
                 folds.push(fold.0);
             }
-            self.release(topo, &patch);
+            self.release(&patch);
         }
         self.prev_seed = new_seed;
         FrameFolds {
@@ -208,13 +207,13 @@ impl FoldTracer {
             uv: patch_uv.unwrap_or_default(),
         };
         if patch.uv.is_empty() {
-            self.release(topo, &patch);
+            self.release(&patch);
             return None;
         }
         Some(patch)
     }
 
-    fn release(&mut self, _topo: &Topology, patch: &Patch) {
+    fn release(&mut self, patch: &Patch) {
         for &t in &patch.tris {
             self.tri_local[t as usize] = NONE;
         }

@@ -5,6 +5,7 @@
 //! single-machine driver and the cluster planner run any of them without knowing which one it is.
 
 pub mod anchors;
+pub mod video;
 
 pub use anchors::{Anchor, AnchorSet, FrameAnchors};
 

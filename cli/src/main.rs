@@ -1,6 +1,7 @@
 //! `crease`: puts fine, temporally coherent folds back into captured garment mesh sequences.
 
 mod bench;
+mod folds_video;
 mod progress;
 mod run;
 

@@ -82,14 +82,28 @@ impl DeformArgs {
     }
 }
 
+/// Where the folds come from.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Folds {
+    /// An anchors file (--anchors).
+    Anchors,
+    /// The capture video (Popa et al. 2009 §4): --cameras, --images.
+    Video,
+}
+
 #[derive(Args, Debug)]
 pub struct RunArgs {
     /// Input sequence: a directory of numbered OBJ or PLY frames, or OBJ + PC2. Omit to run the built-in demo.
     #[arg(long)]
     pub input: Option<PathBuf>,
-    /// Anchors file (JSON, see README). Required with --input.
+    /// Anchors file (JSON, see README). Required with --input unless --folds says otherwise.
     #[arg(long)]
     pub anchors: Option<PathBuf>,
+    /// Fold source: `anchors` (default) or `video`.
+    #[arg(long, value_enum)]
+    pub folds: Option<Folds>,
+    #[command(flatten)]
+    pub video: crate::folds_video::VideoArgs,
     /// Output directory (the wrinkled sequence, report.json, preview.png, stretch.png).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -168,6 +182,15 @@ pub fn demo(a: DemoArgs) -> Result<()> {
 pub fn run(a: RunArgs) -> Result<()> {
     let params = a.deform.params();
     params.validate()?;
+    let folds = a.folds.unwrap_or(Folds::Anchors);
+    if folds == Folds::Video {
+        if a.input.is_none() {
+            bail!("--folds video needs --input (e.g. `crease demo --with-video` writes one)");
+        }
+        if a.anchors.is_some() {
+            bail!("--anchors and --folds video exclude each other");
+        }
+    }
     let (input, anchors_path, out) = match (&a.input, &a.anchors) {
         (None, _) => {
             let root = a
@@ -176,6 +199,10 @@ pub fn run(a: RunArgs) -> Result<()> {
                 .unwrap_or_else(|| PathBuf::from("crease-demo"));
             let (input, anchors) = write_demo(&root, a.demo_triangles, a.demo_frames)?;
             (input, anchors, root.join("output"))
+        }
+        (Some(i), None) if folds == Folds::Video => {
+            let out = a.out.clone().unwrap_or_else(|| PathBuf::from("crease-out"));
+            (i.clone(), out.join("anchors.json"), out)
         }
         (Some(_), None) => {
             bail!("--anchors is required with --input (see README: anchors file format)")
@@ -190,7 +217,6 @@ pub fn run(a: RunArgs) -> Result<()> {
     let source: &dyn FrameSource = opened.source.as_ref();
     let topo = source.topology().clone();
     let n = source.n_frames();
-    let anchors = AnchorSet::read(&anchors_path, n, topo.n_triangles())?;
     if same_dir(&input, &out) {
         bail!(
             "--out {} is the input directory; choose another so the input is not overwritten",
@@ -207,6 +233,13 @@ pub fn run(a: RunArgs) -> Result<()> {
             return Err(e).with_context(|| format!("removing stale {}", report_path.display()))
         }
     }
+    let progress = CliProgress::new(a.quiet);
+    let anchors = match folds {
+        Folds::Anchors => AnchorSet::read(&anchors_path, n, topo.n_triangles())?,
+        Folds::Video => {
+            crate::folds_video::detect(&a.video, source, &opened.layout, &out, &progress)?
+        }
+    };
     let mut sink = create_sink(&opened.layout, &out)?;
     let keep: Vec<usize> = if a.preview_frames.is_empty() {
         let mut k: Vec<usize> = (1..=4).map(|i| (i * n / 5).min(n - 1)).collect();
@@ -220,7 +253,6 @@ pub fn run(a: RunArgs) -> Result<()> {
         }
         a.preview_frames.clone()
     };
-    let progress = CliProgress::new(a.quiet);
     progress.println(&format!(
         "crease: {} frames, {} vertices, {} triangles, {} anchors, mode {}",
         n,

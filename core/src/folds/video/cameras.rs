@@ -220,10 +220,12 @@ pub fn format_pattern(
                 }
             }
             Some('%') if spec.is_empty() => out.push('%'),
-            other => return Err(format!(
+            other => {
+                return Err(format!(
                 "unsupported conversion `%{spec}{}` (use %s for the camera and %04d for the frame)",
                 other.map(String::from).unwrap_or_default()
-            )),
+            ))
+            }
         }
     }
     Ok(out)

@@ -1,6 +1,7 @@
 //! `crease`: puts fine, temporally coherent folds back into captured garment mesh sequences.
 
 mod bench;
+mod eval;
 mod folds_video;
 mod progress;
 mod run;
@@ -27,6 +28,8 @@ enum Command {
     Run(run::RunArgs),
     /// Write the procedural demo sequence (OBJ frames) and its anchors file.
     Demo(run::DemoArgs),
+    /// Fold fidelity of a result against ground truth (DESIGN.md §9), beside the captured baseline.
+    Eval(eval::EvalArgs),
     /// Paper-scale benchmark: seconds per frame per stage, peak memory, both weight modes.
     Bench(bench::BenchArgs),
 }
@@ -45,6 +48,7 @@ fn main() {
     let result = match cli.command {
         Command::Run(a) => run::run(a),
         Command::Demo(a) => run::demo(a),
+        Command::Eval(a) => eval::eval(a),
         Command::Bench(a) => bench::bench(a),
     };
     if let Err(e) = result {

@@ -6,6 +6,7 @@
 //! crate.
 
 pub mod error;
+pub mod eval;
 pub mod folds;
 pub mod fsutil;
 pub mod mesh;

@@ -140,7 +140,7 @@ impl VideoFolds {
             return Ok((f, b));
         }
         let first = source.read_frame(0)?;
-        Ok(views::auto_vertices(&first, &self.rig))
+        Ok(views::auto_vertices(source.topology(), &first, &self.rig))
     }
 
     fn check_source(&self, source: &dyn FrameSource) -> Result<()> {

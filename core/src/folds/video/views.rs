@@ -38,20 +38,41 @@ pub fn centroid(positions: &[V3]) -> V3 {
     vec3::scale(s, 1.0 / positions.len().max(1) as f64)
 }
 
-/// Automatic front and back vertices from the first frame of the sequence: the vertex farthest towards the
-/// first camera (along the direction from the garment's centroid to that camera's centre) is the front vertex,
-/// the vertex farthest the other way the back vertex.
-pub fn auto_vertices(positions: &[V3], rig: &CameraRig) -> (usize, usize) {
+/// Automatic front and back vertices from the first frame of the sequence. With `dir` the unit vector from the
+/// garment's centroid towards the first camera, the front vertex is, among the vertices whose outward normal
+/// faces `dir` (cosine > 0.8), the one closest to the line through the centroid along `dir` — the middle of the
+/// side the first camera sees, away from openings and borders; the back vertex is the same for `-dir`. When no
+/// vertex qualifies, the vertex farthest along `±dir` is taken.
+pub fn auto_vertices(topo: &Topology, positions: &[V3], rig: &CameraRig) -> (usize, usize) {
     let c = centroid(positions);
     let dir = vec3::normalize(vec3::sub(rig.cameras[0].camera.center(), c));
-    let key = |i: usize| vec3::dot(vec3::sub(positions[i], c), dir);
-    let front = (0..positions.len())
-        .max_by(|&a, &b| key(a).total_cmp(&key(b)))
-        .unwrap_or(0);
-    let back = (0..positions.len())
-        .min_by(|&a, &b| key(a).total_cmp(&key(b)))
-        .unwrap_or(0);
-    (front, back)
+    let normals = geometry::vertex_normals(topo, positions);
+    let pick = |d: V3| {
+        let off_axis = |i: usize| {
+            let r = vec3::sub(positions[i], c);
+            vec3::norm(vec3::sub(r, vec3::scale(d, vec3::dot(r, d))))
+        };
+        let outward = |i: usize| {
+            let n = normals[i];
+            if vec3::dot(n, vec3::sub(positions[i], c)) < 0.0 {
+                vec3::scale(n, -1.0)
+            } else {
+                n
+            }
+        };
+        (0..positions.len())
+            .filter(|&i| {
+                vec3::dot(outward(i), d) > 0.8 && vec3::dot(vec3::sub(positions[i], c), d) > 0.0
+            })
+            .min_by(|&a, &b| off_axis(a).total_cmp(&off_axis(b)))
+            .unwrap_or_else(|| {
+                let key = |i: usize| vec3::dot(vec3::sub(positions[i], c), d);
+                (0..positions.len())
+                    .max_by(|&a, &b| key(a).total_cmp(&key(b)))
+                    .unwrap_or(0)
+            })
+    };
+    (pick(dir), pick(vec3::scale(dir, -1.0)))
 }
 
 /// How well each camera faces a vertex: dot of its stable normal with the unit vector to the camera centre.

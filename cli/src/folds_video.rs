@@ -39,7 +39,7 @@ pub struct VideoArgs {
     /// Image resolutions as fractions of the full image [default: 1].
     #[arg(long, value_delimiter = ',')]
     pub scales: Vec<f64>,
-    /// Canny low / high gradient thresholds (0-255 grey) [default: 4, 10].
+    /// Canny low / high gradient thresholds (0-255 grey) [default: 8, 20].
     #[arg(long)]
     pub canny_low: Option<f64>,
     #[arg(long)]
@@ -53,7 +53,7 @@ pub struct VideoArgs {
     /// Maximum average distance between paired edges, pixels [default: 12].
     #[arg(long)]
     pub max_avg_distance: Option<f64>,
-    /// Minimum grey contrast across an edge for a clear orientation [default: 1.5].
+    /// Minimum grey contrast across an edge for a clear orientation [default: 4].
     #[arg(long)]
     pub min_contrast: Option<f64>,
     /// Quadric fit tolerance, pixels [default: 1].

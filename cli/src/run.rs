@@ -134,6 +134,18 @@ pub struct DemoArgs {
     pub triangles: usize,
     #[arg(long, default_value_t = 36)]
     pub frames: usize,
+    /// Also write a synthetic capture video: the ground-truth folded sequence (`gt/`, the input deformed with
+    /// its anchors) rendered from a ring of calibrated cameras (`cameras.json`, `images/<camera>/frame_NNNN.png`).
+    #[arg(long)]
+    pub with_video: bool,
+    /// Cameras on the ring (with --with-video).
+    #[arg(long, default_value_t = 4)]
+    pub video_cameras: usize,
+    /// Image size (with --with-video).
+    #[arg(long, default_value_t = 480)]
+    pub video_width: u32,
+    #[arg(long, default_value_t = 640)]
+    pub video_height: u32,
 }
 
 /// Writes the demo input; returns (input dir, anchors file).
@@ -176,6 +188,60 @@ fn write_demo(out: &Path, triangles: usize, frames: usize) -> Result<(PathBuf, P
 
 pub fn demo(a: DemoArgs) -> Result<()> {
     write_demo(&a.out, a.triangles, a.frames)?;
+    if a.with_video {
+        write_demo_video(&a)?;
+    }
+    Ok(())
+}
+
+/// `crease demo --with-video`: the ground truth (`gt/`) and its rendered video from a ring of cameras.
+fn write_demo_video(a: &DemoArgs) -> Result<()> {
+    if a.video_cameras == 0 || a.video_width < 16 || a.video_height < 16 {
+        bail!("--video-cameras must be at least 1 and the image at least 16x16 pixels");
+    }
+    let spec = DemoSpec {
+        triangles: a.triangles,
+        frames: a.frames,
+        ..Default::default()
+    };
+    let (seq, anchors) = synth::demo(&spec)?;
+    let mut sink = crease_core::mesh::MemorySink::default();
+    deform(
+        &seq,
+        &anchors,
+        &DeformParams::default(),
+        &mut sink,
+        &crease_core::progress::NoProgress,
+        &[],
+    )?;
+    let gt: Vec<Vec<[f64; 3]>> = sink.frames.into_values().collect();
+    let gt_dir = a.out.join("gt");
+    fsutil::create_dir_all(&gt_dir)?;
+    let width = a.frames.to_string().len().max(4);
+    write_obj_sequence(
+        &gt_dir,
+        &seq.topology,
+        gt.iter()
+            .enumerate()
+            .map(|(t, f)| (format!("frame_{:0width$}.obj", t + 1), f.as_slice())),
+    )?;
+    let rig = crease_core::synth_video::write_video(
+        &a.out,
+        &seq.topology,
+        &gt,
+        a.video_cameras,
+        a.video_width,
+        a.video_height,
+        1,
+    )?;
+    eprintln!(
+        "demo video: gt/ and {} cameras x {} frames of {}x{} images -> {}",
+        rig.cameras.len(),
+        a.frames,
+        a.video_width,
+        a.video_height,
+        a.out.join("images").display()
+    );
     Ok(())
 }
 

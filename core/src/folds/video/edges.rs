@@ -44,7 +44,7 @@ pub struct LevelEdges {
     pub level: Level,
     /// Level pixels per full-resolution pixel.
     pub factor: f64,
-    /// The grey image smoothed by the level's Gaussian, at the level's pixel grid.
+    /// The grey image at the level's pixel grid, blurred by the level's extra Gaussian (before Canny's own).
     pub smoothed: Vec<f32>,
     pub width: u32,
     pub height: u32,
@@ -103,11 +103,9 @@ pub fn extract(photo: &Photo, mask: &[bool], level: Level, params: &VideoParams)
     let low = params.canny_low as f32 * k;
     let high = params.canny_high as f32 * k;
     let canny = imageproc::edges::canny(&gray, low, high.max(low));
-    let smoothed: Vec<f32> = imageproc::filter::gaussian_blur_f32(&img, CANNY_SIGMA as f32)
-        .into_raw()
-        .into_iter()
-        .map(|v| v * 255.0)
-        .collect();
+    // The orientation test compares brightness a blur radius away on either side of an edge; the pre-blurred
+    // level image is smooth enough for that and saves a second blur.
+    let smoothed: Vec<f32> = img.into_raw().into_iter().map(|v| v * 255.0).collect();
 
     let inside = |x: u32, y: u32| {
         let ox = ((x as f64) / factor).round();

@@ -97,6 +97,11 @@ pub fn try_pair(e1: &Edge, e2: &Edge, params: &VideoParams, level: usize) -> Opt
     if a.len() < 2 || b.len() < 2 {
         return None;
     }
+    // Cheap rejection first: the middle of the shorter edge must be near the other edge (any real pair overlaps
+    // at least half of the shorter edge, so its middle runs alongside).
+    if closest_on(b, a[a.len() / 2]).0 > params.max_distance {
+        return None;
+    }
     let last_seg = b.len() - 2;
     let mut ov = Vec::new(); // (index in a, distance, segment in b, closest point)
     for (k, &p) in a.iter().enumerate() {

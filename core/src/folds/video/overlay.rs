@@ -65,8 +65,34 @@ fn tick(img: &mut RgbImage, pts: &[[f64; 2]], color: [u8; 3]) {
     );
 }
 
-/// One row of four panels for a view.
+/// The garment's bounding box in the image (mask), with a margin; the whole image without a mask.
+fn garment_box(v: &ViewResult, margin: u32) -> (u32, u32, u32, u32) {
+    let p = &v.photo;
+    let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
+    for y in 0..p.height {
+        for x in 0..p.width {
+            if p.mask[(y * p.width + x) as usize] {
+                x0 = x0.min(x);
+                y0 = y0.min(y);
+                x1 = x1.max(x);
+                y1 = y1.max(y);
+            }
+        }
+    }
+    if x0 > x1 {
+        return (0, 0, p.width, p.height);
+    }
+    let x0 = x0.saturating_sub(margin);
+    let y0 = y0.saturating_sub(margin);
+    let x1 = (x1 + margin).min(p.width - 1);
+    let y1 = (y1 + margin).min(p.height - 1);
+    (x0, y0, x1 - x0 + 1, y1 - y0 + 1)
+}
+
+/// One row of four panels for a view, cropped to the garment.
 pub fn view_row(v: &ViewResult, camera_name: &str, frame: usize) -> Vec<RgbImage> {
+    let (bx, by, bw, bh) = garment_box(v, 12);
+    let crop = |img: RgbImage| image::imageops::crop_imm(&img, bx, by, bw, bh).to_image();
     let input = background(v, 1.0);
     let mut raw = background(v, 0.35);
     for (k, l) in v.levels.iter().enumerate() {
@@ -101,6 +127,7 @@ pub fn view_row(v: &ViewResult, camera_name: &str, frame: usize) -> Vec<RgbImage
         .map(|l| format!("PAIRED (SCALE {} RADIUS {})", l.level.scale, l.level.radius))
         .unwrap_or_else(|| "PAIRED".into());
     let n_raw: usize = v.levels.iter().map(|l| l.chains.len()).sum();
+    let (input, raw, paired, union) = (crop(input), crop(raw), crop(paired), crop(union));
     vec![
         caption(
             &input,

@@ -39,7 +39,7 @@ pub struct VideoArgs {
     /// Image resolutions as fractions of the full image [default: 1].
     #[arg(long, value_delimiter = ',')]
     pub scales: Vec<f64>,
-    /// Canny low / high gradient thresholds (0-255 grey) [default: 8, 20].
+    /// Canny low / high gradient thresholds (0-255 grey) [default: 12, 30].
     #[arg(long)]
     pub canny_low: Option<f64>,
     #[arg(long)]
@@ -47,10 +47,10 @@ pub struct VideoArgs {
     /// Maximum angle between paired edges, degrees [default: 45].
     #[arg(long)]
     pub max_angle: Option<f64>,
-    /// Maximal distance between paired edges, pixels [default: 16].
+    /// Maximal distance between paired edges, pixels [default: 12].
     #[arg(long)]
     pub max_distance: Option<f64>,
-    /// Maximum average distance between paired edges, pixels [default: 12].
+    /// Maximum average distance between paired edges, pixels [default: 9].
     #[arg(long)]
     pub max_avg_distance: Option<f64>,
     /// Minimum grey contrast across an edge for a clear orientation [default: 4].
@@ -68,6 +68,9 @@ pub struct VideoArgs {
     /// Maximum chromaticity difference across an edge [default: 0.04].
     #[arg(long)]
     pub max_hue_difference: Option<f64>,
+    /// Drop pairs whose edges run on the garment's border triangles (cuffs, collars, hems).
+    #[arg(long)]
+    pub skip_border: bool,
     /// Anchor angle of the narrowest / widest pairs of a frame, degrees [default: 60, 30].
     #[arg(long)]
     pub narrow_angle: Option<f64>,
@@ -102,6 +105,7 @@ impl VideoArgs {
             max_hue_difference: or(self.max_hue_difference, d.max_hue_difference),
             narrow_angle_deg: or(self.narrow_angle, d.narrow_angle_deg),
             wide_angle_deg: or(self.wide_angle, d.wide_angle_deg),
+            skip_border: self.skip_border,
             ..d
         }
     }

@@ -103,7 +103,7 @@ pub struct RunArgs {
     #[arg(long, value_enum)]
     pub folds: Option<Folds>,
     #[command(flatten)]
-    pub video: crate::folds_video::VideoArgs,
+    pub video: Box<crate::folds_video::VideoArgs>,
     /// Output directory (the wrinkled sequence, report.json, preview.png, stretch.png).
     #[arg(long)]
     pub out: Option<PathBuf>,

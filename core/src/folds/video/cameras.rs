@@ -296,7 +296,7 @@ impl CameraRig {
             if let Some(center) = c.center {
                 let got = camera.center();
                 let d = vec3::norm(vec3::sub(center, got));
-                if !(d <= 1e-4 * (1.0 + vec3::norm(got))) {
+                if d.is_nan() || d > 1e-4 * (1.0 + vec3::norm(got)) {
                     return Err(err(format!(
                         "{label}: `center` {center:?} disagrees with -Rᵀt = {got:?} (R, t must map world to camera)"
                     )));

@@ -189,7 +189,9 @@ impl VideoFolds {
                 continue;
             }
             let (levels, union) = image_pairs(&photo, &self.params);
-            let caster = project::MeshCaster::new(topo, positions, &self.rig.cameras[cam].camera)?;
+            let mut caster =
+                project::MeshCaster::new(topo, positions, &self.rig.cameras[cam].camera)?;
+            caster.skip_border = self.params.skip_border;
             let projected: Vec<ProjectedPair> = union
                 .iter()
                 .filter_map(|p| project::project_pair(&caster, p, &self.params))

@@ -35,6 +35,11 @@ pub struct MeshCaster {
     mesh: TriMesh,
     origin: V3,
     normals: Vec<V3>,
+    /// Triangles on the garment's border (an edge without a neighbour): a fold edge there is the border's
+    /// outline (cuff, collar, hem), which like the silhouette is not a fold.
+    border: Vec<bool>,
+    /// Whether hits on border triangles count as off the garment ([`VideoParams::skip_border`]).
+    pub skip_border: bool,
     camera: CalibratedCamera,
 }
 
@@ -50,10 +55,17 @@ impl MeshCaster {
             .collect();
         let mesh = TriMesh::new(verts, topo.triangles().to_vec())
             .map_err(|e| Error::mesh(format!("cannot build the ray-casting BVH: {e:?}")))?;
+        let border = topo
+            .tri_adj()
+            .iter()
+            .map(|adj| adj.contains(&crate::mesh::NONE))
+            .collect();
         Ok(MeshCaster {
             mesh,
             origin,
             normals: geometry::triangle_normals(topo, positions),
+            border,
+            skip_border: false,
             camera: *camera,
         })
     }
@@ -86,7 +98,8 @@ impl MeshCaster {
     }
 
     /// Casts the points of an image polyline, sampled every `step` pixels. Returns the hits on the garment away
-    /// from the silhouette, in order, and the fraction of samples that missed or grazed.
+    /// from the silhouette (and the border if asked), in order, and the fraction of samples that missed, grazed
+    /// or hit the border.
     pub fn cast_polyline(
         &self,
         points: &[[f64; 2]],
@@ -98,7 +111,12 @@ impl MeshCaster {
         let mut bad = 0usize;
         for uv in &samples {
             match self.cast(*uv) {
-                Some(h) if h.facing >= silhouette_cos => hits.push(h),
+                Some(h)
+                    if h.facing >= silhouette_cos
+                        && !(self.skip_border && self.border[h.triangle as usize]) =>
+                {
+                    hits.push(h)
+                }
                 _ => bad += 1,
             }
         }

@@ -53,7 +53,7 @@ pub fn fit(points: &[[f64; 2]]) -> Option<QuadricFit> {
             (lo.min(q[0]), hi.max(q[0]))
         });
     let half = 0.5 * (xmax - xmin);
-    if !(half > 1e-9) {
+    if half.is_nan() || half <= 1e-9 {
         return None;
     }
     // Normal equations in the scaled variable s = x / half (well conditioned).
@@ -118,7 +118,7 @@ fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
             + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
     };
     let d = det(&a);
-    if !(d.abs() > 1e-12) {
+    if d.is_nan() || d.abs() <= 1e-12 {
         return None;
     }
     let mut x = [0.0; 3];

@@ -3,6 +3,7 @@
 mod bench;
 mod eval;
 mod folds_stretch;
+mod folds_video;
 mod progress;
 mod run;
 

@@ -84,20 +84,34 @@ impl DeformArgs {
     }
 }
 
+/// Where the folds come from.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Folds {
+    /// An anchors file (--anchors).
+    Anchors,
+    /// The geometry alone (Chen 2011 ch. 4): --stretch-* flags, --subdivide.
+    Stretch,
+    /// The capture video (Popa et al. 2009 §4): --cameras, --images.
+    Video,
+}
+
 #[derive(Args, Debug)]
 pub struct RunArgs {
     /// Input sequence: a directory of numbered OBJ or PLY frames, or OBJ + PC2. Omit to run the built-in demo.
     #[arg(long)]
     pub input: Option<PathBuf>,
-    /// Anchors file (JSON, see README). Required with --input unless --folds stretch.
+    /// Anchors file (JSON, see README). Required with --input unless --folds detects them.
     #[arg(long)]
     pub anchors: Option<PathBuf>,
-    /// Where the folds come from: `anchors` (the --anchors file; the default) or `stretch` (estimated from
-    /// the geometry alone, Chen 2011 ch. 4; writes anchors.json, folds/control_lines.obj and folds.png to --out).
+    /// Where the folds come from: `anchors` (the --anchors file; the default), `stretch` (estimated from the
+    /// geometry alone, Chen 2011 ch. 4) or `video` (from the capture video, Popa et al. 2009 §4). Detectors
+    /// write anchors.json and their overlays to --out.
     #[arg(long, value_enum)]
-    pub folds: Option<FoldSource>,
+    pub folds: Option<Folds>,
     #[command(flatten)]
     pub stretch: StretchArgs,
+    #[command(flatten)]
+    pub video: Box<crate::folds_video::VideoArgs>,
     /// Output directory (the wrinkled sequence, report.json, preview.png, stretch.png).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -119,15 +133,6 @@ pub struct RunArgs {
     pub quiet: bool,
 }
 
-/// Source of the anchors for `crease run`.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FoldSource {
-    /// An anchors file (--anchors).
-    Anchors,
-    /// Fold estimation from the geometry alone (Chen 2011 ch. 4).
-    Stretch,
-}
-
 #[derive(Args, Debug)]
 pub struct DemoArgs {
     /// Directory to write `input/` (numbered OBJ frames) and `anchors.json` into.
@@ -137,6 +142,18 @@ pub struct DemoArgs {
     pub triangles: usize,
     #[arg(long, default_value_t = 36)]
     pub frames: usize,
+    /// Also write a synthetic capture video: the ground-truth folded sequence (`gt/`, the input deformed with
+    /// its anchors) rendered from a ring of calibrated cameras (`cameras.json`, `images/<camera>/frame_NNNN.png`).
+    #[arg(long)]
+    pub with_video: bool,
+    /// Cameras on the ring (with --with-video).
+    #[arg(long, default_value_t = 4)]
+    pub video_cameras: usize,
+    /// Image size (with --with-video).
+    #[arg(long, default_value_t = 480)]
+    pub video_width: u32,
+    #[arg(long, default_value_t = 640)]
+    pub video_height: u32,
 }
 
 /// Writes the demo input; returns (input dir, anchors file).
@@ -179,18 +196,81 @@ fn write_demo(out: &Path, triangles: usize, frames: usize) -> Result<(PathBuf, P
 
 pub fn demo(a: DemoArgs) -> Result<()> {
     write_demo(&a.out, a.triangles, a.frames)?;
+    if a.with_video {
+        write_demo_video(&a)?;
+    }
+    Ok(())
+}
+
+/// `crease demo --with-video`: the ground truth (`gt/`) and its rendered video from a ring of cameras.
+fn write_demo_video(a: &DemoArgs) -> Result<()> {
+    if a.video_cameras == 0 || a.video_width < 16 || a.video_height < 16 {
+        bail!("--video-cameras must be at least 1 and the image at least 16x16 pixels");
+    }
+    let spec = DemoSpec {
+        triangles: a.triangles,
+        frames: a.frames,
+        ..Default::default()
+    };
+    let (seq, anchors) = synth::demo(&spec)?;
+    let mut sink = crease_core::mesh::MemorySink::default();
+    deform(
+        &seq,
+        &anchors,
+        &DeformParams::default(),
+        &mut sink,
+        &crease_core::progress::NoProgress,
+        &[],
+    )?;
+    let gt: Vec<Vec<[f64; 3]>> = sink.frames.into_values().collect();
+    let gt_dir = a.out.join("gt");
+    fsutil::create_dir_all(&gt_dir)?;
+    let width = a.frames.to_string().len().max(4);
+    write_obj_sequence(
+        &gt_dir,
+        &seq.topology,
+        gt.iter()
+            .enumerate()
+            .map(|(t, f)| (format!("frame_{:0width$}.obj", t + 1), f.as_slice())),
+    )?;
+    let rig = crease_core::synth_video::write_video(
+        &a.out,
+        &seq.topology,
+        &gt,
+        a.video_cameras,
+        a.video_width,
+        a.video_height,
+        1,
+    )?;
+    eprintln!(
+        "demo video: gt/ and {} cameras x {} frames of {}x{} images -> {}",
+        rig.cameras.len(),
+        a.frames,
+        a.video_width,
+        a.video_height,
+        a.out.join("images").display()
+    );
     Ok(())
 }
 
 pub fn run(a: RunArgs) -> Result<()> {
     let params = a.deform.params();
     params.validate()?;
-    let stretch = a.folds == Some(FoldSource::Stretch);
+    let folds = a.folds.unwrap_or(Folds::Anchors);
+    let stretch = folds == Folds::Stretch;
     let stretch_params = if stretch {
         Some(a.stretch.validated()?)
     } else {
         None
     };
+    if folds == Folds::Video {
+        if a.input.is_none() {
+            bail!("--folds video needs --input (e.g. `crease demo --with-video` writes one)");
+        }
+        if a.anchors.is_some() {
+            bail!("--anchors and --folds video exclude each other: the video detector writes its own anchors");
+        }
+    }
     let (input, anchors_path, out) = match (&a.input, &a.anchors) {
         (None, _) if stretch => bail!("--folds stretch needs --input (a captured sequence)"),
         (_, Some(_)) if stretch => {
@@ -204,13 +284,13 @@ pub fn run(a: RunArgs) -> Result<()> {
             let (input, anchors) = write_demo(&root, a.demo_triangles, a.demo_frames)?;
             (input, Some(anchors), root.join("output"))
         }
-        (Some(i), None) if stretch => (
+        (Some(i), None) if folds != Folds::Anchors => (
             i.clone(),
             None,
             a.out.clone().unwrap_or_else(|| PathBuf::from("crease-out")),
         ),
         (Some(_), None) => {
-            bail!("--anchors is required with --input unless --folds stretch (see README: anchors file format)")
+            bail!("--anchors is required with --input unless --folds stretch or --folds video (see README: anchors file format)")
         }
         (Some(i), Some(an)) => (
             i.clone(),
@@ -284,6 +364,11 @@ pub fn run(a: RunArgs) -> Result<()> {
     let progress = CliProgress::new(a.quiet);
     let (anchors, anchors_path, fold_detection) = match (anchors_in, anchors_path) {
         (Some(set), Some(path)) => (set, path, serde_json::Value::Null),
+        _ if folds == Folds::Video => {
+            let set =
+                crate::folds_video::detect(&a.video, source, &opened.layout, &out, &progress)?;
+            (set, out.join("anchors.json"), json!({ "method": "video" }))
+        }
         _ => {
             let params = stretch_params.clone().expect("stretch mode");
             progress.println(&format!(

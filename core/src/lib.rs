@@ -17,6 +17,7 @@ pub mod progress;
 pub mod render;
 pub mod spacetime;
 pub mod synth;
+pub mod synth_video;
 pub mod vec3;
 
 pub use error::{Error, Result};

@@ -6,6 +6,7 @@
 
 pub mod anchors;
 pub mod stretch;
+pub mod video;
 
 pub use anchors::{Anchor, AnchorSet, FrameAnchors};
 

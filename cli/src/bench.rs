@@ -60,6 +60,15 @@ pub struct BenchArgs {
     /// Anchor columns per weight block (task) in the cluster benchmark.
     #[arg(long, default_value_t = 256)]
     pub cluster_anchor_block: usize,
+    /// Run only the stretch-folds stage (geometric fold estimation, Chen 2011).
+    #[arg(long)]
+    pub stretch_folds_only: bool,
+    /// Image for the video edge stage (default: a 640x480 render of the demo with the synthetic-video shading).
+    #[arg(long)]
+    pub edges_image: Option<PathBuf>,
+    /// Run only the video edge stage.
+    #[arg(long)]
+    pub edges_only: bool,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -107,8 +116,22 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     if a.cluster {
         return crate::bench_cluster::bench_cluster(&a);
     }
+    if a.edges_only {
+        let edges = edges_stage(&a)?;
+        if let Some(path) = &a.json {
+            let doc = json!({ "video_edges": edges });
+            crease_core::fsutil::write_atomic(
+                path,
+                serde_json::to_string_pretty(&doc)?.as_bytes(),
+            )?;
+        }
+        return Ok(());
+    }
     if a.frames < 2 || a.repeats == 0 {
         anyhow::bail!("--frames must be ≥ 2 and --repeats ≥ 1");
+    }
+    if a.stretch_folds_only {
+        return stretch_folds_stage(&a);
     }
     let threads = rayon::current_num_threads();
     println!(
@@ -198,6 +221,8 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         }
     }
     aux_stages(&a)?;
+    stretch_folds_stage(&a)?;
+    let edges = edges_stage(&a)?;
     let export = match &a.export {
         Some(dir) => Some(export_case(
             dir,
@@ -209,7 +234,7 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         None => None,
     };
     if let Some(path) = &a.json {
-        let doc = json!({"cases": rows, "export": export});
+        let doc = json!({"cases": rows, "export": export, "video_edges": edges});
         crease_core::fsutil::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     }
     Ok(())
@@ -302,6 +327,104 @@ fn aux_stages(a: &BenchArgs) -> Result<()> {
         let _ = std::fs::remove_dir_all(&dir);
     }
     Ok(())
+}
+
+/// Geometric fold estimation (Chen 2011, `--folds stretch`) on a compressed, twisting tube: seconds per frame
+/// for the whole detector (both passes and the tracing), with folds and anchors per frame.
+fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
+    use crease_core::folds::stretch::StretchDetector;
+    let frames = a.frames.clamp(4, 12);
+    println!("\nstretch folds (Chen 2011), seconds per frame over {frames} frames of a compressed sleeve");
+    println!(
+        "{:>8} {:>10} {:>10} {:>10} {:>12}",
+        "tris", "s/frame", "folds/f", "anchors/f", "seeds tried/f"
+    );
+    for &size in &a.sizes {
+        let seq = synth::compressed_tube(size, frames, 0.3, -1.0)?;
+        let (mut folds, mut anchors, mut seeds) = (0usize, 0usize, 0usize);
+        let t = Instant::now();
+        StretchDetector::default().run(&seq, &NoProgress, |_, _, _, f| {
+            folds += f.folds.len();
+            anchors += f.anchors.len();
+            seeds += f.seeds_tried;
+            Ok(())
+        })?;
+        let per = |x: usize| x as f64 / frames as f64;
+        println!(
+            "{:>8} {:>10.3} {:>10.1} {:>10.1} {:>12.1}",
+            seq.topology.n_triangles(),
+            t.elapsed().as_secs_f64() / frames as f64,
+            per(folds),
+            per(anchors),
+            per(seeds)
+        );
+    }
+    Ok(())
+}
+
+/// Video fold-edge stage (Popa et al. 2009 §4): one 640x480 image at the default 4 Canny radii — Canny, chaining
+/// and quadric fits alone, and with orientation, merging, pairing and the union over radii.
+fn edges_stage(a: &BenchArgs) -> Result<serde_json::Value> {
+    use crease_core::folds::video::{edges, image_pairs, Photo, VideoParams};
+    let img = match &a.edges_image {
+        Some(p) => image::open(p)
+            .with_context(|| format!("reading {}", p.display()))?
+            .to_rgba8(),
+        None => {
+            let spec = DemoSpec {
+                triangles: 40_000,
+                frames: 20,
+                ..Default::default()
+            };
+            let (seq, _) = synth::demo(&spec)?;
+            let f = &seq.frames[10];
+            let (lo, hi) = crease_core::mesh::geometry::bounding_box(f);
+            let cam = &crease_core::synth_video::ring_cameras(lo, hi, 1, 640, 480)[0].camera;
+            let occ = crease_core::synth_video::occlusion(&seq.topology, f);
+            crease_core::synth_video::render_frame(&seq.topology, f, &occ, cam)
+        }
+    };
+    let photo = Photo::from_rgba(&img);
+    let params = VideoParams::default();
+    let mask = photo.eroded_mask(params.silhouette_margin);
+    let runs = a.repeats.max(3);
+    let mut n_edges = 0;
+    let extract = median(
+        (0..runs)
+            .map(|_| {
+                let t = Instant::now();
+                n_edges = edges::levels(&params)
+                    .into_iter()
+                    .map(|l| edges::extract(&photo, &mask, l, &params).edges.len())
+                    .sum();
+                t.elapsed().as_secs_f64()
+            })
+            .collect(),
+    );
+    let mut n_pairs = 0;
+    let full = median(
+        (0..runs)
+            .map(|_| {
+                let t = Instant::now();
+                n_pairs = image_pairs(&photo, &params).1.len();
+                t.elapsed().as_secs_f64()
+            })
+            .collect(),
+    );
+    println!(
+        "\nvideo fold edges, one {}x{} image, radii {:?} (median of {runs} runs)",
+        photo.width, photo.height, params.radii
+    );
+    println!(
+        "{:>12} {:>14} {:>8} {:>8}",
+        "edges (s)", "edges+pairs (s)", "edges", "pairs"
+    );
+    println!("{extract:>12.4} {full:>14.4} {n_edges:>8} {n_pairs:>8}");
+    Ok(
+        json!({"width": photo.width, "height": photo.height, "radii": params.radii,
+              "edges_seconds": extract, "edges_and_pairs_seconds": full,
+              "edges": n_edges, "pairs": n_pairs}),
+    )
 }
 
 /// A scratch directory for benchmark files (under the system temporary directory).

@@ -3,6 +3,9 @@
 mod bench;
 mod bench_cluster;
 mod cluster;
+mod eval;
+mod folds_stretch;
+mod folds_video;
 mod local;
 mod progress;
 mod run;
@@ -29,6 +32,8 @@ enum Command {
     Run(run::RunArgs),
     /// Write the procedural demo sequence (OBJ frames) and its anchors file.
     Demo(run::DemoArgs),
+    /// Fold fidelity of a result against ground truth (DESIGN.md §9), beside the captured baseline.
+    Eval(eval::EvalArgs),
     /// Paper-scale benchmark: seconds per frame per stage, peak memory, both weight modes.
     Bench(bench::BenchArgs),
     /// Run the coordinator: job queue (SQLite), scheduler and gRPC service.
@@ -61,6 +66,7 @@ fn main() {
     let result = match cli.command {
         Command::Run(a) => run::run(a),
         Command::Demo(a) => run::demo(a),
+        Command::Eval(a) => eval::eval(a),
         Command::Bench(a) => bench::bench(a),
         Command::Coordinator(a) => cluster::coordinator(a),
         Command::Worker(a) => cluster::worker(a),

@@ -9,6 +9,8 @@ use std::sync::Mutex;
 
 pub struct CliProgress {
     bars: Option<MultiProgress>,
+    /// `--quiet`: no bars, no stage lines, no informational lines; warnings ([`Progress::note`]) still print.
+    quiet: bool,
     state: Mutex<HashMap<String, Stage>>,
 }
 
@@ -25,12 +27,19 @@ impl CliProgress {
         let bars = (!quiet && std::io::stderr().is_terminal()).then(MultiProgress::new);
         CliProgress {
             bars,
+            quiet,
             state: Mutex::new(HashMap::new()),
         }
     }
 
-    /// Prints a line without tearing the bars.
+    /// Prints an informational line without tearing the bars (nothing with `--quiet`).
     pub fn println(&self, msg: &str) {
+        if !self.quiet {
+            self.print_always(msg);
+        }
+    }
+
+    fn print_always(&self, msg: &str) {
         match &self.bars {
             Some(m) => {
                 let _ = m.println(msg);
@@ -54,7 +63,7 @@ impl Progress for CliProgress {
             b.set_prefix(stage.to_string());
             b
         });
-        if bar.is_none() {
+        if bar.is_none() && !self.quiet {
             eprintln!("[{stage}] started: {total} steps");
         }
         if let Ok(mut s) = self.state.lock() {
@@ -79,7 +88,7 @@ impl Progress for CliProgress {
             Some(b) => b.inc(n),
             None => {
                 let decile = (st.done * 10).checked_div(st.total).unwrap_or(10);
-                if decile > st.last_logged_decile {
+                if decile > st.last_logged_decile && !self.quiet {
                     st.last_logged_decile = decile;
                     eprintln!(
                         "[{stage}] {}/{} ({:.1}s)",
@@ -97,15 +106,16 @@ impl Progress for CliProgress {
         if let Some(st) = s.remove(stage) {
             match st.bar {
                 Some(b) => b.finish(),
-                None => eprintln!(
+                None if !self.quiet => eprintln!(
                     "[{stage}] done in {:.2}s",
                     st.started.elapsed().as_secs_f64()
                 ),
+                None => {}
             }
         }
     }
 
     fn note(&self, msg: &str) {
-        self.println(msg);
+        self.print_always(msg);
     }
 }

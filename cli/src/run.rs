@@ -1,5 +1,6 @@
 //! `crease run` and `crease demo`.
 
+use crate::folds_stretch::StretchArgs;
 use crate::local::LocalCluster;
 use crate::progress::CliProgress;
 use anyhow::{bail, Context, Result};
@@ -9,7 +10,7 @@ use crease_core::folds::AnchorSet;
 use crease_core::fsutil;
 use crease_core::mesh::io::{open_sequence, write_obj_sequence};
 use crease_core::mesh::FrameSource;
-use crease_core::spacetime::{Coefficients, DeformParams, Pinning, WeightMode};
+use crease_core::spacetime::{deform, Coefficients, DeformParams, Pinning, WeightMode};
 use crease_core::synth::{self, DemoSpec};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -84,14 +85,34 @@ impl DeformArgs {
     }
 }
 
+/// Where the folds come from.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Folds {
+    /// An anchors file (--anchors).
+    Anchors,
+    /// The geometry alone (Chen 2011 ch. 4): --stretch-* flags, --subdivide.
+    Stretch,
+    /// The capture video (Popa et al. 2009 §4): --cameras, --images.
+    Video,
+}
+
 #[derive(Args, Debug)]
 pub struct RunArgs {
     /// Input sequence: a directory of numbered OBJ or PLY frames, or OBJ + PC2. Omit to run the built-in demo.
     #[arg(long)]
     pub input: Option<PathBuf>,
-    /// Anchors file (JSON, see README). Required with --input.
+    /// Anchors file (JSON, see README). Required with --input unless --folds detects them.
     #[arg(long)]
     pub anchors: Option<PathBuf>,
+    /// Where the folds come from: `anchors` (the --anchors file; the default), `stretch` (estimated from the
+    /// geometry alone, Chen 2011 ch. 4) or `video` (from the capture video, Popa et al. 2009 §4). Detectors
+    /// write anchors.json and their overlays to --out.
+    #[arg(long, value_enum)]
+    pub folds: Option<Folds>,
+    #[command(flatten)]
+    pub stretch: StretchArgs,
+    #[command(flatten)]
+    pub video: Box<crate::folds_video::VideoArgs>,
     /// Output directory (the wrinkled sequence, report.json, preview.png, stretch.png).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -128,6 +149,18 @@ pub struct DemoArgs {
     pub triangles: usize,
     #[arg(long, default_value_t = 36)]
     pub frames: usize,
+    /// Also write a synthetic capture video: the ground-truth folded sequence (`gt/`, the input deformed with
+    /// its anchors) rendered from a ring of calibrated cameras (`cameras.json`, `images/<camera>/frame_NNNN.png`).
+    #[arg(long)]
+    pub with_video: bool,
+    /// Cameras on the ring (with --with-video).
+    #[arg(long, default_value_t = 4)]
+    pub video_cameras: usize,
+    /// Image size (with --with-video).
+    #[arg(long, default_value_t = 480)]
+    pub video_width: u32,
+    #[arg(long, default_value_t = 640)]
+    pub video_height: u32,
 }
 
 /// Writes the demo input; returns (input dir, anchors file).
@@ -170,6 +203,60 @@ fn write_demo(out: &Path, triangles: usize, frames: usize) -> Result<(PathBuf, P
 
 pub fn demo(a: DemoArgs) -> Result<()> {
     write_demo(&a.out, a.triangles, a.frames)?;
+    if a.with_video {
+        write_demo_video(&a)?;
+    }
+    Ok(())
+}
+
+/// `crease demo --with-video`: the ground truth (`gt/`) and its rendered video from a ring of cameras.
+fn write_demo_video(a: &DemoArgs) -> Result<()> {
+    if a.video_cameras == 0 || a.video_width < 16 || a.video_height < 16 {
+        bail!("--video-cameras must be at least 1 and the image at least 16x16 pixels");
+    }
+    let spec = DemoSpec {
+        triangles: a.triangles,
+        frames: a.frames,
+        ..Default::default()
+    };
+    let (seq, anchors) = synth::demo(&spec)?;
+    let mut sink = crease_core::mesh::MemorySink::default();
+    deform(
+        &seq,
+        &anchors,
+        &DeformParams::default(),
+        &mut sink,
+        &crease_core::progress::NoProgress,
+        &[],
+    )?;
+    let gt: Vec<Vec<[f64; 3]>> = sink.frames.into_values().collect();
+    let gt_dir = a.out.join("gt");
+    fsutil::create_dir_all(&gt_dir)?;
+    let width = a.frames.to_string().len().max(4);
+    write_obj_sequence(
+        &gt_dir,
+        &seq.topology,
+        gt.iter()
+            .enumerate()
+            .map(|(t, f)| (format!("frame_{:0width$}.obj", t + 1), f.as_slice())),
+    )?;
+    let rig = crease_core::synth_video::write_video(
+        &a.out,
+        &seq.topology,
+        &gt,
+        a.video_cameras,
+        a.video_width,
+        a.video_height,
+        1,
+    )?;
+    eprintln!(
+        "demo video: gt/ and {} cameras x {} frames of {}x{} images -> {}",
+        rig.cameras.len(),
+        a.frames,
+        a.video_width,
+        a.video_height,
+        a.out.join("images").display()
+    );
     Ok(())
 }
 
@@ -178,34 +265,61 @@ pub fn demo(a: DemoArgs) -> Result<()> {
 pub fn run(a: RunArgs) -> Result<()> {
     let params = a.deform.params();
     params.validate()?;
+    let folds = a.folds.unwrap_or(Folds::Anchors);
+    let stretch = folds == Folds::Stretch;
+    let stretch_params = if stretch {
+        Some(a.stretch.validated()?)
+    } else {
+        None
+    };
+    if folds == Folds::Video {
+        if a.input.is_none() {
+            bail!("--folds video needs --input (e.g. `crease demo --with-video` writes one)");
+        }
+        if a.anchors.is_some() {
+            bail!("--anchors and --folds video exclude each other: the video detector writes its own anchors");
+        }
+    }
     let (input, anchors_path, out) = match (&a.input, &a.anchors) {
+        (None, _) if stretch => bail!("--folds stretch needs --input (a captured sequence)"),
+        (_, Some(_)) if stretch => {
+            bail!("--anchors and --folds stretch exclude each other: the stretch detector writes its own anchors")
+        }
         (None, _) => {
             let root = a
                 .out
                 .clone()
                 .unwrap_or_else(|| PathBuf::from("crease-demo"));
             let (input, anchors) = write_demo(&root, a.demo_triangles, a.demo_frames)?;
-            (input, anchors, root.join("output"))
+            (input, Some(anchors), root.join("output"))
         }
+        (Some(i), None) if folds != Folds::Anchors => (
+            i.clone(),
+            None,
+            a.out.clone().unwrap_or_else(|| PathBuf::from("crease-out")),
+        ),
         (Some(_), None) => {
-            bail!("--anchors is required with --input (see README: anchors file format)")
+            bail!("--anchors is required with --input unless --folds stretch or --folds video (see README: anchors file format)")
         }
         (Some(i), Some(an)) => (
             i.clone(),
-            an.clone(),
+            Some(an.clone()),
             a.out.clone().unwrap_or_else(|| PathBuf::from("crease-out")),
         ),
     };
     if a.local_workers == 0 || a.local_capacity == 0 {
         bail!("--local-workers and --local-capacity must be at least 1");
     }
+    if a.stretch.subdivide > 0 && !stretch {
+        bail!("--subdivide applies to --folds stretch only");
+    }
     // Read the header of the input and the anchors here too: the banner needs the sizes, and errors in them
-    // read the same as before the cluster existed.
+    // read the same as before the cluster existed. Everything else (detector inputs, subdivision) is checked
+    // by the job's submit-time inspection, the same for `crease submit`.
     let opened = open_sequence(&input).with_context(|| format!("opening {}", input.display()))?;
     let source: &dyn FrameSource = opened.source.as_ref();
     let topo = source.topology().clone();
     let n = source.n_frames();
-    let anchors = AnchorSet::read(&anchors_path, n, topo.n_triangles())?;
     if same_dir(&input, &out) {
         bail!(
             "--out {} is the input directory; choose another so the input is not overwritten",
@@ -217,6 +331,10 @@ pub fn run(a: RunArgs) -> Result<()> {
             bail!("--preview-frames: frame {f} is out of range (the sequence has {n} frames, 0-based)");
         }
     }
+    let anchors = match &anchors_path {
+        Some(p) => Some(AnchorSet::read(p, n, topo.n_triangles())?),
+        None => None,
+    };
     fsutil::create_dir_all(&out)?;
     // A report from an earlier run must not vouch for what this run may leave half-written.
     let report_path = out.join("report.json");
@@ -228,25 +346,49 @@ pub fn run(a: RunArgs) -> Result<()> {
         }
     }
     let progress = CliProgress::new(a.quiet);
-    progress.println(&format!(
-        "crease: {} frames, {} vertices, {} triangles, {} anchors, mode {}",
-        n,
-        topo.n_vertices(),
-        topo.n_triangles(),
-        anchors.total(),
-        params.mode
-    ));
-    drop(opened);
     let abs = |p: &Path| {
         std::path::absolute(p)
             .with_context(|| format!("resolving {}", p.display()))
             .map(|p| p.display().to_string())
     };
+    let fold_spec = match (folds, &anchors_path, &stretch_params) {
+        (_, _, Some(params)) => {
+            progress.println(&format!(
+                "crease: estimating folds from the geometry (Chen 2011) on {} frames, {} triangles{}",
+                n,
+                topo.n_triangles() * 4usize.pow(a.stretch.subdivide as u32),
+                if a.stretch.subdivide > 0 { " (subdivided)" } else { "" }
+            ));
+            json!({ "kind": "stretch", "params": params, "subdivide": a.stretch.subdivide })
+        }
+        (Folds::Video, _, _) => a.video.fold_spec(n, &abs)?,
+        (_, Some(p), _) => json!({ "kind": "anchors", "uri": abs(p)? }),
+        (_, None, _) => bail!("--anchors is required with --input unless --folds stretch or --folds video (see README: anchors file format)"),
+    };
+    match &anchors {
+        Some(set) => progress.println(&format!(
+            "crease: {} frames, {} vertices, {} triangles, {} anchors, mode {}",
+            n,
+            topo.n_vertices(),
+            topo.n_triangles(),
+            set.total(),
+            params.mode
+        )),
+        None => progress.println(&format!(
+            "crease: {} frames, {} vertices, {} triangles, folds detected ({}), mode {}",
+            n,
+            topo.n_vertices(),
+            topo.n_triangles(),
+            fold_spec["kind"].as_str().unwrap_or("?"),
+            params.mode
+        )),
+    }
+    drop(opened);
     let spec = json!({
         "name": input.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default(),
         "input": abs(&input)?,
         "output": abs(&out)?,
-        "folds": { "kind": "anchors", "uri": abs(&anchors_path)? },
+        "folds": fold_spec,
         "deform": params,
         "partition": { "anchor_block": params.anchor_block },
         "preview": { "frames": a.preview_frames, "size": a.preview_size },
@@ -276,6 +418,7 @@ pub fn run(a: RunArgs) -> Result<()> {
             .with_context(|| format!("reading {}", report_path.display()))?,
     )
     .with_context(|| format!("parsing {}", report_path.display()))?;
+    print_fold_detection(&report["fold_detection"], &out, &progress);
     let stretch = &report["report"]["stretch"];
     let pick =
         |i: Option<&serde_json::Value>, k: &str| i.and_then(|v| v[k].as_f64()).unwrap_or(f64::NAN);
@@ -298,6 +441,34 @@ pub fn run(a: RunArgs) -> Result<()> {
         status.work_seconds
     ));
     Ok(())
+}
+
+/// The lines the direct detection path printed, from the job's report (`fold_detection`).
+fn print_fold_detection(d: &serde_json::Value, out: &Path, progress: &CliProgress) {
+    match d["source"].as_str() {
+        Some("video") => {
+            let tv = &d["tracked_vertices"];
+            progress.println(&format!(
+                "video folds: {} cameras, tracked vertices front {} back {}{}",
+                d["cameras"],
+                tv["front"],
+                tv["back"],
+                if tv["automatic"] == true {
+                    " (automatic)"
+                } else {
+                    ""
+                }
+            ));
+        }
+        Some(_) => {}
+        None => return,
+    }
+    progress.println(&format!(
+        "{} folds: {} anchors -> {}",
+        d["source"].as_str().unwrap_or("?"),
+        d["anchors"],
+        out.join("anchors.json").display()
+    ));
 }
 
 fn same_dir(a: &Path, b: &Path) -> bool {

@@ -6,6 +6,7 @@
 //! crate.
 
 pub mod error;
+pub mod eval;
 pub mod folds;
 pub mod fsutil;
 pub mod mesh;
@@ -16,6 +17,7 @@ pub mod progress;
 pub mod render;
 pub mod spacetime;
 pub mod synth;
+pub mod synth_video;
 pub mod vec3;
 
 pub use error::{Error, Result};

@@ -13,7 +13,7 @@ const INK: [u8; 3] = [20, 20, 20];
 /// Chooses a viewing direction and an up vector: up along the longest bounding-box axis; the camera looks at
 /// the side the folds face (`focus`, the mean normal of the anchored triangles) when there is one, otherwise
 /// from a fixed three-quarter angle; always slightly from above.
-fn view_for(lo: V3, hi: V3, focus: Option<V3>) -> (V3, V3) {
+pub fn view_for(lo: V3, hi: V3, focus: Option<V3>) -> (V3, V3) {
     let ext = vec3::sub(hi, lo);
     let up_axis = (0..3).fold(0, |b, k| if ext[k] > ext[b] { k } else { b });
     let mut up = [0.0; 3];

@@ -440,3 +440,86 @@ pub fn random_anchors(
     }
     AnchorSet::from_frames(lists, n_tri, None)
 }
+
+/// A flat `cols × rows` sheet (spacing `h`) whose band `band.0 ≤ s ≤ band.1` — `s` the coordinate along the
+/// in-plane unit direction (cos φ, sin φ), as a fraction of the sheet's extent along it — is compressed along
+/// that direction by the fraction `amount · envelope(t)`; material beyond the band moves with its ends. The
+/// whole sheet also turns rigidly by `spin` radians per frame about the z axis. This is what a capture that
+/// lost its folds looks like where cloth buckled: the material seems to shrink across the fold direction.
+/// Known answers for fold detection: fold axes perpendicular to (cos φ, sin φ), seeds inside the band.
+#[allow(clippy::too_many_arguments)]
+pub fn compressed_sheet(
+    cols: usize,
+    rows: usize,
+    h: f64,
+    phi: f64,
+    band: (f64, f64),
+    amount: f64,
+    spin: f64,
+    envelope: &[f64],
+) -> Result<Sequence> {
+    let (topo, flat) = sheet(cols, rows, h)?;
+    let c = [phi.cos(), phi.sin(), 0.0];
+    let s_of = |p: V3| vec3::dot(p, c);
+    let (lo, hi) = flat
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &p| {
+            (a.min(s_of(p)), b.max(s_of(p)))
+        });
+    let (b0, b1) = (lo + band.0 * (hi - lo), lo + band.1 * (hi - lo));
+    let frames = envelope
+        .iter()
+        .enumerate()
+        .map(|(t, &e)| {
+            let k = 1.0 - amount * e;
+            let (sn, cs) = (spin * t as f64).sin_cos();
+            flat.iter()
+                .map(|&p| {
+                    let s = s_of(p);
+                    let g = if s < b0 {
+                        s
+                    } else if s <= b1 {
+                        b0 + k * (s - b0)
+                    } else {
+                        b0 + k * (b1 - b0) + (s - b1)
+                    };
+                    let q = vec3::add(p, vec3::scale(c, g - s));
+                    [cs * q[0] - sn * q[1], sn * q[0] + cs * q[1], q[2]]
+                })
+                .collect()
+        })
+        .collect();
+    Sequence::new(topo, frames)
+}
+
+/// A sleeve-like tube of about `triangles` triangles that is compressed along its axis by up to `amount` and
+/// twisted by up to `twist` radians (end to end) and released again over `frames` frames (a raised-cosine
+/// cycle), with no folds in the geometry: what a capture of a compressed sleeve looks like once its folds are
+/// smoothed away. Benchmarks and tests of the geometric fold estimation use it.
+pub fn compressed_tube(
+    triangles: usize,
+    frames: usize,
+    amount: f64,
+    twist: f64,
+) -> Result<Sequence> {
+    let (radius, length) = (0.07, 0.5);
+    let grid = tube_grid_for(triangles, radius, length);
+    let topo = Arc::new(grid.topology()?);
+    let frames = (0..frames)
+        .map(|t| {
+            let e = 0.5 * (1.0 - (2.0 * PI * t as f64 / frames.max(2) as f64).cos());
+            let mut p = Vec::with_capacity(grid.n_vertices());
+            for r in 0..grid.rows {
+                for c in 0..grid.cols {
+                    let h = r as f64 / (grid.rows - 1) as f64;
+                    // Stronger compression in the middle of the sleeve than at its pinned ends.
+                    let s = h - amount * e * (h - (2.0 * PI * h).sin() / (2.0 * PI));
+                    let th = 2.0 * PI * c as f64 / grid.cols as f64 + twist * e * h;
+                    p.push([radius * th.cos(), radius * th.sin(), s * length]);
+                }
+            }
+            p
+        })
+        .collect();
+    Sequence::new(topo, frames)
+}

@@ -1,30 +1,142 @@
-//! The one place that maps a job's [`FoldSpec`] to a fold detector. Adding a detector (video, stretch) is one
-//! match arm here: the planner and the fold-detection tasks only see `dyn FoldDetector` and its
-//! [`Granularity`].
+//! The one place that maps a job's [`FoldSpec`] to a fold detector. Adding a detector is one match arm in
+//! [`detector`] (and one in [`granularity`]): the planner and the fold-detection tasks only see
+//! `dyn FoldDetector` and its [`Granularity`].
 
 use crate::error::JobError;
 use crate::plan::chunk_ranges;
-use crate::spec::FoldSpec;
+use crate::spec::{FoldSpec, JobSpec};
+use crate::storage::fetch_input_to_cache;
+use crease_core::folds::stretch::StretchDetector;
+use crease_core::folds::video::{CameraRig, VideoFolds};
 use crease_core::folds::{FoldDetector, Granularity};
+use crease_core::mesh::io::SequenceLayout;
 use std::ops::Range;
+use std::path::{Path, PathBuf};
 
-/// The detector of `spec`, or `None` when the anchors are known without detection (anchors file, no folds).
-pub fn detector(spec: &FoldSpec) -> Result<Option<Box<dyn FoldDetector>>, JobError> {
+/// Local copies of the files a detector reads besides the input sequence (remote URIs fetched to the cache).
+#[derive(Debug, Clone, Default)]
+pub struct FoldInputs {
+    /// The video detector's cameras file.
+    pub cameras: Option<PathBuf>,
+    /// The video detector's image directory, when the spec names one.
+    pub images: Option<PathBuf>,
+}
+
+/// Fetches the detector's own input files of `spec` (see [`FoldInputs`]).
+pub async fn fetch_fold_inputs(spec: &FoldSpec, cache: &Path) -> Result<FoldInputs, JobError> {
     match spec {
-        FoldSpec::None | FoldSpec::Anchors { .. } => Ok(None),
+        FoldSpec::Video {
+            cameras, images, ..
+        } => Ok(FoldInputs {
+            cameras: Some(fetch_input_to_cache(cameras, cache).await?),
+            images: match images {
+                Some(uri) => Some(fetch_input_to_cache(uri, cache).await?),
+                None => None,
+            },
+        }),
+        _ => Ok(FoldInputs::default()),
+    }
+}
+
+/// How the folds of `spec` are detected, or `None` when the anchors are known without detection. The planner
+/// needs only this, so it reads no camera files; it matches what [`detector`] builds.
+pub fn granularity(spec: &FoldSpec) -> Option<Granularity> {
+    match spec {
+        FoldSpec::None | FoldSpec::Anchors { .. } => None,
+        FoldSpec::Stretch { .. } => Some(Granularity::WholeSequence),
+        FoldSpec::Video { .. } => Some(Granularity::PerFrame),
         #[cfg(test)]
-        FoldSpec::TestDetector { whole_sequence } => {
-            Ok(Some(Box::new(test_detector::GeometryDetector {
-                whole_sequence: *whole_sequence,
-            })))
+        FoldSpec::TestDetector { whole_sequence } => Some(if *whole_sequence {
+            Granularity::WholeSequence
+        } else {
+            Granularity::PerFrame
+        }),
+    }
+}
+
+/// The detector of `job` for an input laid out as `layout` with `n_frames` frames, or `None` when the anchors
+/// are known without detection (anchors file, no folds). Errors name the spec field or file at fault.
+pub fn detector(
+    job: &JobSpec,
+    layout: &SequenceLayout,
+    n_frames: usize,
+    inputs: &FoldInputs,
+) -> Result<Option<Box<dyn FoldDetector>>, JobError> {
+    let d: Box<dyn FoldDetector> = match &job.folds {
+        FoldSpec::None | FoldSpec::Anchors { .. } => return Ok(None),
+        FoldSpec::Stretch { params, .. } => Box::new(StretchDetector {
+            params: params.clone(),
+            // folds.png shows the frames preview.png shows, as `crease run` always drew them.
+            overlay_frames: preview_frames(job, n_frames),
+            overlay_size: job.preview.size,
+        }),
+        FoldSpec::Video {
+            cameras,
+            params,
+            front_vertex,
+            back_vertex,
+            first_image_number,
+            overlay_frames,
+            ..
+        } => {
+            let path = inputs.cameras.as_deref().ok_or_else(|| {
+                JobError::input(cameras, "the cameras file was not fetched before detection")
+            })?;
+            let rig = CameraRig::read(path, inputs.images.as_deref())
+                .map_err(|e| JobError::input(cameras, e))?;
+            let numbers = image_numbers(layout, n_frames, *first_image_number);
+            let mut det = VideoFolds::new(rig, params.clone(), numbers).map_err(|e| match e {
+                crease_core::Error::Param { name, msg } => {
+                    JobError::spec(format!("folds.params.{name}"), msg)
+                }
+                e => JobError::spec("folds.params", e.to_string()),
+            })?;
+            det.vertices = match (front_vertex, back_vertex) {
+                (Some(f), Some(b)) => Some((*f as usize, *b as usize)),
+                _ => None,
+            };
+            det.overlay_frames = overlay_frames.clone();
+            Box::new(det)
         }
+        #[cfg(test)]
+        FoldSpec::TestDetector { whole_sequence } => Box::new(test_detector::GeometryDetector {
+            whole_sequence: *whole_sequence,
+        }),
+    };
+    debug_assert_eq!(Some(d.granularity()), granularity(&job.folds));
+    Ok(Some(d))
+}
+
+/// The frames `preview.png` shows: the job's, or four spread over the sequence.
+pub fn preview_frames(job: &JobSpec, n: usize) -> Vec<usize> {
+    if job.preview.frames.is_empty() {
+        let mut k: Vec<usize> = (1..=4)
+            .map(|i| (i * n / 5).min(n.saturating_sub(1)))
+            .collect();
+        k.dedup();
+        k
+    } else {
+        job.preview.frames.clone()
+    }
+}
+
+/// Image number of every sequence frame: `first` onwards when given, else each frame file's own number (1
+/// onwards for a point cache).
+pub fn image_numbers(layout: &SequenceLayout, n: usize, first: Option<u64>) -> Vec<u64> {
+    match (first, layout) {
+        (Some(f), _) => (0..n as u64).map(|t| f + t).collect(),
+        (
+            None,
+            SequenceLayout::ObjFrames { frames, .. } | SequenceLayout::PlyFrames { frames, .. },
+        ) => frames.iter().map(|f| f.number).collect(),
+        (None, _) => (1..=n as u64).collect(),
     }
 }
 
 /// The frame ranges of a detector's tasks over `n` frames, in order: chunks of `per_chunk` frames for per-frame
 /// detectors, the whole sequence for detectors that carry state through time.
-pub fn detection_chunks(d: &dyn FoldDetector, n: usize, per_chunk: usize) -> Vec<Range<usize>> {
-    match d.granularity() {
+pub fn detection_chunks(g: Granularity, n: usize, per_chunk: usize) -> Vec<Range<usize>> {
+    match g {
         Granularity::WholeSequence => std::iter::once(0..n).collect(),
         Granularity::PerFrame => chunk_ranges(n, per_chunk),
     }

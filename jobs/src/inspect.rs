@@ -7,9 +7,12 @@ use crate::keys;
 use crate::spec::{FoldSpec, JobSpec};
 use crate::storage::{fetch_input_to_cache, parse_location, Location, Storage};
 use crease_core::folds::AnchorSet;
-use crease_core::mesh::io::{open_sequence, SequenceLayout};
+use crease_core::mesh::io::{create_sink, open_sequence, ObjFramesSink, SequenceLayout};
+use crease_core::mesh::subdivide::Subdivision;
+use crease_core::mesh::{FrameSink, Topology};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// What submit-time inspection learned about a job's input; stored with the job and passed to the planner.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -35,10 +38,12 @@ pub async fn inspect_input(spec: &JobSpec) -> Result<InputInfo, JobError> {
         FoldSpec::Anchors { uri } => Some((uri.clone(), fetch_input_to_cache(uri, &cache).await?)),
         _ => None,
     };
+    let fold_inputs = crate::detect::fetch_fold_inputs(&spec.folds, &cache).await?;
     let spec2 = spec.clone();
-    let info = tokio::task::spawn_blocking(move || inspect_local(&spec2, &input, anchors))
-        .await
-        .map_err(|e| JobError::input(&spec.input, format!("inspection panicked: {e}")))??;
+    let info =
+        tokio::task::spawn_blocking(move || inspect_local(&spec2, &input, anchors, &fold_inputs))
+            .await
+            .map_err(|e| JobError::input(&spec.input, format!("inspection panicked: {e}")))??;
     // Output: usable, and not the input directory (the output files have the input's names).
     let storage =
         Storage::open(&spec.output).map_err(|e| JobError::spec("output", e.to_string()))?;
@@ -77,6 +82,7 @@ fn inspect_local(
     spec: &JobSpec,
     input: &Path,
     anchors: Option<(String, PathBuf)>,
+    fold_inputs: &crate::detect::FoldInputs,
 ) -> Result<InputInfo, JobError> {
     let opened = open_sequence(input).map_err(|e| JobError::input(&spec.input, e))?;
     let source = opened.source.as_ref();
@@ -87,7 +93,15 @@ fn inspect_local(
     source
         .read_frame(0)
         .map_err(|e| JobError::input(&spec.input, e))?;
-    let topo = source.topology();
+    // Sizes as the tasks see the input: subdivided when the job subdivides it.
+    let topo = match spec.folds.subdivide() {
+        0 => source.topology().clone(),
+        levels => Subdivision::new(source.topology(), levels)
+            .map_err(|e| JobError::spec("folds.subdivide", e.to_string()))?
+            .topology()
+            .clone(),
+    };
+    check_detector_inputs(spec, &opened, fold_inputs)?;
     let anchors_per_frame = match (&spec.folds, anchors) {
         (FoldSpec::None, _) => Some(vec![0; n]),
         (FoldSpec::Anchors { .. }, Some((uri, path))) => {
@@ -108,16 +122,122 @@ fn inspect_local(
         n_frames: n,
         n_vertices: topo.n_vertices(),
         n_triangles: topo.n_triangles(),
-        output_files: output_files(&opened.layout),
+        output_files: output_files(spec, &opened.layout, n),
         anchors_per_frame,
     })
 }
 
-/// Names of the output sequence's files: the input's frame files, or its OBJ + PC2.
-pub(crate) fn output_files(layout: &SequenceLayout) -> Vec<String> {
+/// The detector's own inputs: for video, the cameras file parses and validates, every camera has a readable
+/// image of the stated size for every frame (PNG headers only), and given tracked vertices exist. Errors name
+/// the field, URI, camera, frame and file.
+fn check_detector_inputs(
+    spec: &JobSpec,
+    opened: &crease_core::mesh::io::OpenedSequence,
+    fold_inputs: &crate::detect::FoldInputs,
+) -> Result<(), JobError> {
+    let FoldSpec::Video {
+        cameras,
+        images,
+        front_vertex,
+        back_vertex,
+        overlay_frames,
+        ..
+    } = &spec.folds
+    else {
+        return Ok(());
+    };
+    let n = opened.source.n_frames();
+    if let Some(images) = images {
+        match &fold_inputs.images {
+            Some(dir) if dir.is_dir() => {}
+            _ => {
+                return Err(JobError::input(
+                    images,
+                    "folds.images: not a readable directory",
+                ))
+            }
+        }
+    }
+    let nv = opened.source.topology().n_vertices();
+    for (field, v) in [
+        ("folds.front_vertex", front_vertex),
+        ("folds.back_vertex", back_vertex),
+    ] {
+        if let Some(v) = v {
+            if *v as usize >= nv {
+                return Err(JobError::spec(
+                    field,
+                    format!("vertex {v} is out of range (the mesh has {nv} vertices)"),
+                ));
+            }
+        }
+    }
+    if let Some(f) = overlay_frames.iter().find(|&&f| f >= n) {
+        return Err(JobError::spec(
+            "folds.overlay_frames",
+            format!("frame {f} is out of range (the sequence has {n} frames, 0-based)"),
+        ));
+    }
+    // The images of every frame, checked here so a missing one fails the submit, not a task hours later.
+    let path = fold_inputs.cameras.as_deref().unwrap_or(Path::new(cameras));
+    let rig = crease_core::folds::video::CameraRig::read(path, fold_inputs.images.as_deref())
+        .map_err(|e| JobError::input(cameras, e))?;
+    let numbers = crate::detect::image_numbers(&opened.layout, n, first_image_number(spec));
+    let frames: Vec<(usize, u64)> = numbers.into_iter().enumerate().collect();
+    rig.check_images(&frames)
+        .map_err(|e| JobError::input(images.as_deref().unwrap_or(cameras), e))
+}
+
+fn first_image_number(spec: &JobSpec) -> Option<u64> {
+    match &spec.folds {
+        FoldSpec::Video {
+            first_image_number, ..
+        } => *first_image_number,
+        _ => None,
+    }
+}
+
+/// Names of the output sequence's files: the input's frame files, or its OBJ + PC2; plain OBJ frames (see
+/// [`output_sink`]) when the job subdivides the input.
+pub(crate) fn output_files(job: &JobSpec, layout: &SequenceLayout, n_frames: usize) -> Vec<String> {
+    if job.folds.subdivide() > 0 {
+        return ObjFramesSink::frame_names(&layout.input_files(), n_frames);
+    }
     layout
         .input_files()
         .iter()
         .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
         .collect()
+}
+
+/// Whether the output is one file per frame, written by the positioning tasks as they go; otherwise (a point
+/// cache, one file for all frames) finalize writes it from the stored positions.
+pub(crate) fn writes_frames(job: &JobSpec, layout: &SequenceLayout) -> bool {
+    job.folds.subdivide() > 0
+        || matches!(
+            layout,
+            SequenceLayout::ObjFrames { .. } | SequenceLayout::PlyFrames { .. }
+        )
+}
+
+/// The sink of the output sequence in `dir`: the input layout's own writer (same names and format as the
+/// input), or plain OBJ frames when the job subdivides the input, since the input's files cannot hold the new
+/// faces. The one place tasks get an output sink from.
+pub(crate) fn output_sink(
+    job: &JobSpec,
+    layout: &SequenceLayout,
+    topology: &Arc<Topology>,
+    n_frames: usize,
+    dir: &Path,
+) -> crease_core::Result<Box<dyn FrameSink>> {
+    if job.folds.subdivide() > 0 {
+        Ok(Box::new(ObjFramesSink::new(
+            dir,
+            &layout.input_files(),
+            n_frames,
+            topology.clone(),
+        )?))
+    } else {
+        create_sink(layout, dir)
+    }
 }

@@ -12,6 +12,10 @@ pub const PREVIEW: &str = "preview.png";
 pub const STRETCH_PLOT: &str = "stretch.png";
 /// Detected anchors (fold detection jobs only).
 pub const ANCHORS: &str = "anchors.json";
+/// Control lines of the detected folds as OBJ polylines (fold detection jobs only).
+pub const CONTROL_LINES: &str = "folds/control_lines.obj";
+/// What the detection found beyond the anchors (JSON; finalize copies it into `report.json`).
+pub const FOLD_SUMMARY: &str = ".crease-work/folds/summary.json";
 
 // Task keys.
 pub fn fold_detect_task(first_frame: usize) -> String {

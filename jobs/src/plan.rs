@@ -40,14 +40,13 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
         }
         return Ok(deformation_tasks(job, n, counts, &[]));
     }
-    let detector = detect::detector(&job.folds)?.ok_or_else(|| {
+    let granularity = detect::granularity(&job.folds).ok_or_else(|| {
         JobError::Plan(format!(
             "folds of kind `{}` are neither known at submit nor detected",
             job.folds.kind()
         ))
     })?;
-    let chunks =
-        detect::detection_chunks(detector.as_ref(), n, job.partition.fold_frames_per_chunk);
+    let chunks = detect::detection_chunks(granularity, n, job.partition.fold_frames_per_chunk);
     let mut tasks: Vec<TaskDef> = chunks
         .iter()
         .map(|r| TaskDef {
@@ -110,6 +109,7 @@ pub fn final_outputs(job: &JobSpec, info: &InputInfo) -> Vec<String> {
     let mut out = info.output_files.clone();
     if info.anchors_per_frame.is_none() {
         out.push(keys::ANCHORS.to_string());
+        out.push(keys::CONTROL_LINES.to_string());
     }
     let _ = job;
     out.push(keys::PREVIEW.to_string());

@@ -6,6 +6,8 @@
 
 use crate::error::JobError;
 use crate::storage::parse_location;
+use crease_core::folds::stretch::StretchParams;
+use crease_core::folds::video::VideoParams;
 use crease_core::spacetime::DeformParams;
 use serde::{Deserialize, Serialize};
 
@@ -65,6 +67,41 @@ pub enum FoldSpec {
         /// URI of the anchors file.
         uri: String,
     },
+    /// Folds estimated from the geometry alone (Chen 2011 ch. 4): one whole-sequence detection task, which
+    /// also draws `folds.png` (the preview frames); the merge writes `anchors.json` and
+    /// `folds/control_lines.obj`.
+    Stretch {
+        /// Detector parameters; each defaults to the value `crease run --folds stretch` uses.
+        #[serde(default)]
+        params: StretchParams,
+        /// Levels of midpoint subdivision (0–4) applied to the input before detection and deformation; the
+        /// output is then plain OBJ frames of the subdivided mesh, original vertices first.
+        #[serde(default)]
+        subdivide: u32,
+    },
+    /// Folds from the capture video (Popa et al. 2009 §4): per-frame detection tasks in chunks of
+    /// `partition.fold_frames_per_chunk` frames, each drawing the overlays of its `overlay_frames`.
+    Video {
+        /// Camera calibration (JSON, see README).
+        cameras: String,
+        /// Directory holding the images; default: the cameras file's `image_pattern`, relative to that file.
+        #[serde(default)]
+        images: Option<String>,
+        /// Detector parameters; each defaults to the paper's value (README, "Folds from video").
+        #[serde(default)]
+        params: VideoParams,
+        /// Tracked front / back vertex for view selection; both or neither (automatic from frame 0).
+        #[serde(default)]
+        front_vertex: Option<u32>,
+        #[serde(default)]
+        back_vertex: Option<u32>,
+        /// Image number of sequence frame 0; default: each input frame file's own number (1 for point caches).
+        #[serde(default)]
+        first_image_number: Option<u64>,
+        /// Frames (0-based) whose fold-edge overlays are written to `overlays/frame_NNNN.png`.
+        #[serde(default)]
+        overlay_frames: Vec<usize>,
+    },
     /// Test-only detector that derives anchors from the geometry of each frame; exercises the generic
     /// fold-detection path of the planner (see `detect.rs`).
     #[cfg(test)]
@@ -73,11 +110,21 @@ pub enum FoldSpec {
 }
 
 impl FoldSpec {
+    /// Levels of midpoint subdivision every task applies to the input (0 = none; stretch folds only).
+    pub fn subdivide(&self) -> usize {
+        match self {
+            FoldSpec::Stretch { subdivide, .. } => *subdivide as usize,
+            _ => 0,
+        }
+    }
+
     /// Short name for logs and reports.
     pub fn kind(&self) -> &'static str {
         match self {
             FoldSpec::None => "none",
             FoldSpec::Anchors { .. } => "anchors",
+            FoldSpec::Stretch { .. } => "stretch",
+            FoldSpec::Video { .. } => "video",
             #[cfg(test)]
             FoldSpec::TestDetector { .. } => "test-detector",
         }
@@ -154,8 +201,46 @@ impl JobSpec {
     pub fn validate(&self) -> Result<(), JobError> {
         parse_location(&self.input, "input")?;
         parse_location(&self.output, "output")?;
-        if let FoldSpec::Anchors { uri } = &self.folds {
-            parse_location(uri, "folds.uri")?;
+        let param_err = |e: crease_core::Error| match e {
+            crease_core::Error::Param { name, msg } => {
+                JobError::spec(format!("folds.params.{name}"), msg)
+            }
+            e => JobError::spec("folds.params", e.to_string()),
+        };
+        match &self.folds {
+            FoldSpec::Anchors { uri } => {
+                parse_location(uri, "folds.uri")?;
+            }
+            FoldSpec::Stretch { params, subdivide } => {
+                params.validate().map_err(param_err)?;
+                if *subdivide > 4 {
+                    return Err(JobError::spec(
+                        "folds.subdivide",
+                        format!("at most 4 levels (256× the triangles), got {subdivide}"),
+                    ));
+                }
+            }
+            FoldSpec::Video {
+                cameras,
+                images,
+                params,
+                front_vertex,
+                back_vertex,
+                ..
+            } => {
+                parse_location(cameras, "folds.cameras")?;
+                if let Some(images) = images {
+                    parse_location(images, "folds.images")?;
+                }
+                params.validate().map_err(param_err)?;
+                if front_vertex.is_some() != back_vertex.is_some() {
+                    return Err(JobError::spec(
+                        "folds.front_vertex",
+                        "give both front_vertex and back_vertex, or neither for the automatic choice",
+                    ));
+                }
+            }
+            _ => {}
         }
         self.deform.validate().map_err(|e| match e {
             crease_core::Error::Param { name, msg } => {

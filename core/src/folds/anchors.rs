@@ -238,6 +238,30 @@ impl AnchorSet {
         Ok(())
     }
 
+    /// The control lines as OBJ polylines (`v` + `l`), one `o frame_N` object per frame with lines, for viewing
+    /// in any DCC tool. Frames without lines are left out.
+    pub fn control_lines_obj(&self) -> String {
+        use std::fmt::Write as _;
+        let mut s = String::new();
+        let mut next = 1usize;
+        for t in 0..self.n_frames() {
+            let lines = self.control_lines(t);
+            if lines.is_empty() {
+                continue;
+            }
+            let _ = writeln!(s, "o frame_{t}");
+            for line in lines {
+                for p in line {
+                    let _ = writeln!(s, "v {} {} {}", p[0], p[1], p[2]);
+                }
+                let idx: Vec<String> = (next..next + line.len()).map(|i| i.to_string()).collect();
+                let _ = writeln!(s, "l {}", idx.join(" "));
+                next += line.len();
+            }
+        }
+        s
+    }
+
     /// Serialises the set (frames without anchors or lines are omitted).
     pub fn to_json(&self) -> String {
         let file = AnchorsFile {

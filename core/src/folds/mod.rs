@@ -5,6 +5,8 @@
 //! single-machine driver and the cluster planner run any of them without knowing which one it is.
 
 pub mod anchors;
+pub mod stretch;
+pub mod video;
 
 pub use anchors::{Anchor, AnchorSet, FrameAnchors};
 
@@ -39,4 +41,31 @@ pub trait FoldDetector: Sync {
         frames: Range<usize>,
         progress: &dyn Progress,
     ) -> Result<Vec<FrameAnchors>>;
+
+    /// [`FoldDetector::detect`], plus the inspection files the detector draws for frames of the range
+    /// (overlays). The detector has the per-frame data they need only while detecting, so they are made here
+    /// rather than recomputed afterwards. Default: no files.
+    fn detect_with_artifacts(
+        &self,
+        source: &dyn FrameSource,
+        frames: Range<usize>,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<FrameAnchors>, Vec<Artifact>)> {
+        Ok((self.detect(source, frames, progress)?, Vec::new()))
+    }
+
+    /// What the report says about this detection beyond the anchors (parameters, choices made automatically).
+    fn summary(&self, source: &dyn FrameSource) -> Result<serde_json::Value> {
+        let _ = source;
+        Ok(serde_json::Value::Null)
+    }
+}
+
+/// A file a detector produces for inspection, named by a `/`-separated key relative to the output directory
+/// (`folds.png`, `overlays/frame_0001.png`). Bytes rather than a path, so that a job task can put it into any
+/// output storage; keys are deterministic, so a task run twice writes the same object.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Artifact {
+    pub key: String,
+    pub bytes: Vec<u8>,
 }

@@ -2,6 +2,7 @@
 
 pub mod geometry;
 pub mod io;
+pub mod subdivide;
 mod topology;
 
 pub use topology::{Topology, NONE};

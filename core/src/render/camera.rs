@@ -49,6 +49,18 @@ impl CalibratedCamera {
         (uv[0].is_finite() && uv[1].is_finite()).then_some(uv)
     }
 
+    /// Back-projection: the unit world-space direction of the viewing ray through pixel `uv` (same pixel
+    /// convention as [`CalibratedCamera::project`]); the ray starts at [`CalibratedCamera::center`]. Every point
+    /// `center + s · ray_direction(uv)` with `s > 0` projects back to `uv`.
+    pub fn ray_direction(&self, uv: [f64; 2]) -> V3 {
+        let q = [
+            (uv[0] - self.cx) / self.fx,
+            (uv[1] - self.cy) / self.fy,
+            1.0,
+        ];
+        vec3::normalize(vec3::mat_vec(&vec3::transpose(&self.r), q))
+    }
+
     /// Camera centre in world coordinates (`-rᵀ t`).
     pub fn center(&self) -> V3 {
         vec3::scale(vec3::mat_vec(&vec3::transpose(&self.r), self.t), -1.0)
@@ -223,6 +235,10 @@ mod tests {
         assert!(cam.project([0.0, 0.0, -5.0]).is_none());
         assert!(cam.project([0.0, 0.0, -6.0]).is_none());
         assert_eq!(cam.center(), [0.0, 0.0, -5.0]);
+        // Back-projection inverts projection.
+        let d = cam.ray_direction([70.0, 52.0]);
+        let p = vec3::add(cam.center(), vec3::scale(d, 3.7));
+        assert!(close(cam.project(p).unwrap(), [70.0, 52.0]));
 
         // A rotation mapping world z to camera x and world x to camera -z.
         let r = [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]];

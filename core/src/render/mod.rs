@@ -121,9 +121,9 @@ pub fn caption(
     out
 }
 
-/// Writes `img` as a PNG through [`crate::fsutil::write_atomic`] (the file is either complete or absent).
-/// Encoding failures are [`Error::Format`], file-system failures [`Error::Io`], both naming `path`.
-pub fn save_png(img: &RgbImage, path: &Path) -> Result<()> {
+/// Encodes `img` as PNG bytes, for outputs that go to storage rather than a local file (job tasks). `label`
+/// names the file in the error.
+pub fn png_bytes(img: &RgbImage, label: &Path) -> Result<Vec<u8>> {
     use image::ImageEncoder;
     let mut bytes = Vec::new();
     image::codecs::png::PngEncoder::new(&mut bytes)
@@ -134,10 +134,16 @@ pub fn save_png(img: &RgbImage, path: &Path) -> Result<()> {
             image::ExtendedColorType::Rgb8,
         )
         .map_err(|e| match e {
-            image::ImageError::IoError(io) => Error::io(path, io),
-            other => Error::format(path, None, format!("cannot encode PNG: {other}")),
+            image::ImageError::IoError(io) => Error::io(label, io),
+            other => Error::format(label, None, format!("cannot encode PNG: {other}")),
         })?;
-    crate::fsutil::write_atomic(path, &bytes)
+    Ok(bytes)
+}
+
+/// Writes `img` as a PNG through [`crate::fsutil::write_atomic`] (the file is either complete or absent).
+/// Encoding failures are [`Error::Format`], file-system failures [`Error::Io`], both naming `path`.
+pub fn save_png(img: &RgbImage, path: &Path) -> Result<()> {
+    crate::fsutil::write_atomic(path, &png_bytes(img, path)?)
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@ use crate::storage::{fetch_input_to_cache, Storage};
 use bytes::Bytes;
 use crease_core::folds::AnchorSet;
 use crease_core::mesh::io::{detect_layout, open_layout, OpenedSequence};
+use crease_core::mesh::subdivide::SubdividedSource;
 use crease_core::npy::{self, NpyElement};
 use crease_core::progress::Progress;
 use crease_core::spacetime::windows::Window;
@@ -133,24 +134,40 @@ impl<'a> TaskEnv<'a> {
             .map_err(storage_err)
     }
 
-    /// Opens the input sequence (topology read and validated; frames are read on demand). The tasks of a job
+    /// Local copies of the detector's own input files (cameras, images), fetched once into the cache.
+    pub fn fold_inputs(&self) -> Result<crate::detect::FoldInputs, TaskError> {
+        self.block_on(crate::detect::fetch_fold_inputs(
+            &self.job.folds,
+            &self.ctx.cache_dir,
+        ))
+        .map_err(storage_err)
+    }
+
+    /// Opens the input sequence (topology read and validated; frames are read on demand; midpoint-subdivided
+    /// when the job says so). The tasks of a job
     /// running on one worker share the opened input through a small per-process cache, keyed by the input's
     /// path and the size and modification time of each of its files, so an input changed in place is reopened.
     pub fn open_input(&self) -> Result<Arc<OpenedSequence>, TaskError> {
         let path = self.input_path()?;
         let err = |e| TaskError::from_core(&format!("input {}", self.job.input), e);
         let layout = detect_layout(&path).map_err(err)?;
+        let levels = self.job.folds.subdivide();
         let stamp = layout
             .input_files()
             .iter()
-            .fold(0xcbf29ce484222325u64, |h, f| {
+            .fold(0xcbf29ce484222325u64 ^ levels as u64, |h, f| {
                 (h ^ file_stamp(f)).wrapping_mul(0x100000001b3)
             });
         let mut cache = OPENED.lock().unwrap_or_else(|p| p.into_inner());
         if let Some((_, _, o)) = cache.iter().find(|(p, s, _)| *p == path && *s == stamp) {
             return Ok(o.clone());
         }
-        let source = open_layout(&layout).map_err(err)?;
+        let mut source = open_layout(&layout).map_err(err)?;
+        // Subdivision happens here and nowhere else, so every task of a subdividing job (detection, weights,
+        // positioning, finalize) sees the same subdivided sequence.
+        if levels > 0 {
+            source = Box::new(SubdividedSource::owned(source, levels).map_err(err)?);
+        }
         let opened = Arc::new(OpenedSequence { source, layout });
         cache.insert(0, (path, stamp, opened.clone()));
         cache.truncate(2);

@@ -7,9 +7,9 @@ use super::env::{storage_err, TaskEnv};
 use super::position::FrameTimings;
 use super::weights::WindowRecord;
 use crate::error::TaskError;
+use crate::inspect::{output_files, output_sink, writes_frames};
 use crate::keys;
 use crate::spec::FoldSpec;
-use crease_core::mesh::io::create_sink;
 use crease_core::mesh::{Frame, FrameSource};
 use crease_core::metrics::StretchAccumulator;
 use crease_core::spacetime::deform::StageTimings;
@@ -37,18 +37,12 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let dir = out_dir.path.clone();
     // Frame-per-file layouts were written frame by frame by the positioning tasks; a point cache is one file
     // and is written here.
-    let mut sink = if super::position::writes_frames(&opened.layout) {
+    let mut sink = if writes_frames(job, &opened.layout) {
         None
     } else {
-        Some(create_sink(&opened.layout, &dir).map_err(core_err("output"))?)
+        Some(output_sink(job, &opened.layout, &topo, n, &dir).map_err(core_err("output"))?)
     };
-    let keep: Vec<usize> = if job.preview.frames.is_empty() {
-        let mut k: Vec<usize> = (1..=4).map(|i| (i * n / 5).min(n - 1)).collect();
-        k.dedup();
-        k
-    } else {
-        job.preview.frames.clone()
-    };
+    let keep = crate::detect::preview_frames(job, n);
     let mut timings = StageTimings {
         stretch_passes: vec![0.0; params.stretch_passes],
         ..Default::default()
@@ -117,7 +111,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             .iter()
             .filter_map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()))
             .collect(),
-        None => crate::inspect::output_files(&opened.layout),
+        None => output_files(job, &opened.layout, n),
     };
     let mut missing = Vec::new();
     for name in &names {
@@ -183,6 +177,11 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         #[allow(unreachable_patterns)]
         other => json!({ "detected": other.kind(), "file": env.out.describe(keys::ANCHORS) }),
     };
+    let fold_detection: Value = if crate::detect::granularity(&job.folds).is_some() {
+        env.get_json(keys::FOLD_SUMMARY)?
+    } else {
+        Value::Null
+    };
     let doc = json!({
         "complete": true,
         "crease_version": env!("CARGO_PKG_VERSION"),
@@ -190,6 +189,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         "input": job.input,
         "input_layout": opened.layout.kind(),
         "anchors_file": anchors_source,
+        "fold_detection": fold_detection,
         "output": job.output,
         "output_files": written.iter().map(|k| env.out.describe(k)).collect::<Vec<_>>(),
         "preview": [env.out.describe(keys::PREVIEW), env.out.describe(keys::STRETCH_PLOT)],

@@ -1,17 +1,23 @@
 //! Fold-detection tasks, generic over [`crease_core::folds::FoldDetector`]: `detect` runs the job's detector on
-//! a frame chunk (or the whole sequence) and stores its anchors; `merge` assembles them into `anchors.json`,
-//! whose per-frame anchor counts let the planner size the weight blocks.
+//! a frame chunk (or the whole sequence), stores its anchors and writes the inspection files the detector drew
+//! for those frames (overlays); `merge` assembles the anchors into `anchors.json` and the control lines into
+//! `folds/control_lines.obj`, whose per-frame anchor counts let the planner size the weight blocks.
 
 use super::env::TaskEnv;
-use crate::detect::{detection_chunks, detector};
+use crate::detect::{detection_chunks, detector, granularity};
 use crate::error::TaskError;
 use crate::keys;
 use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors};
+use crease_core::mesh::io::OpenedSequence;
 use serde_json::{json, Value};
 use std::ops::Range;
 
-fn job_detector(env: &TaskEnv) -> Result<Box<dyn FoldDetector>, TaskError> {
-    detector(&env.job.folds)
+fn job_detector(
+    env: &TaskEnv,
+    opened: &OpenedSequence,
+) -> Result<Box<dyn FoldDetector>, TaskError> {
+    let inputs = env.fold_inputs()?;
+    detector(env.job, &opened.layout, opened.source.n_frames(), &inputs)
         .map_err(|e| TaskError::fatal(e.to_string()))?
         .ok_or_else(|| {
             TaskError::fatal(format!(
@@ -21,9 +27,16 @@ fn job_detector(env: &TaskEnv) -> Result<Box<dyn FoldDetector>, TaskError> {
         })
 }
 
+/// The job's detection chunks over `n` frames.
+fn chunks(env: &TaskEnv, n: usize) -> Vec<Range<usize>> {
+    granularity(&env.job.folds)
+        .map(|g| detection_chunks(g, n, env.job.partition.fold_frames_per_chunk))
+        .unwrap_or_default()
+}
+
 pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
-    let d = job_detector(env)?;
     let opened = env.open_input()?;
+    let d = job_detector(env, &opened)?;
     let n = opened.source.n_frames();
     let label = format!(
         "{} fold detection, frames {}..{}",
@@ -31,14 +44,14 @@ pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>
         frames.start,
         frames.end
     );
-    if !detection_chunks(d.as_ref(), n, env.job.partition.fold_frames_per_chunk).contains(&frames) {
+    if !chunks(env, n).contains(&frames) {
         return Err(TaskError::fatal(format!(
             "{label}: not one of the job's detection chunks over {n} frames"
         )));
     }
     env.check_cancelled()?;
-    let found = d
-        .detect(opened.source.as_ref(), frames.clone(), env.progress())
+    let (found, artifacts) = d
+        .detect_with_artifacts(opened.source.as_ref(), frames.clone(), env.progress())
         .map_err(|e| TaskError::from_core(&label, e))?;
     let expected: Vec<usize> = frames.clone().collect();
     let got: Vec<usize> = found.iter().map(|f| f.frame).collect();
@@ -49,17 +62,24 @@ pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>
     }
     let key = keys::fold_chunk(frames.start);
     env.put_json(&key, &found)?;
+    let mut written = vec![key];
+    // Overlays go straight to their final keys: they depend on this chunk's frames only, and a rerun rewrites
+    // the same bytes.
+    for a in artifacts {
+        env.put(&a.key, a.bytes)?;
+        written.push(a.key);
+    }
     let counts: Vec<usize> = found.iter().map(|f| f.anchors.len()).collect();
-    Ok((json!({ "anchors_per_frame": counts }), vec![key]))
+    Ok((json!({ "anchors_per_frame": counts }), written))
 }
 
 pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
-    let d = job_detector(env)?;
     let opened = env.open_input()?;
+    let d = job_detector(env, &opened)?;
     let n = opened.source.n_frames();
     let n_tri = opened.source.topology().n_triangles();
     let mut frames: Vec<FrameAnchors> = Vec::with_capacity(n);
-    for r in detection_chunks(d.as_ref(), n, env.job.partition.fold_frames_per_chunk) {
+    for r in chunks(env, n) {
         env.check_cancelled()?;
         let chunk: Vec<FrameAnchors> = env.get_json(&keys::fold_chunk(r.start))?;
         frames.extend(chunk);
@@ -79,9 +99,24 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let back = AnchorSet::parse(&text, Some(&label), n, n_tri)
         .map_err(|e| TaskError::from_core("fold merge", e))?;
     env.put(keys::ANCHORS, text)?;
+    // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
+    env.put(keys::CONTROL_LINES, back.control_lines_obj())?;
+    // What finalize puts into report.json as `fold_detection`.
+    let mut summary = json!({ "source": d.name(), "anchors": back.total() });
+    let extra = d
+        .summary(opened.source.as_ref())
+        .map_err(|e| TaskError::from_core("fold merge: detection summary", e))?;
+    if let (Some(s), Value::Object(extra)) = (summary.as_object_mut(), extra) {
+        s.extend(extra);
+    }
+    env.put_json(keys::FOLD_SUMMARY, &summary)?;
     let counts: Vec<usize> = (0..n).map(|t| back.frame(t).len()).collect();
     Ok((
         json!({ "anchors_per_frame": counts, "anchors": back.total() }),
-        vec![keys::ANCHORS.to_string()],
+        vec![
+            keys::ANCHORS.to_string(),
+            keys::CONTROL_LINES.to_string(),
+            keys::FOLD_SUMMARY.to_string(),
+        ],
     ))
 }

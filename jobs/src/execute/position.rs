@@ -5,8 +5,8 @@
 use super::env::TaskEnv;
 use super::exact;
 use crate::error::TaskError;
+use crate::inspect::{output_files, output_sink, writes_frames};
 use crate::keys;
-use crease_core::mesh::io::{create_sink, SequenceLayout};
 use crease_core::mesh::FrameSource;
 use crease_core::spacetime::position::PositionSystem;
 use crease_core::spacetime::stages::{self, PositionedFrame};
@@ -35,15 +35,6 @@ pub(crate) struct FrameTimings {
     pub symbolic: f64,
 }
 
-/// Whether positioning tasks write the output frame files themselves (one file per frame); otherwise
-/// (a point cache, one file for all frames) finalize writes the output from the stored positions.
-pub(crate) fn writes_frames(layout: &SequenceLayout) -> bool {
-    matches!(
-        layout,
-        SequenceLayout::ObjFrames { .. } | SequenceLayout::PlyFrames { .. }
-    )
-}
-
 /// Positions `frames`.
 pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
     let label = format!("position frames {}..{}", frames.start, frames.end);
@@ -58,7 +49,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     let topo = source.topology().clone();
     let n_tri = topo.n_triangles();
     let clock = std::time::Instant::now();
-    let system = PositionSystem::new(topo, env.params.pinning)
+    let system = PositionSystem::new(topo.clone(), env.params.pinning)
         .map_err(|e| TaskError::from_core(&label, e))?;
     let symbolic = clock.elapsed().as_secs_f64();
     let windows = env.windows(n);
@@ -67,15 +58,15 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     let mut written = Vec::new();
     // Frame files go straight to the output through the layout's sink (the same writer `crease run` uses).
     let out_dir = env.output_dir(&format!("position-{}", frames.start))?;
-    let mut sink = if writes_frames(&opened.layout) {
+    let mut sink = if writes_frames(env.job, &opened.layout) {
         Some(
-            create_sink(&opened.layout, &out_dir.path)
+            output_sink(env.job, &opened.layout, &topo, n, &out_dir.path)
                 .map_err(|e| TaskError::from_core(&label, e))?,
         )
     } else {
         None
     };
-    let names = crate::inspect::output_files(&opened.layout);
+    let names = output_files(env.job, &opened.layout, n);
     let mut stretch_final = Vec::new();
     // Frames in parallel, in batches of the pool size so memory stays bounded by a few frames.
     let batch = rayon::current_num_threads().max(1);

@@ -12,6 +12,7 @@ mod frame_dir;
 mod layout;
 mod numbering;
 mod obj;
+mod obj_frames;
 mod pc2;
 mod ply;
 mod point_cache;
@@ -25,5 +26,6 @@ pub use layout::{
 };
 pub use numbering::{frame_number, sort_numbered, NumberedFile};
 pub use obj::{write_obj, write_obj_sequence};
+pub use obj_frames::ObjFramesSink;
 pub use pc2::{read_pc2_header, write_pc2, Pc2Header};
 pub use ply::write_ply_frame;

@@ -1,0 +1,256 @@
+//! Fold estimation from the geometry alone (Chen 2011 ch. 4): stretch analysis between adjacent frames,
+//! phase detection and integration forwards and backwards in time, and fold tracing in a local 2D
+//! parameterisation. The result is anchors for the space-time deformation of Popa et al. 2009 §5.
+//!
+//! Module map: [`tensor`] §2.1/§4.2 (Jacobian, SVD, dominant direction), [`smooth`] §4.2 (outliers,
+//! smoothing), [`phases`] §4.3 (continuity eq. 4.2, integration against the phase's first frame), [`lscm`] and
+//! [`trace`] §4.4 (parameterisation, seeds, axis, control lines, region of influence eq. 4.3, anchors §4.5).
+//!
+//! Memory is O(triangles) at any sequence length (§6.1): frames are streamed, each pass keeps one reference
+//! layout per triangle, and the backward pass's per-frame signal (8 bytes per triangle and frame) is spilled
+//! to an anonymous temporary file that the forward pass reads back frame by frame.
+
+pub mod lscm;
+pub mod overlay;
+pub mod params;
+pub mod phases;
+pub mod smooth;
+pub mod tensor;
+pub mod trace;
+
+pub use params::StretchParams;
+pub use trace::{FrameFolds, TracedFold};
+
+use super::{Artifact, FoldDetector, FrameAnchors, Granularity};
+use crate::error::{Error, Result};
+use crate::mesh::{FrameSource, Topology};
+use crate::progress::Progress;
+use crate::vec3::{self, V3};
+use overlay::OverlayFrame;
+use phases::{PhaseTracker, Signal};
+use smooth::FrameGeometry;
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::ops::Range;
+
+/// The geometric fold detector. Whole-sequence: phases and seed memory carry state through time.
+#[derive(Debug, Clone, Default)]
+pub struct StretchDetector {
+    pub params: StretchParams,
+    /// Frames drawn into `folds.png` by [`FoldDetector::detect_with_artifacts`] (none: no image).
+    pub overlay_frames: Vec<usize>,
+    /// Tile size of `folds.png`, pixels.
+    pub overlay_size: u32,
+}
+
+/// Mean edge length of a frame (each interior edge counted twice; the mean is what matters).
+pub fn mean_edge_length(topo: &Topology, p: &[V3]) -> f64 {
+    let mut sum = 0.0;
+    for tri in topo.triangles() {
+        for k in 0..3 {
+            sum += vec3::norm(vec3::sub(p[tri[k] as usize], p[tri[(k + 1) % 3] as usize]));
+        }
+    }
+    sum / (3 * topo.n_triangles()) as f64
+}
+
+const STAGE: &str = "stretch folds";
+
+impl StretchDetector {
+    pub fn new(params: StretchParams) -> Self {
+        StretchDetector {
+            params,
+            overlay_frames: Vec::new(),
+            overlay_size: 384,
+        }
+    }
+
+    /// Runs the whole analysis and calls `each` with every frame's traced folds, in frame order, together with
+    /// the fold signal (integrated shrinkage per triangle, the larger of the two passes).
+    pub fn run(
+        &self,
+        source: &dyn FrameSource,
+        progress: &dyn Progress,
+        mut each: impl FnMut(usize, &[V3], &[f64], FrameFolds) -> Result<()>,
+    ) -> Result<()> {
+        self.params.validate()?;
+        let topo = source.topology().clone();
+        let n = source.n_frames();
+        let nt = topo.n_triangles();
+        if n == 0 {
+            return Ok(());
+        }
+        let params = &self.params;
+        progress.begin(STAGE, 2 * n as u64);
+        let check = || -> Result<()> {
+            if progress.cancelled() {
+                Err(Error::Cancelled)
+            } else {
+                Ok(())
+            }
+        };
+        // Backward pass: time reversed, so that folds vanishing in forward time are emerging ones (§4.3).
+        let mut spill = tempfile::tempfile().map_err(|e| Error::io(std::env::temp_dir(), e))?;
+        let record = 8 * nt;
+        let spill_err = |e| Error::io(std::env::temp_dir().join("(stretch folds spill file)"), e);
+        {
+            let mut prev = source.read_frame(n - 1)?;
+            let mut tracker = PhaseTracker::new(&topo, &prev);
+            let mut buf = vec![0u8; record];
+            spill.set_len((record * n) as u64).map_err(spill_err)?;
+            for t in (0..n.saturating_sub(1)).rev() {
+                check()?;
+                let cur = source.read_frame(t)?;
+                let geom = FrameGeometry::new(&topo, &cur);
+                let sig = tracker.step(&topo, &prev, &cur, &geom, params);
+                for i in 0..nt {
+                    let angle = tensor::axial_angle(sig.dir[i], geom.e1[i], geom.e2[i]) as f32;
+                    buf[8 * i..8 * i + 4].copy_from_slice(&(sig.shrink[i] as f32).to_le_bytes());
+                    buf[8 * i + 4..8 * i + 8].copy_from_slice(&angle.to_le_bytes());
+                }
+                spill
+                    .seek(SeekFrom::Start((record * t) as u64))
+                    .and_then(|_| spill.write_all(&buf))
+                    .map_err(spill_err)?;
+                prev = cur;
+                progress.advance(STAGE, 1);
+            }
+            progress.advance(STAGE, 1);
+        }
+        // Forward pass, combined with the backward signal and traced frame by frame.
+        let first = source.read_frame(0)?;
+        let h = mean_edge_length(&topo, &first);
+        let mut tracker = PhaseTracker::new(&topo, &first);
+        let mut tracer = trace::FoldTracer::new(&topo);
+        let mut prev = first;
+        let mut buf = vec![0u8; record];
+        for t in 0..n {
+            check()?;
+            let cur = if t == 0 {
+                prev.clone()
+            } else {
+                source.read_frame(t)?
+            };
+            let geom = FrameGeometry::new(&topo, &cur);
+            let mut sig = if t == 0 {
+                Signal {
+                    shrink: vec![1.0; nt],
+                    dir: geom.e1.clone(),
+                }
+            } else {
+                tracker.step(&topo, &prev, &cur, &geom, params)
+            };
+            if t + 1 < n {
+                spill
+                    .seek(SeekFrom::Start((record * t) as u64))
+                    .and_then(|_| spill.read_exact(&mut buf))
+                    .map_err(spill_err)?;
+                for i in 0..nt {
+                    let s = f32::from_le_bytes(buf[8 * i..8 * i + 4].try_into().expect("4 bytes"))
+                        as f64;
+                    if s > sig.shrink[i] {
+                        let a = f32::from_le_bytes(
+                            buf[8 * i + 4..8 * i + 8].try_into().expect("4 bytes"),
+                        ) as f64;
+                        sig.shrink[i] = s;
+                        sig.dir[i] = vec3::add(
+                            vec3::scale(geom.e1[i], a.cos()),
+                            vec3::scale(geom.e2[i], a.sin()),
+                        );
+                    }
+                }
+            }
+            let folds = tracer.trace(&topo, &cur, &geom, &sig.shrink, &sig.dir, h, params);
+            each(t, &cur, &sig.shrink, folds)?;
+            prev = cur;
+            progress.advance(STAGE, 1);
+        }
+        progress.end(STAGE);
+        Ok(())
+    }
+}
+
+impl FoldDetector for StretchDetector {
+    fn name(&self) -> &'static str {
+        "stretch"
+    }
+
+    fn granularity(&self) -> Granularity {
+        Granularity::WholeSequence
+    }
+
+    fn detect(
+        &self,
+        source: &dyn FrameSource,
+        frames: Range<usize>,
+        progress: &dyn Progress,
+    ) -> Result<Vec<FrameAnchors>> {
+        let n = source.n_frames();
+        if frames != (0..n) {
+            return Err(Error::param(
+                "frames",
+                format!(
+                    "the stretch detector works on the whole sequence (0..{n}), got {}..{}",
+                    frames.start, frames.end
+                ),
+            ));
+        }
+        Ok(self.detect_with_artifacts(source, frames, progress)?.0)
+    }
+
+    /// Also draws `folds.png`: the fold signal and anchors of `overlay_frames`, whose positions and shrinkage
+    /// exist only during the run.
+    fn detect_with_artifacts(
+        &self,
+        source: &dyn FrameSource,
+        frames: Range<usize>,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<FrameAnchors>, Vec<Artifact>)> {
+        let n = source.n_frames();
+        if frames != (0..n) {
+            return Err(Error::param(
+                "frames",
+                format!(
+                    "the stretch detector works on the whole sequence (0..{n}), got {}..{}",
+                    frames.start, frames.end
+                ),
+            ));
+        }
+        let mut out = Vec::with_capacity(n);
+        let mut shown: Vec<OverlayFrame> = Vec::new();
+        self.run(source, progress, |t, positions, shrink, folds| {
+            if self.overlay_frames.contains(&t) {
+                shown.push(OverlayFrame {
+                    frame: t,
+                    positions: positions.to_vec(),
+                    shrink: shrink.to_vec(),
+                    anchors: folds.anchors.clone(),
+                    n_folds: folds.folds.len(),
+                });
+            }
+            out.push(FrameAnchors {
+                frame: t,
+                anchors: folds.anchors,
+                control_lines: folds.folds.into_iter().flat_map(|f| f.lines).collect(),
+            });
+            Ok(())
+        })?;
+        let mut artifacts = Vec::new();
+        if !shown.is_empty() && self.overlay_size > 0 {
+            let img = overlay::overlay(
+                source.topology(),
+                &shown,
+                self.overlay_size,
+                1.0 + 4.0 * self.params.min_shrink,
+            );
+            artifacts.push(Artifact {
+                key: "folds.png".into(),
+                bytes: crate::render::png_bytes(&img, std::path::Path::new("folds.png"))?,
+            });
+        }
+        Ok((out, artifacts))
+    }
+
+    fn summary(&self, _source: &dyn FrameSource) -> Result<serde_json::Value> {
+        Ok(serde_json::json!({ "parameters": self.params }))
+    }
+}

@@ -1,0 +1,338 @@
+//! Fold estimation from the capture video (Popa et al. 2009 §3.1, §4, anchors as in §5.1).
+//!
+//! Per frame: pick the best front and back cameras ([`views`]); in each chosen image, find Canny edges at several
+//! resolutions and radii, fit and split them with quadrics ([`edges`], [`quadric`]), orient them dark-on-the-left
+//! and drop unclear or hue edges ([`orient`]), merge broken contours ([`merge`]), pair parallel edges of opposite
+//! orientation and unite the levels ([`pairing`]); cast the pairs onto the frame mesh and turn the crossed
+//! triangles into anchors ([`project`]). [`overlay`] draws the stages like the paper's Figure 4.
+//!
+//! Each frame is processed on its own, so any frame range gives the same per-frame answer
+//! ([`Granularity::PerFrame`]); the automatic front/back vertices always come from frame 0 of the sequence.
+
+pub mod cameras;
+pub mod edges;
+pub mod merge;
+pub mod orient;
+pub mod overlay;
+pub mod pairing;
+pub mod params;
+pub mod project;
+pub mod quadric;
+pub mod views;
+
+pub use cameras::{CameraRig, Photo};
+pub use params::VideoParams;
+
+use super::{Anchor, Artifact, FoldDetector, FrameAnchors, Granularity};
+use crate::error::{Error, Result};
+use crate::mesh::{geometry, FrameSource, Topology};
+use crate::progress::Progress;
+use crate::vec3::V3;
+use edges::{Level, LevelEdges};
+use orient::Edge;
+use pairing::Pair;
+use project::ProjectedPair;
+use rayon::prelude::*;
+use std::collections::HashSet;
+use std::ops::Range;
+
+/// The video fold detector.
+pub struct VideoFolds {
+    pub rig: CameraRig,
+    pub params: VideoParams,
+    /// Image frame number of each sequence frame (`frame_0001.png` for sequence frame 0 of a sample numbered
+    /// from 1).
+    pub image_numbers: Vec<u64>,
+    /// Tracked front and back vertices; `None` chooses them from frame 0 ([`views::auto_vertices`]).
+    pub vertices: Option<(usize, usize)>,
+    /// Frames whose fold-edge overlay (`overlays/frame_NNNN.png`, like the paper's Figure 4) is drawn by
+    /// [`FoldDetector::detect_with_artifacts`].
+    pub overlay_frames: Vec<usize>,
+}
+
+/// Storage key of the overlay of frame `t`.
+pub fn overlay_key(t: usize) -> String {
+    format!("overlays/frame_{t:04}.png")
+}
+
+/// Results of one level of one view.
+#[derive(Debug, Clone)]
+pub struct LevelResult {
+    pub level: Level,
+    /// Raw Canny chains (full-resolution pixels).
+    pub chains: Vec<Vec<[f64; 2]>>,
+    /// Oriented, merged edges.
+    pub edges: Vec<Edge>,
+    pub pairs: Vec<Pair>,
+}
+
+/// Results of one view of one frame.
+#[derive(Debug, Clone)]
+pub struct ViewResult {
+    pub camera: usize,
+    /// `front` or `back`.
+    pub role: &'static str,
+    pub photo: Photo,
+    pub levels: Vec<LevelResult>,
+    /// Pairs united over levels.
+    pub union: Vec<Pair>,
+    /// United pairs that project onto the garment.
+    pub projected: Vec<ProjectedPair>,
+}
+
+/// Everything computed for one frame.
+#[derive(Debug, Clone)]
+pub struct FrameAnalysis {
+    pub frame: usize,
+    pub views: Vec<ViewResult>,
+    pub anchors: FrameAnchors,
+    pub notes: Vec<String>,
+}
+
+/// All the fold pairs of one image, before projection: per-level results and their union.
+pub fn image_pairs(photo: &Photo, params: &VideoParams) -> (Vec<LevelResult>, Vec<Pair>) {
+    let mask = if photo.has_alpha {
+        photo.eroded_mask(params.silhouette_margin)
+    } else {
+        photo.mask.clone()
+    };
+    let mut results = Vec::new();
+    for (li, level) in edges::levels(params).into_iter().enumerate() {
+        let le: LevelEdges = edges::extract(photo, &mask, level, params);
+        let oriented: Vec<Edge> = le
+            .edges
+            .iter()
+            .filter_map(|e| orient::orient(e, &le, photo, params).ok())
+            .collect();
+        let merged = merge::merge(
+            oriented,
+            params.merge_gap,
+            params.fit_tolerance * le.factor / level.scale,
+            params.max_curvature,
+        );
+        let pairs = pairing::pair_edges(&merged, params, li);
+        results.push(LevelResult {
+            level,
+            chains: le.chains,
+            edges: merged,
+            pairs,
+        });
+    }
+    let union = pairing::union(results.iter().map(|r| r.pairs.clone()).collect());
+    (results, union)
+}
+
+impl VideoFolds {
+    pub fn new(rig: CameraRig, params: VideoParams, image_numbers: Vec<u64>) -> Result<Self> {
+        params.validate()?;
+        Ok(VideoFolds {
+            rig,
+            params,
+            image_numbers,
+            vertices: None,
+            overlay_frames: Vec::new(),
+        })
+    }
+
+    /// The tracked vertices: given, or chosen from frame 0 of `source`.
+    pub fn tracked_vertices(&self, source: &dyn FrameSource) -> Result<(usize, usize)> {
+        let nv = source.topology().n_vertices();
+        if let Some((f, b)) = self.vertices {
+            for (name, v) in [("front_vertex", f), ("back_vertex", b)] {
+                if v >= nv {
+                    return Err(Error::param(
+                        name,
+                        format!("vertex {v} is out of range (the mesh has {nv} vertices)"),
+                    ));
+                }
+            }
+            return Ok((f, b));
+        }
+        let first = source.read_frame(0)?;
+        Ok(views::auto_vertices(source.topology(), &first, &self.rig))
+    }
+
+    fn check_source(&self, source: &dyn FrameSource) -> Result<()> {
+        if self.image_numbers.len() != source.n_frames() {
+            return Err(Error::param(
+                "image_numbers",
+                format!(
+                    "{} image numbers for a sequence of {} frames",
+                    self.image_numbers.len(),
+                    source.n_frames()
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Analyses frame `t` with positions `positions`.
+    pub fn analyze(
+        &self,
+        topo: &Topology,
+        positions: &[V3],
+        t: usize,
+        vertices: (usize, usize),
+    ) -> Result<FrameAnalysis> {
+        let choice = views::select(
+            &self.rig,
+            topo,
+            positions,
+            vertices,
+            self.params.stable_normal_rings,
+            t,
+        );
+        let mut notes = choice.notes.clone();
+        let number = *self.image_numbers.get(t).ok_or_else(|| {
+            Error::param("image_numbers", format!("no image number for frame {t}"))
+        })?;
+        let mut views = Vec::new();
+        for (role, cam) in [("front", choice.front), ("back", choice.back)] {
+            let Some(cam) = cam else { continue };
+            let photo = self.rig.load(cam, t, number)?;
+            if photo.has_alpha && !photo.mask.iter().any(|&m| m) {
+                notes.push(format!(
+                    "camera {} frame {t}: the image shows no garment (all transparent)",
+                    self.rig.cameras[cam].name
+                ));
+                continue;
+            }
+            let (levels, union) = image_pairs(&photo, &self.params);
+            let mut caster =
+                project::MeshCaster::new(topo, positions, &self.rig.cameras[cam].camera)?;
+            caster.skip_border = self.params.skip_border;
+            let projected: Vec<ProjectedPair> = union
+                .iter()
+                .filter_map(|p| project::project_pair(&caster, p, &self.params))
+                .collect();
+            views.push(ViewResult {
+                camera: cam,
+                role,
+                photo,
+                levels,
+                union,
+                projected,
+            });
+        }
+        let anchors = self.frame_anchors(topo, positions, t, &views);
+        Ok(FrameAnalysis {
+            frame: t,
+            views,
+            anchors,
+            notes,
+        })
+    }
+
+    /// Anchors of a frame from its projected pairs (best pairs first; a triangle keeps its first anchor).
+    fn frame_anchors(
+        &self,
+        topo: &Topology,
+        positions: &[V3],
+        t: usize,
+        views: &[ViewResult],
+    ) -> FrameAnchors {
+        let normals = geometry::triangle_normals(topo, positions);
+        let all: Vec<&ProjectedPair> = views.iter().flat_map(|v| &v.projected).collect();
+        let narrow = all.iter().map(|p| p.width).fold(f64::INFINITY, f64::min);
+        let wide = all.iter().map(|p| p.width).fold(0.0, f64::max);
+        let mut seen = HashSet::new();
+        let mut anchors: Vec<Anchor> = Vec::new();
+        let mut control_lines = Vec::new();
+        for p in &all {
+            let angle = project::angle_for(p.width, narrow, wide, &self.params);
+            for hits in [&p.a, &p.b] {
+                for a in project::edge_anchors(hits, &normals, angle) {
+                    if seen.insert(a.triangle) {
+                        anchors.push(a);
+                    }
+                }
+                control_lines.push(hits.iter().map(|h| h.point).collect());
+            }
+        }
+        anchors.sort_by_key(|a| a.triangle);
+        FrameAnchors {
+            frame: t,
+            anchors,
+            control_lines,
+        }
+    }
+}
+
+impl FoldDetector for VideoFolds {
+    fn name(&self) -> &'static str {
+        "video"
+    }
+
+    fn granularity(&self) -> Granularity {
+        Granularity::PerFrame
+    }
+
+    fn detect(
+        &self,
+        source: &dyn FrameSource,
+        frames: Range<usize>,
+        progress: &dyn Progress,
+    ) -> Result<Vec<FrameAnchors>> {
+        Ok(self.detect_with_artifacts(source, frames, progress)?.0)
+    }
+
+    /// Also draws the overlays of the range's `overlay_frames` from the analysis the anchors came from.
+    fn detect_with_artifacts(
+        &self,
+        source: &dyn FrameSource,
+        frames: Range<usize>,
+        progress: &dyn Progress,
+    ) -> Result<(Vec<FrameAnchors>, Vec<Artifact>)> {
+        self.check_source(source)?;
+        if frames.end > source.n_frames() {
+            return Err(Error::param(
+                "frames",
+                format!(
+                    "range {frames:?} exceeds the sequence's {} frames",
+                    source.n_frames()
+                ),
+            ));
+        }
+        let vertices = self.tracked_vertices(source)?;
+        let topo = source.topology().clone();
+        let names: Vec<String> = self.rig.cameras.iter().map(|c| c.name.clone()).collect();
+        progress.begin("video folds", frames.len() as u64);
+        let out: Result<Vec<(FrameAnchors, Option<Artifact>)>> = frames
+            .clone()
+            .into_par_iter()
+            .map(|t| {
+                if progress.cancelled() {
+                    return Err(Error::Cancelled);
+                }
+                let positions = source.read_frame(t)?;
+                let a = self.analyze(&topo, &positions, t, vertices)?;
+                for n in &a.notes {
+                    progress.note(n);
+                }
+                let art = if self.overlay_frames.contains(&t) {
+                    let key = overlay_key(t);
+                    let img = overlay::frame_overlay(&a, &names);
+                    let bytes = crate::render::png_bytes(&img, std::path::Path::new(&key))?;
+                    Some(Artifact { key, bytes })
+                } else {
+                    None
+                };
+                progress.advance("video folds", 1);
+                Ok((a.anchors, art))
+            })
+            .collect();
+        progress.end("video folds");
+        let (anchors, arts): (Vec<FrameAnchors>, Vec<Option<Artifact>>) = out?.into_iter().unzip();
+        Ok((anchors, arts.into_iter().flatten().collect()))
+    }
+
+    /// The cameras and the tracked vertices (and whether they were chosen automatically).
+    fn summary(&self, source: &dyn FrameSource) -> Result<serde_json::Value> {
+        let (front, back) = self.tracked_vertices(source)?;
+        Ok(serde_json::json!({
+            "cameras": self.rig.cameras.len(),
+            "tracked_vertices": { "front": front, "back": back, "automatic": self.vertices.is_none() },
+            "parameters": self.params,
+        }))
+    }
+}

@@ -1,0 +1,184 @@
+//! Midpoint subdivision of a sequence, so folds narrower than a triangle can form (Chen 2011 §4.4,
+//! "multi-resolution processing").
+//!
+//! Each level splits every triangle into four at its edge midpoints. Midpoint (rather than Loop) subdivision
+//! keeps the original vertices where they are and adds no smoothing of its own: the subdivided frame is the
+//! same surface, so the stretch analysis and the fold metrics see the capture unchanged. The original
+//! vertices keep their indices and come first; the new edge vertices follow in order of first appearance.
+//! Topology is shared by all frames, so it is built once and every frame is subdivided lazily.
+
+use super::{Frame, FrameSource, Topology};
+use crate::error::{Error, Result};
+use crate::vec3::{self, V3};
+use std::collections::HashMap;
+use std::sync::Arc;
+
+/// One or more levels of midpoint subdivision of a topology.
+#[derive(Debug, Clone)]
+pub struct Subdivision {
+    topology: Arc<Topology>,
+    /// Per level: the coarse edges whose midpoints are the new vertices, in new-vertex order.
+    levels: Vec<Vec<[u32; 2]>>,
+}
+
+fn one_level(topo: &Topology) -> Result<(Topology, Vec<[u32; 2]>)> {
+    let nv = topo.n_vertices();
+    let mut edge_id: HashMap<(u32, u32), u32> = HashMap::with_capacity(topo.n_triangles() * 2);
+    let mut edges: Vec<[u32; 2]> = Vec::new();
+    let mut mid = |a: u32, b: u32| -> u32 {
+        let key = (a.min(b), a.max(b));
+        *edge_id.entry(key).or_insert_with(|| {
+            edges.push([key.0, key.1]);
+            (nv + edges.len() - 1) as u32
+        })
+    };
+    let mut tris = Vec::with_capacity(4 * topo.n_triangles());
+    for &[a, b, c] in topo.triangles() {
+        let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
+        tris.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+    }
+    let n = nv + edges.len();
+    Ok((Topology::new(n, tris)?, edges))
+}
+
+impl Subdivision {
+    /// `levels` rounds of 1-to-4 midpoint subdivision (each multiplies the triangle count by 4).
+    pub fn new(topo: &Topology, levels: usize) -> Result<Self> {
+        if levels > 4 {
+            return Err(Error::param(
+                "subdivide",
+                format!("at most 4 levels (256× the triangles), got {levels}"),
+            ));
+        }
+        let mut cur = topo.clone();
+        let mut all = Vec::with_capacity(levels);
+        for _ in 0..levels {
+            let (next, edges) = one_level(&cur)?;
+            all.push(edges);
+            cur = next;
+        }
+        Ok(Subdivision {
+            topology: Arc::new(cur),
+            levels: all,
+        })
+    }
+
+    pub fn topology(&self) -> &Arc<Topology> {
+        &self.topology
+    }
+
+    /// Positions on the subdivided mesh: the originals first, then the edge midpoints.
+    pub fn apply(&self, p: &[V3]) -> Frame {
+        let mut cur = p.to_vec();
+        for edges in &self.levels {
+            cur.reserve(edges.len());
+            for &[a, b] in edges {
+                let m = vec3::scale(vec3::add(cur[a as usize], cur[b as usize]), 0.5);
+                cur.push(m);
+            }
+        }
+        cur
+    }
+}
+
+/// The source under a [`SubdividedSource`]: borrowed for a one-off pass, owned where the subdivided source
+/// must outlive the scope that opened the input (a job task's per-process input cache).
+enum Inner<'a> {
+    Borrowed(&'a dyn FrameSource),
+    Owned(Box<dyn FrameSource + 'a>),
+}
+
+/// A source whose frames are subdivided on demand (nothing beyond one frame is held).
+pub struct SubdividedSource<'a> {
+    inner: Inner<'a>,
+    subdivision: Subdivision,
+}
+
+impl<'a> SubdividedSource<'a> {
+    pub fn new(inner: &'a dyn FrameSource, levels: usize) -> Result<Self> {
+        Ok(SubdividedSource {
+            subdivision: Subdivision::new(inner.topology(), levels)?,
+            inner: Inner::Borrowed(inner),
+        })
+    }
+
+    /// Like [`SubdividedSource::new`], taking ownership of the source.
+    pub fn owned(inner: Box<dyn FrameSource + 'a>, levels: usize) -> Result<Self> {
+        Ok(SubdividedSource {
+            subdivision: Subdivision::new(inner.topology(), levels)?,
+            inner: Inner::Owned(inner),
+        })
+    }
+
+    fn inner(&self) -> &dyn FrameSource {
+        match &self.inner {
+            Inner::Borrowed(s) => *s,
+            Inner::Owned(s) => s.as_ref(),
+        }
+    }
+    pub fn subdivision(&self) -> &Subdivision {
+        &self.subdivision
+    }
+}
+
+impl FrameSource for SubdividedSource<'_> {
+    fn topology(&self) -> &Arc<Topology> {
+        self.subdivision.topology()
+    }
+    fn n_frames(&self) -> usize {
+        self.inner().n_frames()
+    }
+    fn read_frame(&self, t: usize) -> Result<Frame> {
+        Ok(self.subdivision.apply(&self.inner().read_frame(t)?))
+    }
+    fn describe_frame(&self, t: usize) -> String {
+        format!(
+            "{} (subdivided {}×)",
+            self.inner().describe_frame(t),
+            self.subdivision.levels.len()
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Sequence;
+
+    #[test]
+    fn midpoint_keeps_original_vertices_first_and_the_surface() {
+        let (topo, p) = crate::synth::sheet(5, 4, 0.2).unwrap();
+        let seq = Sequence::new(topo.clone(), vec![p.clone()]).unwrap();
+        let sub = SubdividedSource::new(&seq, 2).unwrap();
+        let st = sub.topology();
+        assert_eq!(st.n_triangles(), 16 * topo.n_triangles());
+        // Euler: V − E + F stays 1 for a disk.
+        let nv = st.n_vertices() as i64;
+        let f = st.n_triangles() as i64;
+        let e = (3 * f
+            + st.tri_adj()
+                .iter()
+                .flatten()
+                .filter(|&&u| u == crate::mesh::NONE)
+                .count() as i64)
+            / 2;
+        assert_eq!(nv - e + f, 1);
+        let q = sub.read_frame(0).unwrap();
+        assert_eq!(&q[..p.len()], &p[..]);
+        // Same area, same orientation.
+        let area = |t: &Topology, x: &[V3]| -> (f64, f64) {
+            let n = crate::mesh::geometry::triangle_normals(t, x);
+            (
+                crate::mesh::geometry::triangle_areas(t, x).iter().sum(),
+                n.iter().map(|n| n[2]).fold(f64::INFINITY, f64::min),
+            )
+        };
+        let (a0, n0) = area(&topo, &p);
+        let (a1, n1) = area(st, &q);
+        assert!((a0 - a1).abs() < 1e-12 && n0 > 0.99 && n1 > 0.99);
+        assert!(Subdivision::new(&topo, 5)
+            .unwrap_err()
+            .to_string()
+            .contains("subdivide"));
+    }
+}

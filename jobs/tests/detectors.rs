@@ -1,0 +1,182 @@
+//! Jobs that detect their folds (`stretch`, `video`) write the same bytes however they are cut into tasks and
+//! in whatever valid order the tasks run (with duplicates), and their anchors are what the detector finds on
+//! the whole sequence at once, i.e. what the former direct path of `crease run` computed.
+
+mod common;
+
+use common::*;
+use crease_core::folds::stretch::StretchDetector;
+use crease_core::folds::{AnchorSet, FoldDetector};
+use crease_core::mesh::io::open_sequence;
+use crease_core::progress::NoProgress;
+use crease_jobs::JobSpec;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// Every file under `dir`, recursively (relative path → bytes), except hidden entries and `report.json`
+/// (it holds timings).
+fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    fn walk(root: &Path, dir: &Path, out: &mut BTreeMap<String, Vec<u8>>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            if name.starts_with('.') || name == "report.json" {
+                continue;
+            }
+            if p.is_dir() {
+                walk(root, &p, out);
+            } else {
+                let rel = p.strip_prefix(root).unwrap().to_string_lossy().into_owned();
+                out.insert(rel, std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+fn spec(input: &Path, out: &Path, folds: &str, partition: &str) -> JobSpec {
+    let text = format!(
+        "input = {:?}\noutput = {:?}\n[folds]\n{folds}\n[partition]\n{partition}\n[preview]\nsize = 64\n",
+        input.display().to_string(),
+        out.display().to_string()
+    );
+    JobSpec::from_toml_str(&text).unwrap_or_else(|e| panic!("{e}\n{text}"))
+}
+
+async fn run_ok(spec: &JobSpec, cache: &Path, order: Order) -> BTreeMap<String, Vec<u8>> {
+    let run = run_job(spec, cache, order).await;
+    for (k, r) in &run.outcomes {
+        assert!(r.is_ok(), "task {k} failed: {:?}", r.as_ref().err());
+    }
+    assert_eq!(
+        run.outcomes.len(),
+        run.tasks.len(),
+        "every planned task ran"
+    );
+    let out = Path::new(&spec.output);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["complete"], true);
+    tree(out)
+}
+
+fn assert_same(a: &BTreeMap<String, Vec<u8>>, b: &BTreeMap<String, Vec<u8>>, what: &str) {
+    assert_eq!(
+        a.keys().collect::<Vec<_>>(),
+        b.keys().collect::<Vec<_>>(),
+        "{what}: same files"
+    );
+    for (k, v) in a {
+        assert!(b[k] == *v, "{what}: {k} differs");
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn stretch_folds_are_partition_and_order_independent() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let (input, _) = fixture(root, 900, 8);
+    let folds = "kind = \"stretch\"";
+    let a = spec(&input, &root.join("a"), folds, "frames_per_chunk = 8");
+    let b = spec(&input, &root.join("b"), folds, "frames_per_chunk = 3");
+    let ta = run_ok(&a, &root.join("cache-a"), PLAN_ORDER).await;
+    let tb = run_ok(&b, &root.join("cache-b"), Order { seed: 7, rerun: 3 }).await;
+    for f in [
+        "anchors.json",
+        "folds/control_lines.obj",
+        "folds.png",
+        "frame_0004.obj",
+    ] {
+        assert!(ta.contains_key(f), "{f} missing");
+    }
+    assert_same(&ta, &tb, "stretch, 1 vs 3 frames per chunk");
+    // The anchors are the detector's on the whole sequence, as the direct path wrote them.
+    let opened = open_sequence(&input).unwrap();
+    let source = opened.source.as_ref();
+    let direct = StretchDetector::default()
+        .detect(source, 0..8, &NoProgress)
+        .unwrap();
+    let direct =
+        AnchorSet::from_frame_anchors(direct, source.topology().n_triangles(), None).unwrap();
+    let (got, want) = (&ta["anchors.json"], direct.to_json().into_bytes());
+    if let Some(i) = (0..got.len().min(want.len())).find(|&i| got[i] != want[i]) {
+        let ctx = |b: &[u8]| {
+            String::from_utf8_lossy(&b[i.saturating_sub(80)..(i + 80).min(b.len())]).into_owned()
+        };
+        panic!(
+            "anchors.json differs from the direct detection at byte {i}:\n{}\nvs\n{}",
+            ctx(got),
+            ctx(&want)
+        );
+    }
+    assert_eq!(got.len(), want.len(), "anchors.json length");
+
+    // Subdivided: plain OBJ frames with 4× the triangles, equally independent of the partition.
+    let folds = "kind = \"stretch\"\nsubdivide = 1";
+    let c = spec(&input, &root.join("c"), folds, "frames_per_chunk = 8");
+    let d = spec(&input, &root.join("d"), folds, "frames_per_chunk = 2");
+    let info = crease_jobs::inspect_input(&c).await.unwrap();
+    assert_eq!(info.n_triangles, 4 * source.topology().n_triangles());
+    let tc = run_ok(&c, &root.join("cache-c"), PLAN_ORDER).await;
+    let td = run_ok(&d, &root.join("cache-d"), Order { seed: 3, rerun: 4 }).await;
+    assert_same(&tc, &td, "subdivided stretch");
+    let text = String::from_utf8_lossy(&tc["frame_0001.obj"]).into_owned();
+    let faces = text.lines().filter(|l| l.starts_with("f ")).count();
+    assert_eq!(faces, info.n_triangles);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn video_folds_are_partition_and_order_independent() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    let (input, anchors) = fixture(root, 900, 6);
+    // The capture video of the ground truth (the input deformed with its anchors), as `crease demo
+    // --with-video` renders it.
+    let gt = root.join("gt");
+    reference(&input, Some(&anchors), &Default::default(), &gt);
+    let gt = open_sequence(&gt).unwrap();
+    let frames: Vec<_> = (0..6).map(|t| gt.source.read_frame(t).unwrap()).collect();
+    let opened = open_sequence(&input).unwrap();
+    let source = opened.source.as_ref();
+    crease_core::synth_video::write_video(root, source.topology(), &frames, 3, 240, 320, 1)
+        .unwrap();
+    let folds = format!(
+        "kind = \"video\"\ncameras = {:?}\noverlay_frames = [1, 4]",
+        root.join("cameras.json").display().to_string()
+    );
+    let a = spec(&input, &root.join("a"), &folds, "fold_frames_per_chunk = 6");
+    let b = spec(
+        &input,
+        &root.join("b"),
+        &folds,
+        "fold_frames_per_chunk = 1\nframes_per_chunk = 2",
+    );
+    let ta = run_ok(&a, &root.join("cache-a"), PLAN_ORDER).await;
+    let tb = run_ok(&b, &root.join("cache-b"), Order { seed: 11, rerun: 3 }).await;
+    for f in [
+        "anchors.json",
+        "overlays/frame_0001.png",
+        "overlays/frame_0004.png",
+    ] {
+        assert!(ta.contains_key(f), "{f} missing");
+    }
+    assert_same(&ta, &tb, "video, 6 vs 1 frames per detection chunk");
+    let set = AnchorSet::parse(
+        &String::from_utf8_lossy(&ta["anchors.json"]),
+        None,
+        6,
+        source.topology().n_triangles(),
+    )
+    .unwrap();
+    assert!(set.total() > 0, "the rendered folds give anchors");
+
+    // A missing image fails the submit, naming the camera, the frame and the file.
+    std::fs::remove_file(root.join("images/cam01/frame_0003.png")).unwrap();
+    let e = crease_jobs::inspect_input(&a)
+        .await
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("frame_0003.png") && e.contains("frame 2"), "{e}");
+}

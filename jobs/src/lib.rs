@@ -19,7 +19,7 @@
 //! max_task_attempts = 3                    # attempts of one task before the job fails
 //! max_task_failures_per_job = 10           # failed attempts over all tasks before the job fails
 //!
-//! [folds]                                  # or: kind = "none"
+//! [folds]                                  # or: kind = "none", "stretch", "video" (see FoldSpec)
 //! kind = "anchors"
 //! uri = "/data/capture/sleeve-anchors.json"
 //!

@@ -201,9 +201,16 @@ impl JobSpec {
     pub fn validate(&self) -> Result<(), JobError> {
         parse_location(&self.input, "input")?;
         parse_location(&self.output, "output")?;
+        // The detectors name parameters as their CLI flags do (`fold-width`, `theta0`); the spec names fields.
         let param_err = |e: crease_core::Error| match e {
             crease_core::Error::Param { name, msg } => {
-                JobError::spec(format!("folds.params.{name}"), msg)
+                let field = match name.as_str() {
+                    "theta0" | "max-turn" | "max-angle" | "narrow_angle" | "wide_angle" => {
+                        format!("{}_deg", name.replace('-', "_"))
+                    }
+                    _ => name.replace('-', "_"),
+                };
+                JobError::spec(format!("folds.params.{field}"), msg)
             }
             e => JobError::spec("folds.params", e.to_string()),
         };

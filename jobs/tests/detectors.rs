@@ -180,3 +180,33 @@ async fn video_folds_are_partition_and_order_independent() {
         .to_string();
     assert!(e.contains("frame_0003.png") && e.contains("frame 2"), "{e}");
 }
+
+#[test]
+fn detector_specs_are_validated_naming_the_field() {
+    let cases = [
+        ("kind = \"stretch\"\nsubdivide = 5", "folds.subdivide"),
+        (
+            "kind = \"stretch\"\n[folds.params]\ntheta0_deg = 95.0",
+            "folds.params.theta0_deg",
+        ),
+        (
+            "kind = \"stretch\"\n[folds.params]\nfold_width = -1.0",
+            "folds.params.fold_width",
+        ),
+        (
+            "kind = \"video\"\ncameras = \"/c.json\"\nfront_vertex = 3",
+            "folds.front_vertex",
+        ),
+        (
+            "kind = \"video\"\ncameras = \"/c.json\"\n[folds.params]\nbogus = 1",
+            "bogus",
+        ),
+    ];
+    for (folds, want) in cases {
+        let text = format!("input = \"/in\"\noutput = \"/out\"\n[folds]\n{folds}\n");
+        let e = JobSpec::from_toml_str(&text).unwrap_err().to_string();
+        assert!(e.contains(want), "{folds}: {e}");
+    }
+    let ok = "input = \"/in\"\noutput = \"/out\"\n[folds]\nkind = \"stretch\"\n[folds.params]\nmin_shrink = 0.03\n";
+    assert!(JobSpec::from_toml_str(ok).is_ok());
+}

@@ -25,6 +25,25 @@ impl Proc {
     }
 }
 
+/// Sends SIGTERM and waits (bounded) for a clean exit.
+fn sigterm_and_wait(w: &mut Proc) {
+    let pid = w.pid();
+    assert!(Command::new("kill")
+        .args(["-TERM", &pid.to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = w.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(start.elapsed() < DEADLINE, "worker did not stop on SIGTERM");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "{status}");
+}
+
 impl Drop for Proc {
     fn drop(&mut self) {
         self.kill();
@@ -741,21 +760,7 @@ fn sigterm_drains_a_worker_that_finishes_its_task() {
             .iter()
             .any(|t| t["kind"] == "weight-window" && t["state"] == "running")
     });
-    let pid = w.pid();
-    assert!(Command::new("kill")
-        .args(["-TERM", &pid.to_string()])
-        .status()
-        .unwrap()
-        .success());
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = w.0.try_wait().unwrap() {
-            break s;
-        }
-        assert!(start.elapsed() < DEADLINE, "worker did not stop on SIGTERM");
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    assert!(status.success(), "{status}");
+    sigterm_and_wait(&mut w);
     // The task it was running finished there (first attempt), and a new worker completes the job.
     let s = c.status(&id);
     let first = tasks(&s)
@@ -798,21 +803,7 @@ fn sigterm_hands_back_a_task_that_outlasts_the_drain_timeout() {
             None => false,
         }
     });
-    let pid = w.pid();
-    assert!(Command::new("kill")
-        .args(["-TERM", &pid.to_string()])
-        .status()
-        .unwrap()
-        .success());
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = w.0.try_wait().unwrap() {
-            break s;
-        }
-        assert!(start.elapsed() < DEADLINE, "worker did not stop on SIGTERM");
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    assert!(status.success(), "{status}");
+    sigterm_and_wait(&mut w);
     // Handed back: queued again, not failed.
     let s = c.status(&id);
     let t = tasks(&s)

@@ -482,15 +482,7 @@ impl Store {
     ) -> Result<Outcome> {
         let tx = self.conn.transaction()?;
         if !is_current(&tx, job_id, key, attempt)? {
-            event(
-                &tx,
-                job_id,
-                "stale_report",
-                key,
-                &format!("attempt {attempt} ignored"),
-            )?;
-            tx.commit()?;
-            return Ok(Outcome::Stale);
+            return ignore_stale(tx, job_id, key, attempt);
         }
         let t = now();
         tx.execute(
@@ -549,15 +541,7 @@ impl Store {
     ) -> Result<Outcome> {
         let tx = self.conn.transaction()?;
         if !is_current(&tx, job_id, key, attempt)? {
-            event(
-                &tx,
-                job_id,
-                "stale_report",
-                key,
-                &format!("attempt {attempt} ignored"),
-            )?;
-            tx.commit()?;
-            return Ok(Outcome::Stale);
+            return ignore_stale(tx, job_id, key, attempt);
         }
         let job = job_row(&tx, job_id)?;
         if job.state.is_terminal() {
@@ -927,6 +911,19 @@ fn insert_tasks(tx: &Transaction<'_>, job_id: &str, tasks: &[NewTask]) -> Result
         }
     }
     Ok(())
+}
+
+/// Records that a report of an attempt the queue has moved past (a worker already given up on) was dropped.
+fn ignore_stale(tx: Transaction<'_>, job_id: &str, key: &str, attempt: u32) -> Result<Outcome> {
+    event(
+        &tx,
+        job_id,
+        "stale_report",
+        key,
+        &format!("attempt {attempt} ignored"),
+    )?;
+    tx.commit()?;
+    Ok(Outcome::Stale)
 }
 
 fn is_current(tx: &Transaction<'_>, job_id: &str, key: &str, attempt: u32) -> Result<bool> {

@@ -42,7 +42,7 @@ pub struct SoakArgs {
     /// Most worker kills (SIGKILL, then a restart) during the soak.
     #[arg(long, default_value_t = 10)]
     pub kills: usize,
-    /// The kills happen at random times within this many seconds of the first submission.
+    /// The kills happen at random times within this many seconds of the start of the submissions.
     #[arg(long, default_value_t = 15.0)]
     pub kill_window_secs: f64,
     /// Seed of the chaos schedule and of the clients' pacing.
@@ -558,8 +558,8 @@ fn start_coordinator(exe: &Path, dir: &Path, logs: &Path) -> Result<(Proc, Strin
     )
 }
 
-/// Starts worker `i` (generation `g` after `g` restarts). One compute thread each, so several workers share
-/// the cores the way a farm's nodes would not, but none starves the others.
+/// Starts worker `i` (generation `g` after `g` restarts) with one compute thread and one task at a time, so
+/// several workers on a small machine share its cores instead of oversubscribing them.
 fn spawn_worker(ctx: &Ctx, dir: &Path, i: usize, g: u32) -> Result<Proc> {
     let log = std::fs::File::create(ctx.logs.join(format!("worker-{i}-gen{g}.log")))?;
     let child = ctx

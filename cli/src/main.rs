@@ -2,6 +2,7 @@
 
 mod bench;
 mod bench_cluster;
+mod bench_soak;
 mod cluster;
 mod eval;
 mod folds_stretch;

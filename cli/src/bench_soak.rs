@@ -1,0 +1,1023 @@
+//! `crease bench --soak`: the cluster's crash tolerance measured on loopback. A coordinator and workers run as
+//! child processes of this executable; several client threads submit small jobs concurrently with
+//! `crease submit --watch` (one process per job, as a user on the farm would), while a chaos thread SIGKILLs
+//! random workers at random times and starts them again. Every job must end `done` with the same bytes as a
+//! single-node `crease run` of its input, whatever partition the job used and however often its tasks were
+//! interrupted.
+//!
+//! The kills are bounded (`--kills` within `--kill-window-secs`) and each job allows more attempts per task than
+//! there are kills, so the cluster can always finish: a job that still fails or differs is a bug, not bad luck.
+//! Only processes this harness started are ever signalled, and every child is killed when its handle drops,
+//! so a deadline or an error leaves nothing running.
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use crease_core::mesh::io::write_obj_sequence;
+use crease_core::synth::{self, DemoSpec};
+use serde_json::json;
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+#[derive(Args, Debug)]
+pub struct SoakArgs {
+    /// Run the soak test instead: concurrent clients submit small jobs to a loopback cluster while workers are
+    /// killed and restarted at random; every output is compared with a single-node run.
+    #[arg(long)]
+    pub soak: bool,
+    /// Jobs submitted (with --soak).
+    #[arg(long, default_value_t = 50)]
+    pub jobs: usize,
+    /// Concurrent clients submitting them (with --soak).
+    #[arg(long, default_value_t = 5)]
+    pub clients: usize,
+    /// Worker processes (with --soak).
+    #[arg(long, default_value_t = 3)]
+    pub workers: usize,
+    /// Most worker kills (SIGKILL, then a restart) during the soak.
+    #[arg(long, default_value_t = 10)]
+    pub kills: usize,
+    /// The kills happen at random times within this many seconds of the start of the submissions.
+    #[arg(long, default_value_t = 15.0)]
+    pub kill_window_secs: f64,
+    /// Seed of the chaos schedule and of the clients' pacing.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Keep the soak's files (inputs, references, outputs, queue, logs) in this new directory.
+    #[arg(long)]
+    pub keep: Option<PathBuf>,
+    /// The soak fails if its jobs have not all ended after this many seconds.
+    #[arg(long, default_value_t = 600.0)]
+    pub deadline_secs: f64,
+}
+
+/// Deformation settings shared by the references and the jobs: short windows so even four frames give several
+/// windows, cross-fades and (per-anchor) reduce tasks.
+const WINDOW: usize = 3;
+const SHIFT: usize = 2;
+const PREVIEW_SIZE: u32 = 64;
+
+/// The distinct inputs: sizes, frame counts, anchor sets and weight modes differ so the jobs' task graphs do.
+struct CaseDef {
+    name: &'static str,
+    triangles: usize,
+    frames: usize,
+    mode: &'static str,
+    /// Random anchors per frame (seeded); `None` = the demo's own fold anchors.
+    random_anchors: Option<usize>,
+    /// Anchor columns per weight block (per-anchor mode). Part of the arithmetic (blocks are summed in block
+    /// order), so the reference uses the same value; it only changes the task graph between cases.
+    anchor_block: usize,
+}
+
+const CASES: [CaseDef; 4] = [
+    CaseDef {
+        name: "tube600-demo-fused",
+        triangles: 600,
+        frames: 4,
+        mode: "fused",
+        random_anchors: None,
+        anchor_block: 32,
+    },
+    CaseDef {
+        name: "tube1200-demo-per-anchor",
+        triangles: 1200,
+        frames: 5,
+        mode: "per-anchor",
+        random_anchors: None,
+        anchor_block: 32,
+    },
+    CaseDef {
+        name: "tube2000-random-per-anchor",
+        triangles: 2000,
+        frames: 6,
+        mode: "per-anchor",
+        random_anchors: Some(24),
+        anchor_block: 16,
+    },
+    CaseDef {
+        name: "tube900-random-fused",
+        triangles: 900,
+        frames: 5,
+        mode: "fused",
+        random_anchors: Some(40),
+        anchor_block: 32,
+    },
+];
+
+/// Frames per positioning task the jobs cycle through; the reference uses `crease run`'s own (4), so equal
+/// bytes also mean this partition does not matter.
+const FRAMES_PER_CHUNK: [usize; 3] = [1, 2, 3];
+
+struct Case {
+    def: &'static CaseDef,
+    input: PathBuf,
+    anchors: PathBuf,
+    reference: PathBuf,
+    anchors_total: usize,
+    reference_seconds: f64,
+}
+
+/// splitmix64: a seeded, dependency-free generator for the chaos schedule.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn below(&mut self, n: usize) -> usize {
+        (self.next() % n.max(1) as u64) as usize
+    }
+}
+
+/// The worker processes by slot, each with its generation (restarts so far); `None` while one is down.
+type Workers = Mutex<Vec<(Option<Proc>, u32)>>;
+
+/// A child process that is killed (SIGKILL) and reaped when dropped.
+struct Proc(Child);
+
+impl Proc {
+    fn kill(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+/// The soak's directory: removed at the end unless the user asked to keep it.
+struct Scratch {
+    dir: PathBuf,
+    keep: bool,
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if !self.keep {
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
+    }
+}
+
+/// What the harness shares with its client and chaos threads.
+struct Ctx {
+    exe: PathBuf,
+    url: String,
+    logs: PathBuf,
+    t0: Instant,
+    deadline: Instant,
+    ended: AtomicUsize,
+}
+
+impl Ctx {
+    fn elapsed(&self) -> f64 {
+        self.t0.elapsed().as_secs_f64()
+    }
+    fn log(&self, msg: &str) {
+        eprintln!("[soak {:>6.1}s] {msg}", self.elapsed());
+    }
+    fn crease(&self) -> Command {
+        Command::new(&self.exe)
+    }
+}
+
+struct JobPlan {
+    index: usize,
+    case: usize,
+    partition: (usize, usize),
+    spec: PathBuf,
+    output: PathBuf,
+}
+
+#[derive(Default)]
+struct JobResult {
+    index: usize,
+    client: usize,
+    case: usize,
+    id: String,
+    state: String,
+    message: String,
+    submitted_at: f64,
+    latency: Option<f64>,
+    tasks: u64,
+    retried: u64,
+    identical: bool,
+    differs: Vec<String>,
+    partition: (usize, usize),
+    output: PathBuf,
+}
+
+pub fn bench_soak(a: &SoakArgs, json_out: Option<&Path>) -> Result<()> {
+    if a.jobs == 0 || a.clients == 0 || a.workers == 0 {
+        bail!("--jobs, --clients and --workers must each be at least 1");
+    }
+    if !(a.kill_window_secs.is_finite() && a.kill_window_secs > 0.0) {
+        bail!(
+            "--kill-window-secs must be a positive number, got {}",
+            a.kill_window_secs
+        );
+    }
+    if !(a.deadline_secs.is_finite() && a.deadline_secs > 0.0) {
+        bail!(
+            "--deadline-secs must be a positive number, got {}",
+            a.deadline_secs
+        );
+    }
+    let scratch = match &a.keep {
+        Some(dir) => {
+            if dir.exists() && std::fs::read_dir(dir).map_or(true, |mut d| d.next().is_some()) {
+                bail!(
+                    "--keep {}: the directory exists and is not empty; give a new one",
+                    dir.display()
+                );
+            }
+            Scratch {
+                dir: std::path::absolute(dir)
+                    .with_context(|| format!("--keep {}", dir.display()))?,
+                keep: true,
+            }
+        }
+        None => Scratch {
+            dir: std::env::temp_dir().join(format!("crease-soak-{}", std::process::id())),
+            keep: false,
+        },
+    };
+    let dir = scratch.dir.clone();
+    let logs = dir.join("logs");
+    crease_core::fsutil::create_dir_all(&logs)?;
+    let exe = std::env::current_exe().context("locating the crease executable")?;
+
+    eprintln!(
+        "soak: preparing {} inputs in {}",
+        CASES.len(),
+        dir.display()
+    );
+    let cases = prepare_cases(&exe, &dir)?;
+    for c in &cases {
+        eprintln!(
+            "soak: {:<28} {:>5} triangles, {} frames, {:>4} anchors, {:<10} reference `crease run` {:.2}s",
+            c.def.name, c.def.triangles, c.def.frames, c.anchors_total, c.def.mode, c.reference_seconds
+        );
+    }
+
+    // Enough attempts per task (and failures per job) that even every kill landing on one task cannot fail it.
+    let max_attempts = a.kills as u32 + 3;
+    let max_failures = (a.kills as u32 + 3).max(10);
+    let plans = write_job_specs(&dir, &cases, a, max_attempts, max_failures)?;
+
+    let (coordinator, url) = start_coordinator(&exe, &dir, &logs)?;
+    let t0 = Instant::now();
+    let ctx = Arc::new(Ctx {
+        exe: exe.clone(),
+        url: url.clone(),
+        logs: logs.clone(),
+        t0,
+        deadline: t0 + Duration::from_secs_f64(a.deadline_secs),
+        ended: AtomicUsize::new(0),
+    });
+    let workers: Arc<Workers> = Arc::new(Mutex::new(Vec::new()));
+    for i in 0..a.workers {
+        let p = spawn_worker(&ctx, &dir, i, 0)?;
+        workers.lock().unwrap().push((Some(p), 0));
+    }
+    ctx.log(&format!(
+        "coordinator at {url}, {} workers, {} jobs from {} clients, up to {} kills within {:.0}s (seed {})",
+        a.workers, a.jobs, a.clients, a.kills, a.kill_window_secs, a.seed
+    ));
+
+    let stop = Arc::new(AtomicBool::new(false));
+    let chaos = {
+        let (ctx, workers, stop, dir) = (ctx.clone(), workers.clone(), stop.clone(), dir.clone());
+        let (kills, window, seed) = (a.kills, a.kill_window_secs, a.seed);
+        std::thread::spawn(move || chaos(&ctx, &dir, &workers, &stop, kills, window, seed))
+    };
+
+    let mut per_client: Vec<Vec<JobPlan>> = (0..a.clients).map(|_| Vec::new()).collect();
+    for p in plans {
+        per_client[p.index % a.clients].push(p);
+    }
+    let total = a.jobs;
+    let clients: Vec<_> = per_client
+        .into_iter()
+        .enumerate()
+        .map(|(c, jobs)| {
+            let ctx = ctx.clone();
+            let seed = a.seed.wrapping_mul(1000).wrapping_add(c as u64);
+            std::thread::spawn(move || client(&ctx, c, jobs, seed, total))
+        })
+        .collect();
+    let mut results: Vec<JobResult> = Vec::new();
+    let mut client_error = None;
+    for h in clients {
+        match h.join() {
+            Ok(Ok(r)) => results.extend(r),
+            Ok(Err(e)) => client_error = Some(e),
+            Err(_) => client_error = Some(anyhow::anyhow!("a client thread panicked")),
+        }
+    }
+    let wall = ctx.elapsed();
+    stop.store(true, Ordering::SeqCst);
+    let kills = chaos
+        .join()
+        .map_err(|_| anyhow::anyhow!("the chaos thread panicked"))??;
+    if let Some(e) = client_error {
+        return Err(e);
+    }
+    results.sort_by_key(|r| r.index);
+
+    // Final state and retries from the coordinator; outputs against the references.
+    for r in &mut results {
+        if r.id.is_empty() {
+            continue;
+        }
+        let s = job_status(&ctx, &r.id)?;
+        let state = s["state"].as_str().unwrap_or("?").to_string();
+        r.message = s["message"].as_str().unwrap_or("").to_string();
+        if r.state == "unfinished" {
+            // Past the deadline: keep it counted as unfinished, saying where the coordinator had it.
+            r.message = format!("{state} at the deadline {}", r.message);
+        } else {
+            r.state = state;
+        }
+        let tasks = s["tasks"].as_array().cloned().unwrap_or_default();
+        r.tasks = tasks.len() as u64;
+        r.retried = tasks
+            .iter()
+            .map(|t| t["attempts"].as_u64().unwrap_or(0).saturating_sub(1))
+            .sum();
+        if r.state == "done" {
+            r.differs = compare(&cases[r.case].reference, &r.output)?;
+            r.identical = r.differs.is_empty();
+        }
+    }
+    workers.lock().unwrap().clear();
+    drop(coordinator);
+
+    let summary = summarise(a, &cases, &results, &kills, wall, &dir, scratch.keep);
+    print_summary(&summary, &results, &cases);
+    if let Some(path) = json_out {
+        crease_core::fsutil::write_atomic(
+            path,
+            serde_json::to_string_pretty(&summary)?.as_bytes(),
+        )?;
+    }
+    let bad = summary["failed"].as_u64().unwrap_or(0)
+        + summary["unfinished"].as_u64().unwrap_or(0)
+        + summary["mismatched"].as_u64().unwrap_or(0);
+    if bad > 0 {
+        bail!(
+            "soak: {bad} of {} jobs did not complete with the reference's bytes (logs: {})",
+            a.jobs,
+            if scratch.keep {
+                logs.display().to_string()
+            } else {
+                "rerun with --keep DIR".into()
+            }
+        );
+    }
+    Ok(())
+}
+
+/// Writes each case's input and anchors, and its single-node reference with `crease run`.
+fn prepare_cases(exe: &Path, dir: &Path) -> Result<Vec<Case>> {
+    let mut cases = Vec::new();
+    for (k, def) in CASES.iter().enumerate() {
+        let root = dir.join("cases").join(def.name);
+        let input = root.join("input");
+        crease_core::fsutil::create_dir_all(&input)?;
+        let spec = DemoSpec {
+            triangles: def.triangles,
+            frames: def.frames,
+            ..Default::default()
+        };
+        let (seq, demo_anchors) = synth::demo(&spec)?;
+        let anchors = match def.random_anchors {
+            Some(n) => synth::random_anchors(&seq.topology, &seq.frames, n, 100 + k as u64)?,
+            None => demo_anchors,
+        };
+        write_obj_sequence(
+            &input,
+            &seq.topology,
+            seq.frames
+                .iter()
+                .enumerate()
+                .map(|(t, f)| (format!("frame_{:04}.obj", t + 1), f.as_slice())),
+        )?;
+        let anchors_path = root.join("anchors.json");
+        anchors.write(&anchors_path)?;
+        let reference = root.join("reference");
+        let t = Instant::now();
+        let o = Command::new(exe)
+            .arg("run")
+            .arg("--input")
+            .arg(&input)
+            .arg("--anchors")
+            .arg(&anchors_path)
+            .arg("--out")
+            .arg(&reference)
+            .args(["--mode", def.mode])
+            .args([
+                "--window",
+                &WINDOW.to_string(),
+                "--shift",
+                &SHIFT.to_string(),
+            ])
+            .args(["--anchor-block", &def.anchor_block.to_string()])
+            .args(["--preview-size", &PREVIEW_SIZE.to_string()])
+            .args(["--quiet", "--local-workers", "1"])
+            .output()
+            .context("starting `crease run` for a reference")?;
+        if !o.status.success() {
+            bail!(
+                "reference `crease run` for {} failed: {}",
+                def.name,
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
+        cases.push(Case {
+            def,
+            input,
+            anchors: anchors_path,
+            reference,
+            anchors_total: anchors.total(),
+            reference_seconds: t.elapsed().as_secs_f64(),
+        });
+    }
+    Ok(cases)
+}
+
+fn write_job_specs(
+    dir: &Path,
+    cases: &[Case],
+    a: &SoakArgs,
+    max_attempts: u32,
+    max_failures: u32,
+) -> Result<Vec<JobPlan>> {
+    let specs = dir.join("specs");
+    crease_core::fsutil::create_dir_all(&specs)?;
+    // Distinct per run and per job, so every submission is a new job (and a resubmission the same one).
+    let run_token = format!(
+        "{}-{}",
+        std::process::id(),
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_millis())
+            .unwrap_or(0)
+    );
+    let mut plans = Vec::new();
+    for index in 0..a.jobs {
+        let case = index % cases.len();
+        let partition = (
+            cases[case].def.anchor_block,
+            FRAMES_PER_CHUNK[(index / cases.len()) % FRAMES_PER_CHUNK.len()],
+        );
+        let c = &cases[case];
+        let output = dir.join("out").join(format!("job-{index:03}"));
+        let spec = json!({
+            "name": format!("soak-{index:03}-{}", c.def.name),
+            "input": c.input.display().to_string(),
+            "output": output.display().to_string(),
+            "client_token": format!("soak-{run_token}-{index}"),
+            "max_task_attempts": max_attempts,
+            "max_task_failures_per_job": max_failures,
+            "folds": { "kind": "anchors", "uri": c.anchors.display().to_string() },
+            "deform": { "mode": c.def.mode, "window": WINDOW, "shift": SHIFT },
+            "partition": { "anchor_block": partition.0, "frames_per_chunk": partition.1 },
+            "preview": { "size": PREVIEW_SIZE },
+        });
+        let path = specs.join(format!("job-{index:03}.json"));
+        crease_core::fsutil::write_atomic(&path, serde_json::to_string_pretty(&spec)?.as_bytes())?;
+        plans.push(JobPlan {
+            index,
+            case,
+            partition,
+            spec: path,
+            output,
+        });
+    }
+    Ok(plans)
+}
+
+fn free_port() -> Result<u16> {
+    Ok(TcpListener::bind("127.0.0.1:0")
+        .context("finding a free loopback port")?
+        .local_addr()?
+        .port())
+}
+
+/// Starts the coordinator on a free loopback port (retrying if another process takes the port first) and
+/// waits until it accepts connections.
+fn start_coordinator(exe: &Path, dir: &Path, logs: &Path) -> Result<(Proc, String)> {
+    for _ in 0..5 {
+        let port = free_port()?;
+        let log = std::fs::File::create(logs.join("coordinator.log"))?;
+        let mut p = Proc(
+            Command::new(exe)
+                .args(["coordinator", "--listen", &format!("127.0.0.1:{port}")])
+                .arg("--db")
+                .arg(dir.join("queue.sqlite"))
+                .args(["--heartbeat-ms", "200", "--worker-timeout-ms", "2000"])
+                .args(["--retry-backoff-ms", "100"])
+                .stdout(Stdio::null())
+                .stderr(log)
+                .spawn()
+                .context("starting the coordinator")?,
+        );
+        let addr: SocketAddr = ([127, 0, 0, 1], port).into();
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(30) {
+            if TcpStream::connect_timeout(&addr, Duration::from_millis(200)).is_ok() {
+                return Ok((p, format!("http://127.0.0.1:{port}")));
+            }
+            if p.0.try_wait()?.is_some() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        p.kill();
+    }
+    bail!(
+        "the coordinator did not start; see {}",
+        logs.join("coordinator.log").display()
+    )
+}
+
+/// Starts worker `i` (generation `g` after `g` restarts) with one compute thread and one task at a time, so
+/// several workers on a small machine share its cores instead of oversubscribing them.
+fn spawn_worker(ctx: &Ctx, dir: &Path, i: usize, g: u32) -> Result<Proc> {
+    let log = std::fs::File::create(ctx.logs.join(format!("worker-{i}-gen{g}.log")))?;
+    let child = ctx
+        .crease()
+        .args(["--threads", "1", "worker", "--coordinator", &ctx.url])
+        .args(["--name", &format!("soak-w{i}-gen{g}")])
+        .args(["--capacity", "1", "--drain-secs", "5"])
+        .arg("--cache-dir")
+        .arg(dir.join("cache").join(format!("w{i}")))
+        .stdout(Stdio::null())
+        .stderr(log)
+        .spawn()
+        .context("starting a worker")?;
+    Ok(Proc(child))
+}
+
+struct Kill {
+    at: f64,
+    worker: usize,
+    generation: u32,
+    pid: u32,
+    down_ms: u64,
+}
+
+/// Kills random workers at random times (sorted uniform times within the window) and restarts each after a
+/// short random pause; stops early once every job has ended.
+fn chaos(
+    ctx: &Ctx,
+    dir: &Path,
+    workers: &Workers,
+    stop: &AtomicBool,
+    kills: usize,
+    window: f64,
+    seed: u64,
+) -> Result<Vec<Kill>> {
+    let mut rng = Rng(seed ^ 0xC4A0_5000);
+    let mut times: Vec<f64> = (0..kills)
+        .map(|_| 0.3 + rng.unit() * (window - 0.3).max(0.0))
+        .collect();
+    times.sort_by(f64::total_cmp);
+    let mut done = Vec::new();
+    for at in times {
+        while ctx.elapsed() < at {
+            if stop.load(Ordering::SeqCst) {
+                return Ok(done);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        if stop.load(Ordering::SeqCst) {
+            break;
+        }
+        let n = workers.lock().unwrap().len();
+        let i = rng.below(n);
+        let down_ms = 100 + rng.below(900) as u64;
+        let (pid, generation) = {
+            let mut w = workers.lock().unwrap();
+            let (proc, g) = &mut w[i];
+            let Some(mut p) = proc.take() else { continue };
+            let pid = p.0.id();
+            p.kill();
+            (pid, *g)
+        };
+        ctx.log(&format!(
+            "SIGKILL worker {i} (generation {generation}, pid {pid}); restart in {down_ms} ms"
+        ));
+        done.push(Kill {
+            at: ctx.elapsed(),
+            worker: i,
+            generation,
+            pid,
+            down_ms,
+        });
+        // The restart happens even if the jobs ended meanwhile: the cluster is left as it was found.
+        std::thread::sleep(Duration::from_millis(down_ms));
+        let p = spawn_worker(ctx, dir, i, generation + 1)?;
+        let mut w = workers.lock().unwrap();
+        w[i] = (Some(p), generation + 1);
+    }
+    Ok(done)
+}
+
+/// One job being followed by `crease submit --watch` (or, if that stream broke, by `crease watch`).
+struct InFlight {
+    plan: JobPlan,
+    proc: Proc,
+    started: Instant,
+    submitted_at: f64,
+    id: String,
+    submits: u32,
+}
+
+/// A client: submits its jobs one after another with short random pauses, each as `crease submit --watch`
+/// running concurrently with the others, and records when each ends.
+fn client(
+    ctx: &Ctx,
+    c: usize,
+    jobs: Vec<JobPlan>,
+    seed: u64,
+    total: usize,
+) -> Result<Vec<JobResult>> {
+    let mut rng = Rng(seed);
+    let mut flying: Vec<InFlight> = Vec::new();
+    let mut results = Vec::new();
+    for plan in jobs {
+        let pause = Instant::now() + Duration::from_millis(rng.below(150) as u64);
+        while Instant::now() < pause {
+            poll(ctx, c, &mut flying, &mut results, total)?;
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let started = Instant::now();
+        let submitted_at = ctx.elapsed();
+        let proc = submit(ctx, &plan)?;
+        flying.push(InFlight {
+            plan,
+            proc,
+            started,
+            submitted_at,
+            id: String::new(),
+            submits: 1,
+        });
+    }
+    while !flying.is_empty() {
+        if Instant::now() > ctx.deadline {
+            for mut f in flying.drain(..) {
+                // Its client process is stopped; the job id it printed is still in the pipe.
+                f.proc.kill();
+                read_id(&mut f);
+                ctx.log(&format!(
+                    "client {c}: job {} ({}) did not end before the deadline",
+                    f.plan.index, f.id
+                ));
+                results.push(JobResult {
+                    index: f.plan.index,
+                    client: c,
+                    case: f.plan.case,
+                    id: f.id,
+                    state: "unfinished".into(),
+                    submitted_at: f.submitted_at,
+                    partition: f.plan.partition,
+                    output: f.plan.output,
+                    ..Default::default()
+                });
+            }
+            break;
+        }
+        poll(ctx, c, &mut flying, &mut results, total)?;
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    Ok(results)
+}
+
+fn submit(ctx: &Ctx, plan: &JobPlan) -> Result<Proc> {
+    let log = std::fs::File::create(ctx.logs.join(format!("client-job-{:03}.log", plan.index)))?;
+    let child = ctx
+        .crease()
+        .arg("submit")
+        .arg(&plan.spec)
+        .args(["--watch", "--coordinator", &ctx.url])
+        .stdout(Stdio::piped())
+        .stderr(log)
+        .spawn()
+        .context("starting `crease submit`")?;
+    Ok(Proc(child))
+}
+
+/// Collects the jobs whose client process ended: a clean exit is a done job; otherwise the coordinator's
+/// status says whether the job ended (failed) or only the client's stream did (then follow it again).
+fn poll(
+    ctx: &Ctx,
+    c: usize,
+    flying: &mut Vec<InFlight>,
+    results: &mut Vec<JobResult>,
+    total: usize,
+) -> Result<()> {
+    let mut i = 0;
+    while i < flying.len() {
+        let Some(exit) = flying[i].proc.0.try_wait()? else {
+            i += 1;
+            continue;
+        };
+        let latency = flying[i].started.elapsed().as_secs_f64();
+        let f = &mut flying[i];
+        read_id(f);
+        let state = if exit.success() {
+            "done".to_string()
+        } else if f.id.is_empty() {
+            // Not even submitted: submit again (the client token makes a repeat harmless).
+            if f.submits >= 3 {
+                bail!(
+                    "client {c}: job {} could not be submitted; see {}",
+                    f.plan.index,
+                    ctx.logs
+                        .join(format!("client-job-{:03}.log", f.plan.index))
+                        .display()
+                );
+            }
+            f.submits += 1;
+            f.proc = submit(ctx, &f.plan)?;
+            i += 1;
+            continue;
+        } else {
+            let s = job_status(ctx, &f.id)?;
+            let state = s["state"].as_str().unwrap_or("?").to_string();
+            if !matches!(state.as_str(), "done" | "failed" | "cancelled") {
+                ctx.log(&format!(
+                    "client {c}: lost the stream of {} ({state}); watching again",
+                    f.id
+                ));
+                f.proc = Proc(
+                    ctx.crease()
+                        .args(["watch", &f.id, "--coordinator", &ctx.url])
+                        .stdout(Stdio::null())
+                        .stderr(Stdio::null())
+                        .spawn()
+                        .context("starting `crease watch`")?,
+                );
+                i += 1;
+                continue;
+            }
+            state
+        };
+        let f = flying.swap_remove(i);
+        let n = ctx.ended.fetch_add(1, Ordering::SeqCst) + 1;
+        ctx.log(&format!(
+            "client {c}: {} ({}) {state} in {latency:.2}s [{n}/{total} ended]",
+            f.id,
+            f.plan
+                .spec
+                .file_stem()
+                .unwrap_or_default()
+                .to_string_lossy(),
+        ));
+        results.push(JobResult {
+            index: f.plan.index,
+            client: c,
+            case: f.plan.case,
+            id: f.id,
+            state,
+            submitted_at: f.submitted_at,
+            latency: Some(latency),
+            partition: f.plan.partition,
+            output: f.plan.output,
+            ..Default::default()
+        });
+    }
+    Ok(())
+}
+
+/// The job id `crease submit` printed first on its standard output, once the process has ended.
+fn read_id(f: &mut InFlight) {
+    if f.id.is_empty() {
+        let mut out = String::new();
+        if let Some(mut s) = f.proc.0.stdout.take() {
+            let _ = s.read_to_string(&mut out);
+        }
+        f.id = out.lines().next().unwrap_or("").trim().to_string();
+    }
+}
+
+fn job_status(ctx: &Ctx, id: &str) -> Result<serde_json::Value> {
+    let o = ctx
+        .crease()
+        .args(["status", id, "--json", "--coordinator", &ctx.url])
+        .output()
+        .context("running `crease status`")?;
+    if !o.status.success() {
+        bail!(
+            "crease status {id}: {}",
+            String::from_utf8_lossy(&o.stderr).trim()
+        );
+    }
+    serde_json::from_slice(&o.stdout).with_context(|| format!("crease status {id}: not JSON"))
+}
+
+/// Every file of an output except `report.json` (it holds timings), hidden files and directories.
+fn output_files(dir: &Path) -> Result<BTreeMap<String, Vec<u8>>> {
+    let mut m = BTreeMap::new();
+    for e in std::fs::read_dir(dir).with_context(|| format!("listing {}", dir.display()))? {
+        let e = e?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name == "report.json" || name.starts_with('.') || e.path().is_dir() {
+            continue;
+        }
+        let bytes =
+            std::fs::read(e.path()).with_context(|| format!("reading {}", e.path().display()))?;
+        m.insert(name, bytes);
+    }
+    Ok(m)
+}
+
+/// The files that differ between a reference and an output (or are missing from either); also requires the
+/// output's report to say it is complete.
+fn compare(reference: &Path, out: &Path) -> Result<Vec<String>> {
+    let mut differs = Vec::new();
+    let report: Option<serde_json::Value> = std::fs::read(out.join("report.json"))
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok());
+    if report.is_none_or(|r| r["complete"] != true) {
+        differs.push("report.json (missing or not complete)".to_string());
+    }
+    let a = output_files(reference)?;
+    let b = output_files(out)?;
+    for (k, v) in &a {
+        if b.get(k) != Some(v) {
+            differs.push(k.clone());
+        }
+    }
+    differs.extend(b.keys().filter(|k| !a.contains_key(*k)).cloned());
+    Ok(differs)
+}
+
+/// Nearest-rank percentile of sorted values.
+fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let rank = ((p / 100.0) * sorted.len() as f64).ceil() as usize;
+    sorted[rank.clamp(1, sorted.len()) - 1]
+}
+
+fn summarise(
+    a: &SoakArgs,
+    cases: &[Case],
+    results: &[JobResult],
+    kills: &[Kill],
+    wall: f64,
+    dir: &Path,
+    kept: bool,
+) -> serde_json::Value {
+    let done = results.iter().filter(|r| r.state == "done").count();
+    let unfinished = a.jobs - results.iter().filter(|r| r.state != "unfinished").count();
+    let failed = a.jobs - done - unfinished;
+    let mismatched = results
+        .iter()
+        .filter(|r| r.state == "done" && !r.identical)
+        .count();
+    let mut lat: Vec<f64> = results
+        .iter()
+        .filter(|r| r.state == "done")
+        .filter_map(|r| r.latency)
+        .collect();
+    lat.sort_by(f64::total_cmp);
+    let mean = if lat.is_empty() {
+        f64::NAN
+    } else {
+        lat.iter().sum::<f64>() / lat.len() as f64
+    };
+    let nan_null = |x: f64| if x.is_finite() { json!(x) } else { json!(null) };
+    json!({
+        "jobs": a.jobs, "clients": a.clients, "workers": a.workers, "seed": a.seed,
+        "kills_max": a.kills, "kill_window_secs": a.kill_window_secs,
+        "done": done, "failed": failed, "unfinished": unfinished, "mismatched": mismatched,
+        "kills": kills.len(),
+        "tasks": results.iter().map(|r| r.tasks).sum::<u64>(),
+        "tasks_retried": results.iter().map(|r| r.retried).sum::<u64>(),
+        "wall_seconds": wall,
+        "jobs_per_minute": done as f64 / (wall / 60.0),
+        "latency_seconds": {
+            "p50": nan_null(percentile(&lat, 50.0)), "p95": nan_null(percentile(&lat, 95.0)),
+            "max": nan_null(lat.last().copied().unwrap_or(f64::NAN)), "mean": nan_null(mean),
+        },
+        "max_task_attempts": a.kills + 3,
+        "dir": if kept { json!(dir.display().to_string()) } else { json!(null) },
+        "cases": cases.iter().map(|c| json!({
+            "name": c.def.name, "triangles": c.def.triangles, "frames": c.def.frames, "mode": c.def.mode,
+            "anchors": c.anchors_total, "input": c.input.display().to_string(),
+            "anchors_file": c.anchors.display().to_string(), "reference": c.reference.display().to_string(),
+            "reference_seconds": c.reference_seconds,
+            "run_args": ["--mode", c.def.mode, "--window", WINDOW.to_string(), "--shift", SHIFT.to_string(),
+                "--anchor-block", c.def.anchor_block.to_string(), "--preview-size", PREVIEW_SIZE.to_string()],
+        })).collect::<Vec<_>>(),
+        "kill_log": kills.iter().map(|k| json!({
+            "at_seconds": k.at, "worker": k.worker, "generation": k.generation, "pid": k.pid, "down_ms": k.down_ms,
+        })).collect::<Vec<_>>(),
+        "job_results": results.iter().map(|r| json!({
+            "index": r.index, "id": r.id, "client": r.client, "case": cases[r.case].def.name, "state": r.state,
+            "message": r.message, "submitted_at_seconds": r.submitted_at, "latency_seconds": r.latency,
+            "tasks": r.tasks, "tasks_retried": r.retried, "identical": r.identical, "differs": r.differs,
+            "output": r.output.display().to_string(),
+            "partition": {"anchor_block": r.partition.0, "frames_per_chunk": r.partition.1},
+            "reference": cases[r.case].reference.display().to_string(),
+        })).collect::<Vec<_>>(),
+    })
+}
+
+fn print_summary(s: &serde_json::Value, results: &[JobResult], cases: &[Case]) {
+    let f = |k: &str| s["latency_seconds"][k].as_f64().unwrap_or(f64::NAN);
+    let n = |k: &str| s[k].as_u64().unwrap_or(0);
+    println!(
+        "crease bench --soak: {} jobs from {} clients on {} workers, {} kills (at most {} within {}s), seed {}",
+        s["jobs"], s["clients"], s["workers"], s["kills"], s["kills_max"], s["kill_window_secs"], s["seed"]
+    );
+    println!(
+        "{:<28} {:>5} {:>5} {:>7} {:>9} {:>8}",
+        "case", "jobs", "done", "tasks", "retried", "p50 s"
+    );
+    for (k, c) in cases.iter().enumerate() {
+        let mine: Vec<&JobResult> = results.iter().filter(|r| r.case == k).collect();
+        let mut lat: Vec<f64> = mine
+            .iter()
+            .filter(|r| r.state == "done")
+            .filter_map(|r| r.latency)
+            .collect();
+        lat.sort_by(f64::total_cmp);
+        println!(
+            "{:<28} {:>5} {:>5} {:>7} {:>9} {:>8.2}",
+            c.def.name,
+            mine.len(),
+            mine.iter().filter(|r| r.state == "done").count(),
+            mine.iter().map(|r| r.tasks).sum::<u64>(),
+            mine.iter().map(|r| r.retried).sum::<u64>(),
+            percentile(&lat, 50.0)
+        );
+    }
+    println!(
+        "{:>5} {:>6} {:>10} {:>10} {:>6} {:>8} {:>8} {:>9} {:>7} {:>7} {:>7}",
+        "done",
+        "failed",
+        "unfinished",
+        "mismatched",
+        "kills",
+        "retried",
+        "wall s",
+        "jobs/min",
+        "p50 s",
+        "p95 s",
+        "max s"
+    );
+    println!(
+        "{:>5} {:>6} {:>10} {:>10} {:>6} {:>8} {:>8.1} {:>9.1} {:>7.2} {:>7.2} {:>7.2}",
+        n("done"),
+        n("failed"),
+        n("unfinished"),
+        n("mismatched"),
+        n("kills"),
+        n("tasks_retried"),
+        s["wall_seconds"].as_f64().unwrap_or(f64::NAN),
+        s["jobs_per_minute"].as_f64().unwrap_or(f64::NAN),
+        f("p50"),
+        f("p95"),
+        f("max")
+    );
+    for r in results.iter().filter(|r| r.state != "done" || !r.identical) {
+        println!(
+            "  job {} ({}) {}: {}{}",
+            r.index,
+            r.id,
+            r.state,
+            r.message,
+            if r.differs.is_empty() {
+                String::new()
+            } else {
+                format!(" differs: {}", r.differs.join(", "))
+            }
+        );
+    }
+    println!(
+        "latency = `crease submit --watch` start to exit (submit -> done) per job; jobs/min = done jobs / wall \
+         minutes from the first submission; retried = task attempts beyond the first"
+    );
+}

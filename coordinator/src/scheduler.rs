@@ -565,10 +565,10 @@ impl Scheduler {
             Outcome::Done { job_done } => {
                 self.metrics.task_done(&claim.kind, wall);
                 info!(
-                    job_id,
-                    task = key,
+                    job_id = %job_id,
+                    task = %key,
                     attempt = claim.attempt,
-                    worker = wid,
+                    worker = %wid,
                     kind = %claim.kind,
                     wall_seconds = wall,
                     "task done in {wall:.2}s"
@@ -703,8 +703,8 @@ impl Scheduler {
     fn drop_worker(&self, wid: &str, why: &str) {
         if lock(&self.workers).remove(wid).is_some() {
             warn!(
-                worker = wid,
-                reason = why,
+                worker = %wid,
+                reason = %why,
                 "coordinator: worker {wid} dropped: {why}"
             );
             let _ = lock(&self.store).set_worker_state(wid, "lost");

@@ -148,3 +148,47 @@ impl CoordinatorMetrics {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gauges_come_from_the_snapshot_and_every_job_state_is_exported() {
+        let m = CoordinatorMetrics::default();
+        m.task_done("position", 0.5);
+        m.task_done("position", 2.0);
+        m.retry();
+        m.failure();
+        let text = m.render(&Snapshot {
+            queue: QueueGauges {
+                queue_depth: 7,
+                tasks_running: 3,
+                jobs: vec![("running".into(), 2)],
+            },
+            workers_live: 2,
+            workers_draining: 1,
+        });
+        for line in [
+            "crease_queue_depth 7",
+            "crease_tasks_running 3",
+            "crease_workers{state=\"live\"} 2",
+            "crease_workers{state=\"draining\"} 1",
+            "crease_jobs{state=\"running\"} 2",
+            "crease_jobs{state=\"cancelled\"} 0",
+            "crease_task_duration_seconds_count{kind=\"position\"} 2",
+            "crease_task_retries_total 1",
+            "crease_task_failures_total 1",
+        ] {
+            assert!(text.lines().any(|l| l == line), "no `{line}` in\n{text}");
+        }
+        // A later scrape reflects the state then, not a running total.
+        let text = m.render(&Snapshot::default());
+        assert!(text.lines().any(|l| l == "crease_queue_depth 0"), "{text}");
+        assert!(
+            text.lines()
+                .any(|l| l == "crease_jobs{state=\"running\"} 0"),
+            "{text}"
+        );
+    }
+}

@@ -95,3 +95,29 @@ impl WorkerMetrics {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_attempts_by_kind_and_outcome_and_reports_readiness() {
+        let m = WorkerMetrics::new(4);
+        assert!(!m.registered());
+        m.set_registered(true);
+        assert!(m.registered());
+        m.task_finished("position", "done", 0.2);
+        m.task_finished("position", "done", 0.3);
+        m.task_finished("position", "failed", 0.1);
+        let text = m.render(2);
+        for line in [
+            "crease_worker_tasks_running 2",
+            "crease_worker_capacity 4",
+            "crease_worker_tasks_total{kind=\"position\",outcome=\"done\"} 2",
+            "crease_worker_tasks_total{kind=\"position\",outcome=\"failed\"} 1",
+            "crease_worker_task_duration_seconds_count{kind=\"position\"} 3",
+        ] {
+            assert!(text.lines().any(|l| l == line), "no `{line}` in\n{text}");
+        }
+    }
+}

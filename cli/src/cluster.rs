@@ -14,7 +14,7 @@ use std::time::Duration;
 
 const DEFAULT_COORDINATOR: &str = "http://127.0.0.1:7070";
 
-fn runtime() -> Result<tokio::runtime::Runtime> {
+pub(crate) fn runtime() -> Result<tokio::runtime::Runtime> {
     tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()
@@ -67,6 +67,8 @@ pub struct CoordinatorArgs {
     /// First retry delay in milliseconds (doubles per attempt).
     #[arg(long, default_value_t = 200)]
     pub retry_backoff_ms: u64,
+    #[command(flatten)]
+    pub obs: crate::logging::ObsArgs,
 }
 
 pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
@@ -76,6 +78,7 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
             a.grace_secs
         );
     }
+    crate::logging::init(&a.obs)?;
     let config = CoordinatorConfig {
         db: Some(a.db.clone()),
         heartbeat_interval: Duration::from_millis(a.heartbeat_ms.max(10)),
@@ -94,12 +97,29 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
             let _ = stop_tx.send(true);
         });
         let mut graceful = stop_rx.clone();
+        let observed = std::sync::Arc::clone(&scheduler);
         let (addr, serve) = crease_coordinator::server::serve(scheduler, a.listen, async move {
             let _ = graceful.changed().await;
         })
         .await
         .with_context(|| format!("listening on {}", a.listen))?;
-        eprintln!("coordinator listening on {addr} (queue {})", a.db.display());
+        tracing::info!(
+            address = %addr,
+            "coordinator listening on {addr} (queue {})",
+            a.db.display()
+        );
+        if let Some(at) = a.obs.metrics_listen {
+            // Ready while the queue is open and the gRPC server has not begun to shut down.
+            let stopping = stop_rx.clone();
+            let (bound, _) = crease_telemetry::http::serve(
+                at,
+                std::sync::Arc::new(move || observed.metrics_text()),
+                std::sync::Arc::new(move || !*stopping.borrow()),
+            )
+            .await
+            .with_context(|| format!("serving metrics on {at}"))?;
+            tracing::info!(address = %bound, "metrics listening on {bound}");
+        }
         // Open WatchJob streams would hold a graceful shutdown forever: give them a moment, then stop anyway
         // (the queue is in SQLite, so nothing is lost).
         let mut forced = stop_rx;
@@ -108,9 +128,9 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
             _ = async {
                 let _ = forced.changed().await;
                 tokio::time::sleep(Duration::from_secs(3)).await;
-            } => eprintln!("coordinator: closing the remaining client streams"),
+            } => tracing::info!("coordinator: closing the remaining client streams"),
         }
-        eprintln!("coordinator stopped");
+        tracing::info!("coordinator stopped");
         Ok(())
     })
 }
@@ -141,12 +161,15 @@ pub struct WorkerArgs {
     /// Protocol version to announce (testing only).
     #[arg(long, hide = true, default_value_t = crease_proto::PROTOCOL_VERSION)]
     pub protocol_version: u32,
+    #[command(flatten)]
+    pub obs: crate::logging::ObsArgs,
 }
 
 pub fn worker(a: WorkerArgs) -> Result<()> {
     if a.capacity == 0 {
         bail!("--capacity must be at least 1");
     }
+    crate::logging::init(&a.obs)?;
     if !(a.drain_secs.is_finite() && a.drain_secs >= 0.0) {
         bail!(
             "--drain-secs must be a non-negative number, got {}",
@@ -169,6 +192,7 @@ pub fn worker(a: WorkerArgs) -> Result<()> {
         drain_timeout: Duration::from_secs_f64(a.drain_secs),
         protocol_version: a.protocol_version,
         log: true,
+        metrics_listen: a.obs.metrics_listen,
     };
     runtime()?.block_on(crease_worker::run(config, shutdown_signal()))?;
     Ok(())

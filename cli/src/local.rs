@@ -58,6 +58,7 @@ impl LocalCluster {
                 drain_timeout: Duration::from_secs(5),
                 protocol_version: crease_proto::PROTOCOL_VERSION,
                 log: false,
+                metrics_listen: None,
             };
             stops.insert(0, tx);
             handles.insert(

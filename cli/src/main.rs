@@ -8,6 +8,8 @@ mod eval;
 mod folds_stretch;
 mod folds_video;
 mod local;
+mod logging;
+mod logs;
 mod progress;
 mod run;
 
@@ -51,6 +53,8 @@ enum Command {
     Cancel(cluster::JobArgs),
     /// List the coordinator's jobs.
     Jobs(cluster::JobsArgs),
+    /// Log tail of a job's task attempts (all tasks, or one).
+    Logs(logs::LogsArgs),
 }
 
 fn main() {
@@ -76,6 +80,7 @@ fn main() {
         Command::Watch(a) => cluster::watch(a),
         Command::Cancel(a) => cluster::cancel(a),
         Command::Jobs(a) => cluster::jobs(a),
+        Command::Logs(a) => logs::logs(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

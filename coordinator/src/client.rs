@@ -48,6 +48,12 @@ pub trait JobClient: Send + Sync {
     /// Returns the job's state after the request.
     fn cancel(&self, job_id: &str) -> impl Future<Output = Result<String, ClientError>> + Send;
     fn watch(&self, job_id: &str) -> impl Future<Output = Result<EventStream, ClientError>> + Send;
+    /// Log tails of a job's task attempts (`task_key`: one task, or all).
+    fn logs(
+        &self,
+        job_id: &str,
+        task_key: Option<&str>,
+    ) -> impl Future<Output = Result<Vec<pb::TaskAttemptLog>, ClientError>> + Send;
 }
 
 /// gRPC client of a coordinator.
@@ -131,6 +137,23 @@ impl JobClient for RemoteClient {
             .into_inner();
         Ok(stream.map(|r| r.map_err(ClientError::from)).boxed())
     }
+
+    async fn logs(
+        &self,
+        job_id: &str,
+        task_key: Option<&str>,
+    ) -> Result<Vec<pb::TaskAttemptLog>, ClientError> {
+        Ok(self
+            .inner
+            .clone()
+            .get_task_logs(pb::GetTaskLogsRequest {
+                job_id: job_id.to_string(),
+                task_key: task_key.unwrap_or_default().to_string(),
+            })
+            .await?
+            .into_inner()
+            .attempts)
+    }
 }
 
 /// In-process client of a scheduler (single-node mode).
@@ -165,5 +188,13 @@ impl JobClient for LocalClient {
     async fn watch(&self, job_id: &str) -> Result<EventStream, ClientError> {
         let rx = self.scheduler.watch(job_id)?;
         Ok(ReceiverStream::new(rx).map(Ok).boxed())
+    }
+
+    async fn logs(
+        &self,
+        job_id: &str,
+        task_key: Option<&str>,
+    ) -> Result<Vec<pb::TaskAttemptLog>, ClientError> {
+        Ok(self.scheduler.task_logs(job_id, task_key)?.attempts)
     }
 }

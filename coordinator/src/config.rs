@@ -19,7 +19,8 @@ pub struct CoordinatorConfig {
     /// First retry delay; doubles per attempt up to `retry_backoff_max`.
     pub retry_backoff: Duration,
     pub retry_backoff_max: Duration,
-    /// Log registrations, lost workers and retries to stderr.
+    /// Kept for callers that set it: logs are `tracing` events now, printed only where the process installed a
+    /// subscriber (the `crease coordinator` command does, local single-node mode does not).
     pub log: bool,
 }
 

@@ -8,17 +8,14 @@
 //! of its tasks while another worker can take them; after a restart the tasks that were running are queued
 //! again; with no live worker a job reports `waiting` and fails after the grace period.
 
-/// `eprintln!` when `$on` (logging is off in local single-node mode, where the CLI owns stderr).
-macro_rules! log {
-    ($on:expr, $($t:tt)*) => {
-        if $on {
-            eprintln!($($t)*)
-        }
-    };
-}
+//!
+//! Logs are `tracing` events with `job_id`, `task`, `attempt` and `worker` fields; the process that embeds the
+//! coordinator decides whether and how they are printed (local single-node mode installs no subscriber, so it
+//! prints nothing). Metrics for Prometheus are in [`metrics`].
 
 pub mod client;
 pub mod config;
+pub mod metrics;
 pub mod scheduler;
 pub mod server;
 pub mod state;

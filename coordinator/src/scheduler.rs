@@ -4,6 +4,7 @@
 //! client ([`crate::client::LocalClient`]) do goes through here.
 
 use crate::config::CoordinatorConfig;
+use crate::metrics::{CoordinatorMetrics, Snapshot};
 use crate::state::store::{
     Claim, Failure, JobRow, JobState, NewJob, NewTask, Outcome, Store, StoreError,
 };
@@ -15,6 +16,7 @@ use std::collections::HashSet;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 use tokio::sync::{broadcast, mpsc, Notify};
+use tracing::{info, warn};
 
 /// Errors of client and worker requests, mapped to gRPC codes by the server.
 #[derive(Debug, thiserror::Error)]
@@ -53,6 +55,7 @@ pub struct Scheduler {
     /// When the farm last became empty (coordinator start counts as empty).
     no_workers_since: Mutex<Option<Instant>>,
     next_worker: Mutex<u32>,
+    metrics: CoordinatorMetrics,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -74,7 +77,10 @@ impl Scheduler {
         };
         let requeued = store.recover()?;
         if requeued > 0 {
-            log!(config.log, "coordinator: recovered the queue, {requeued} task(s) that were running are queued again");
+            info!(
+                requeued,
+                "coordinator: recovered the queue, {requeued} task(s) that were running are queued again"
+            );
         }
         let next = store.worker_count()?;
         let (events, _) = broadcast::channel(4096);
@@ -86,6 +92,7 @@ impl Scheduler {
             wake: Notify::new(),
             no_workers_since: Mutex::new(Some(Instant::now())),
             next_worker: Mutex::new(next),
+            metrics: CoordinatorMetrics::default(),
         }))
     }
 
@@ -105,7 +112,7 @@ impl Scheduler {
                 _ = tokio::time::sleep(tick) => {}
             }
             if let Err(e) = self.tick() {
-                log!(self.config.log, "coordinator: {e}");
+                warn!(error = %e, "coordinator: {e}");
             }
         }
     }
@@ -290,8 +297,11 @@ impl Scheduler {
             draining: false,
             client,
         });
-        log!(
-            self.config.log,
+        info!(
+            worker = %id,
+            name = %req.name,
+            address = %req.address,
+            capacity = req.capacity,
             "coordinator: worker {id} `{}` at {} registered, capacity {}",
             req.name,
             req.address,
@@ -311,7 +321,7 @@ impl Scheduler {
             Some(w) => {
                 w.last_seen = Instant::now();
                 if req.draining && !w.draining {
-                    log!(self.config.log, "coordinator: worker {} is draining", w.id);
+                    info!(worker = %w.id, "coordinator: worker {} is draining", w.id);
                 }
                 w.draining = req.draining;
                 pb::HeartbeatResponse { known: true }
@@ -353,16 +363,25 @@ impl Scheduler {
             let Some(claim) = lock(&self.store).claim(&t.job_id, &t.key, &wid)? else {
                 continue;
             };
-            let client = {
+            let (client, name) = {
                 let mut workers = lock(&self.workers);
                 match workers.get_mut(&wid) {
                     Some(w) => {
                         w.running += 1;
-                        w.client.clone()
+                        (w.client.clone(), w.name.clone())
                     }
                     None => continue,
                 }
             };
+            info!(
+                job_id = %claim.job_id,
+                task = %claim.key,
+                attempt = claim.attempt,
+                worker = %wid,
+                kind = %claim.kind,
+                "dispatched to worker {wid} `{name}`"
+            );
+            self.task_log(&claim, &format!("dispatched to worker {wid} `{name}`"));
             self.emit(
                 &claim.job_id,
                 "task_started",
@@ -399,6 +418,8 @@ impl Scheduler {
                 reason,
             })
         };
+        let started = Instant::now();
+        let mut worker_tail = Vec::new();
         let reported = match client.execute(req).await {
             Err(status) => {
                 // The worker never started the task (unreachable or draining): not the task's fault.
@@ -417,7 +438,10 @@ impl Scheduler {
                 let mut stream = resp.into_inner();
                 loop {
                     match stream.message().await {
-                        Ok(Some(pb::TaskEvent { event: Some(ev) })) => match ev {
+                        Ok(Some(pb::TaskEvent {
+                            event: Some(ev),
+                            log_tail,
+                        })) => match ev {
                             pb::task_event::Event::Progress(p) => self.emit(
                                 &claim.job_id,
                                 "task_progress",
@@ -426,14 +450,18 @@ impl Scheduler {
                                 p.done,
                                 p.total,
                             ),
-                            pb::task_event::Event::Result(r) => break Reported::Done(r.output),
+                            pb::task_event::Event::Result(r) => {
+                                worker_tail = log_tail;
+                                break Reported::Done(r.output);
+                            }
                             pb::task_event::Event::Failure(f) => {
+                                worker_tail = log_tail;
                                 break Reported::Failed(Failure {
                                     retryable: f.retryable,
                                     counts: !f.cancelled,
                                     cancelled: f.cancelled,
                                     reason: f.reason,
-                                })
+                                });
                             }
                         },
                         Ok(Some(_)) => {}
@@ -459,9 +487,22 @@ impl Scheduler {
         if let Some(w) = lock(&self.workers).get_mut(&wid) {
             w.running = w.running.saturating_sub(1);
         }
-        if let Err(e) = self.report(&claim, &wid, reported).await {
-            log!(
-                self.config.log,
+        if !worker_tail.is_empty() {
+            let lines: Vec<String> = worker_tail.iter().map(|l| format!("{wid}: {l}")).collect();
+            if let Err(e) =
+                lock(&self.store).append_task_log(&claim.job_id, &claim.key, claim.attempt, &lines)
+            {
+                warn!(job_id = %claim.job_id, task = %claim.key, error = %e, "cannot store the task's log tail: {e}");
+            }
+        }
+        let wall = started.elapsed().as_secs_f64();
+        if let Err(e) = self.report(&claim, &wid, reported, wall).await {
+            warn!(
+                job_id = %claim.job_id,
+                task = %claim.key,
+                attempt = claim.attempt,
+                worker = %wid,
+                error = %e,
                 "coordinator: job {} task `{}`: {e}",
                 claim.job_id,
                 claim.key
@@ -471,7 +512,13 @@ impl Scheduler {
     }
 
     /// Applies an attempt's outcome to the queue.
-    async fn report(&self, claim: &Claim, wid: &str, reported: Reported) -> Result<(), StoreError> {
+    async fn report(
+        &self,
+        claim: &Claim,
+        wid: &str,
+        reported: Reported,
+        wall: f64,
+    ) -> Result<(), StoreError> {
         let (job_id, key) = (claim.job_id.as_str(), claim.key.as_str());
         let outcome = match reported {
             Reported::Done(bytes) => match serde_json::from_slice::<TaskOutput>(&bytes) {
@@ -516,6 +563,17 @@ impl Scheduler {
         match outcome {
             Outcome::Stale => {}
             Outcome::Done { job_done } => {
+                self.metrics.task_done(&claim.kind, wall);
+                info!(
+                    job_id = %job_id,
+                    task = %key,
+                    attempt = claim.attempt,
+                    worker = %wid,
+                    kind = %claim.kind,
+                    wall_seconds = wall,
+                    "task done in {wall:.2}s"
+                );
+                self.task_log(claim, &format!("done in {wall:.2}s on {wid}"));
                 let (done, total) = self.progress_of(job_id);
                 self.emit(job_id, "task_done", key, "", done, total);
                 if job_done {
@@ -552,16 +610,45 @@ impl Scheduler {
         let backoff = self.config.backoff(claim.attempt).as_secs_f64();
         let outcome =
             lock(&self.store).fail(&claim.job_id, &claim.key, claim.attempt, wid, f, backoff)?;
-        if matches!(outcome, Outcome::Retry { .. }) {
-            log!(
-                self.config.log,
-                "coordinator: job {} task `{}` attempt {} failed on {wid}: {}",
-                claim.job_id,
-                claim.key,
-                claim.attempt,
-                f.reason
-            );
+        if f.counts && !matches!(outcome, Outcome::Stale | Outcome::Cancelled) {
+            self.metrics.failure();
         }
+        let line = match &outcome {
+            Outcome::Retry { .. } => {
+                self.metrics.retry();
+                warn!(
+                    job_id = %claim.job_id,
+                    task = %claim.key,
+                    attempt = claim.attempt,
+                    worker = %wid,
+                    error = %f.reason,
+                    "coordinator: job {} task `{}` attempt {} failed on {wid}: {}",
+                    claim.job_id,
+                    claim.key,
+                    claim.attempt,
+                    f.reason
+                );
+                if f.counts {
+                    format!("failed on {wid}: {}; queued again", f.reason)
+                } else {
+                    format!("handed back by {wid}: {}; queued again", f.reason)
+                }
+            }
+            Outcome::JobFailed { message } => {
+                warn!(
+                    job_id = %claim.job_id,
+                    task = %claim.key,
+                    attempt = claim.attempt,
+                    worker = %wid,
+                    error = %f.reason,
+                    "job failed: {message}"
+                );
+                format!("failed on {wid}: {}; the job failed", f.reason)
+            }
+            Outcome::Cancelled => format!("stopped on {wid}: the job ended"),
+            Outcome::Stale | Outcome::Done { .. } => return Ok(outcome),
+        };
+        self.task_log(claim, &line);
         Ok(outcome)
     }
 
@@ -615,7 +702,11 @@ impl Scheduler {
     /// heartbeat is answered `known: false` and it registers again.
     fn drop_worker(&self, wid: &str, why: &str) {
         if lock(&self.workers).remove(wid).is_some() {
-            log!(self.config.log, "coordinator: worker {wid} dropped: {why}");
+            warn!(
+                worker = %wid,
+                reason = %why,
+                "coordinator: worker {wid} dropped: {why}"
+            );
             let _ = lock(&self.store).set_worker_state(wid, "lost");
         }
     }
@@ -713,6 +804,68 @@ impl Scheduler {
             .counts(job_id)
             .map(|c| (c.done as u64, c.total as u64))
             .unwrap_or((0, 0))
+    }
+
+    /// Appends one of the coordinator's own lines to an attempt's log (`crease logs`).
+    fn task_log(&self, claim: &Claim, message: &str) {
+        let line = crease_telemetry::tail::stamp("coordinator", message);
+        if let Err(e) =
+            lock(&self.store).append_task_log(&claim.job_id, &claim.key, claim.attempt, &[line])
+        {
+            warn!(job_id = %claim.job_id, task = %claim.key, error = %e, "cannot store a task log line: {e}");
+        }
+    }
+
+    /// The log of a job's task attempts (one task, or all); unknown jobs and tasks are named in the error.
+    pub fn task_logs(
+        &self,
+        job_id: &str,
+        task_key: Option<&str>,
+    ) -> Result<pb::GetTaskLogsResponse, ApiError> {
+        let store = lock(&self.store);
+        store.job(job_id)?;
+        if let Some(key) = task_key {
+            if !store.has_task(job_id, key)? {
+                return Err(ApiError::NotFound(format!(
+                    "job {job_id} has no task `{key}`"
+                )));
+            }
+        }
+        let attempts = store
+            .task_logs(job_id, task_key)?
+            .into_iter()
+            .map(|a| pb::TaskAttemptLog {
+                task_key: a.task_key,
+                attempt: a.attempt,
+                worker: a.worker,
+                outcome: a.outcome,
+                error: a.error,
+                started_unix: a.started,
+                finished_unix: a.finished,
+                lines: a.lines,
+            })
+            .collect();
+        Ok(pb::GetTaskLogsResponse { attempts })
+    }
+
+    /// The metrics text for a scrape: gauges read from the queue and the worker registry now.
+    pub fn metrics_text(&self) -> String {
+        let queue = match lock(&self.store).gauges() {
+            Ok(g) => g,
+            Err(e) => {
+                warn!(error = %e, "metrics: cannot read the queue: {e}");
+                Default::default()
+            }
+        };
+        let (live, total) = {
+            let w = lock(&self.workers);
+            (w.live() as i64, w.ids().len() as i64)
+        };
+        self.metrics.render(&Snapshot {
+            queue,
+            workers_live: live,
+            workers_draining: total - live,
+        })
     }
 
     fn emit(&self, job_id: &str, kind: &str, key: &str, message: &str, done: u64, total: u64) {

@@ -85,6 +85,15 @@ impl Coordinator for CoordinatorService {
         Ok(Response::new(Box::pin(stream)))
     }
 
+    async fn get_task_logs(
+        &self,
+        req: Request<pb::GetTaskLogsRequest>,
+    ) -> Result<Response<pb::GetTaskLogsResponse>, Status> {
+        let r = req.into_inner();
+        let key = (!r.task_key.is_empty()).then_some(r.task_key.as_str());
+        Ok(Response::new(self.scheduler.task_logs(&r.job_id, key)?))
+    }
+
     async fn register_worker(
         &self,
         req: Request<pb::RegisterWorkerRequest>,

@@ -9,15 +9,12 @@
 //! makes the worker wait (cancellably) before running tasks of those kinds, so a test can kill a worker or
 //! cancel a job while a task is known to be in flight on tiny inputs.
 
-/// `eprintln!` when `$on` (logging is off in local single-node mode, where the CLI owns stderr).
-macro_rules! log {
-    ($on:expr, $($t:tt)*) => {
-        if $on {
-            eprintln!($($t)*)
-        }
-    };
-}
+//!
+//! Logs are `tracing` events (every one about a task carries `job_id`, `task` and `attempt`); each attempt's
+//! events and stage messages are also kept in a bounded tail sent back with its result (`crease logs`).
+//! [`metrics`] holds the Prometheus metrics and readiness served on `metrics_listen`.
 
+pub mod metrics;
 pub mod report;
 pub mod running;
 pub mod servant;
@@ -28,6 +25,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio_stream::wrappers::TcpListenerStream;
+use tracing::{info, warn};
 
 /// Worker settings.
 #[derive(Debug, Clone)]
@@ -47,8 +45,11 @@ pub struct WorkerConfig {
     pub drain_timeout: Duration,
     /// Protocol version announced at registration (tests announce a wrong one).
     pub protocol_version: u32,
-    /// Log registration, drain and shutdown to stderr.
+    /// Kept for callers that set it: logs are `tracing` events now, printed only where the process installed a
+    /// subscriber (the `crease worker` command does, local single-node mode does not).
     pub log: bool,
+    /// Where to serve `/metrics`, `/healthz` and `/readyz` over HTTP (none: no HTTP server).
+    pub metrics_listen: Option<SocketAddr>,
 }
 
 /// Errors that stop a worker.
@@ -63,6 +64,11 @@ pub enum WorkerError {
     Refused(String),
     #[error("worker: gRPC server: {0}")]
     Serve(String),
+    #[error("worker: cannot serve metrics on {addr}: {source}")]
+    Metrics {
+        addr: SocketAddr,
+        source: std::io::Error,
+    },
 }
 
 /// Runs a worker until `shutdown` resolves, then drains. Returns an error when the coordinator refuses it.
@@ -86,7 +92,26 @@ pub async fn run(
         .advertise
         .clone()
         .unwrap_or_else(|| format!("http://{addr}"));
-    let state = Arc::new(running::Tasks::new(config.cache_dir.clone()));
+    let metrics = Arc::new(metrics::WorkerMetrics::new(config.capacity));
+    let state = Arc::new(running::Tasks::new(
+        config.cache_dir.clone(),
+        Arc::clone(&metrics),
+    ));
+    let metrics_server = match config.metrics_listen {
+        Some(at) => {
+            let (render_state, ready_state) = (Arc::clone(&state), Arc::clone(&state));
+            let (bound, handle) = crease_telemetry::http::serve(
+                at,
+                Arc::new(move || render_state.metrics.render(render_state.running())),
+                Arc::new(move || ready_state.metrics.registered() && !ready_state.draining()),
+            )
+            .await
+            .map_err(|source| WorkerError::Metrics { addr: at, source })?;
+            info!(address = %bound, "metrics listening on {bound}");
+            Some(handle)
+        }
+        None => None,
+    };
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
     let server = tokio::spawn(
         tonic::transport::Server::builder()
@@ -97,8 +122,10 @@ pub async fn run(
                 let _ = stop_rx.await;
             }),
     );
-    log!(
-        config.log,
+    info!(
+        name = %config.name,
+        coordinator = %config.coordinator,
+        capacity = config.capacity,
         "worker `{}`: listening on {addr}, coordinator {}, capacity {}",
         config.name,
         config.coordinator,
@@ -111,12 +138,16 @@ pub async fn run(
     };
     if let Err(e) = outcome {
         let _ = stop_tx.send(());
+        if let Some(h) = &metrics_server {
+            h.abort();
+        }
         return Err(e);
     }
     // Drain: no new tasks; let running ones finish, then hand the rest back.
     state.set_draining();
-    log!(
-        config.log,
+    info!(
+        name = %config.name,
+        running = state.running(),
         "worker `{}`: draining ({} task(s) running, up to {:.0}s)",
         config.name,
         state.running(),
@@ -127,8 +158,8 @@ pub async fn run(
     let drain = async {
         if !state.wait_idle(config.drain_timeout).await {
             let n = state.cancel_all();
-            log!(
-                config.log,
+            warn!(
+                name = %config.name,
                 "worker `{}`: handing back {n} unfinished task(s)",
                 config.name
             );
@@ -145,6 +176,9 @@ pub async fn run(
         Ok(Err(e)) => return Err(WorkerError::Serve(e.to_string())),
         Err(e) => return Err(WorkerError::Serve(e.to_string())),
     }
-    log!(config.log, "worker `{}`: stopped", config.name);
+    if let Some(h) = metrics_server {
+        h.abort();
+    }
+    info!(name = %config.name, "worker `{}`: stopped", config.name);
     Ok(())
 }

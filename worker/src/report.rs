@@ -9,6 +9,7 @@ use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::Mutex;
 use tonic::transport::{Channel, Endpoint};
+use tracing::{info, warn};
 
 pub struct Reporter {
     coordinator: String,
@@ -17,7 +18,6 @@ pub struct Reporter {
     capacity: u32,
     protocol_version: u32,
     tasks: Arc<Tasks>,
-    log: bool,
     /// The current registration: (client, worker id).
     current: Mutex<Option<(CoordinatorClient<Channel>, String)>>,
 }
@@ -31,7 +31,6 @@ impl Reporter {
             capacity: config.capacity,
             protocol_version: config.protocol_version,
             tasks,
-            log: config.log,
             current: Mutex::new(None),
         }
     }
@@ -48,8 +47,8 @@ impl Reporter {
                 }
                 Err(RegisterError::Refused(msg)) => return Err(WorkerError::Refused(msg)),
                 Err(RegisterError::Unreachable(msg)) => {
-                    log!(
-                        self.log,
+                    warn!(
+                        coordinator = %self.coordinator,
                         "worker `{}`: coordinator {} unreachable ({msg}); retrying in {:.1}s",
                         self.name,
                         self.coordinator,
@@ -66,7 +65,8 @@ impl Reporter {
                 match self.beat().await {
                     Some(true) | None => {}
                     Some(false) => {
-                        log!(self.log,
+                        self.tasks.metrics.set_registered(false);
+                        warn!(
                             "worker `{}`: the coordinator does not know this worker (restarted?); registering again",
                             self.name
                         );
@@ -127,8 +127,10 @@ impl Reporter {
         match resp {
             Ok(r) => {
                 let r = r.into_inner();
-                log!(
-                    self.log,
+                self.tasks.metrics.set_registered(true);
+                info!(
+                    worker = %r.worker_id,
+                    coordinator = %self.coordinator,
                     "worker `{}`: registered as {} with {}",
                     self.name,
                     r.worker_id,

@@ -1,15 +1,18 @@
 //! Running tasks: the table of tasks in flight (so `Cancel` and the drain can stop them), the progress sink
 //! that turns crease-core progress into stream events, and the run of one task.
 
+use crate::metrics::WorkerMetrics;
 use crease_core::progress::Progress;
 use crease_jobs::{ExecContext, TaskError, TaskSpec};
 use crease_proto as pb;
+use crease_telemetry::tail::LogTail;
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 use tokio::sync::{mpsc, Notify};
+use tracing::{info, warn, Instrument};
 
 /// Identifies one attempt of one task.
 pub type AttemptId = (String, String, u32);
@@ -26,15 +29,17 @@ pub struct Tasks {
     in_flight: Mutex<HashMap<AttemptId, Arc<AtomicBool>>>,
     draining: AtomicBool,
     idle: Notify,
+    pub metrics: Arc<WorkerMetrics>,
 }
 
 impl Tasks {
-    pub fn new(cache_dir: PathBuf) -> Self {
+    pub fn new(cache_dir: PathBuf, metrics: Arc<WorkerMetrics>) -> Self {
         Tasks {
             cache_dir,
             in_flight: Mutex::new(HashMap::new()),
             draining: AtomicBool::new(false),
             idle: Notify::new(),
+            metrics,
         }
     }
 
@@ -84,33 +89,73 @@ impl Tasks {
         }
     }
 
-    /// Starts one attempt; its events (progress, then one result or failure) go to `tx`.
+    /// Starts one attempt; its events (progress, then one result or failure with the attempt's log tail) go
+    /// to `tx`. Log events inside the attempt's span are captured into that tail.
     pub fn start(self: &Arc<Self>, task: pb::Task, tx: Sender) {
         let id: AttemptId = (task.job_id.clone(), task.task_key.clone(), task.attempt);
         let cancel = Arc::new(AtomicBool::new(false));
         lock(&self.in_flight).insert(id.clone(), Arc::clone(&cancel));
         let this = Arc::clone(self);
-        tokio::spawn(async move {
+        let tail = Arc::new(LogTail::default());
+        let span = tracing::info_span!(
+            crease_telemetry::tail::TASK_SPAN,
+            job_id = %task.job_id,
+            task = %task.task_key,
+            attempt = task.attempt
+        );
+        let capture = crease_telemetry::tail::capture(&span, Arc::clone(&tail));
+        let fut = async move {
+            let (job_id, key, attempt) = (&task.job_id, &task.task_key, task.attempt);
+            info!(job_id = %job_id, task = %key, attempt, kind = %task.kind, "task started");
+            let started = Instant::now();
             let progress = Arc::new(StreamProgress {
                 tx: tx.clone(),
                 cancel: Arc::clone(&cancel),
                 last_sent: Mutex::new(HashMap::new()),
+                tail: Arc::clone(&tail),
             });
             let result = run_one(&task, &this.cache_dir, progress).await;
-            let event = match result {
-                Ok(output) => pb::task_event::Event::Result(pb::TaskResult {
-                    output: serde_json::to_vec(&output).unwrap_or_default(),
-                }),
-                Err(e) => pb::task_event::Event::Failure(pb::TaskFailure {
-                    retryable: e.retryable,
-                    cancelled: e.is_cancelled(),
-                    reason: e.reason,
-                }),
+            let secs = started.elapsed().as_secs_f64();
+            let (event, outcome) = match result {
+                Ok(output) => {
+                    info!(job_id = %job_id, task = %key, attempt, seconds = secs, "task done in {secs:.2}s");
+                    let ev = pb::task_event::Event::Result(pb::TaskResult {
+                        output: serde_json::to_vec(&output).unwrap_or_default(),
+                    });
+                    (ev, "done")
+                }
+                Err(e) => {
+                    let cancelled = e.is_cancelled();
+                    if cancelled {
+                        info!(job_id = %job_id, task = %key, attempt, "task stopped: {}", e.reason);
+                    } else {
+                        warn!(
+                            job_id = %job_id,
+                            task = %key,
+                            attempt,
+                            retryable = e.retryable,
+                            "task failed: {}",
+                            e.reason
+                        );
+                    }
+                    let ev = pb::task_event::Event::Failure(pb::TaskFailure {
+                        retryable: e.retryable,
+                        cancelled,
+                        reason: e.reason,
+                    });
+                    (ev, if cancelled { "cancelled" } else { "failed" })
+                }
             };
-            let _ = tx.send(Ok(pb::TaskEvent { event: Some(event) }));
+            this.metrics.task_finished(&task.kind, outcome, secs);
+            drop(capture);
+            let _ = tx.send(Ok(pb::TaskEvent {
+                event: Some(event),
+                log_tail: tail.lines(),
+            }));
             lock(&this.in_flight).remove(&id);
             this.idle.notify_waiters();
-        });
+        };
+        tokio::spawn(fut.instrument(span));
     }
 }
 
@@ -162,6 +207,8 @@ struct StreamProgress {
     tx: Sender,
     cancel: Arc<AtomicBool>,
     last_sent: Mutex<HashMap<String, (Instant, u64, u64)>>,
+    /// Stage starts and ends and notes also go to the attempt's log tail (throttled progress does not).
+    tail: Arc<LogTail>,
 }
 
 impl StreamProgress {
@@ -173,6 +220,7 @@ impl StreamProgress {
                 total,
                 note: note.to_string(),
             })),
+            log_tail: Vec::new(),
         }));
     }
 }
@@ -180,6 +228,8 @@ impl StreamProgress {
 impl Progress for StreamProgress {
     fn begin(&self, stage: &str, total: u64) {
         lock(&self.last_sent).insert(stage.to_string(), (Instant::now(), 0, total));
+        self.tail
+            .record("INFO", &format!("stage `{stage}` started ({total} units)"));
         self.send(stage, 0, total, "");
     }
 
@@ -194,11 +244,16 @@ impl Progress for StreamProgress {
             entry.0 = Instant::now();
             let (done, total) = (entry.1, entry.2);
             drop(map);
+            if finished {
+                self.tail
+                    .record("INFO", &format!("stage `{stage}` done ({done}/{total})"));
+            }
             self.send(stage, done, total, "");
         }
     }
 
     fn note(&self, msg: &str) {
+        self.tail.record("INFO", msg);
         self.send("note", 0, 0, msg);
     }
 

@@ -192,6 +192,29 @@ pub struct EventRow {
     pub message: String,
 }
 
+/// One attempt of a task with its log lines (`crease logs`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AttemptLog {
+    pub task_key: String,
+    pub attempt: u32,
+    pub worker: String,
+    pub outcome: String,
+    pub error: String,
+    pub started: f64,
+    pub finished: f64,
+    pub lines: Vec<String>,
+}
+
+/// Queue figures for the metrics endpoint.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct QueueGauges {
+    /// Tasks queued and runnable now (dependencies done, backoff over, job active).
+    pub queue_depth: i64,
+    pub tasks_running: i64,
+    /// Jobs per state.
+    pub jobs: Vec<(String, i64)>,
+}
+
 /// Store errors (SQLite or corrupt rows); they name the job or task when they concern one.
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
@@ -277,6 +300,15 @@ CREATE TABLE IF NOT EXISTS events (
     message TEXT NOT NULL
 );
 CREATE INDEX IF NOT EXISTS tasks_state ON tasks (state, job_id);
+CREATE TABLE IF NOT EXISTS task_logs (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    job_id TEXT NOT NULL,
+    task_key TEXT NOT NULL,
+    attempt INTEGER NOT NULL,
+    line TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS task_logs_attempt ON task_logs (job_id, task_key, attempt);
+CREATE INDEX IF NOT EXISTS jobs_state ON jobs (state);
 ";
 
 /// Seconds since the Unix epoch (the store's clock).
@@ -833,6 +865,101 @@ impl Store {
             .query_row("SELECT COUNT(*) FROM workers", [], |r| r.get(0))?)
     }
 
+    /// Appends lines to the log of one attempt (`crease logs`).
+    pub fn append_task_log(
+        &mut self,
+        job_id: &str,
+        key: &str,
+        attempt: u32,
+        lines: &[String],
+    ) -> Result<()> {
+        let tx = self.conn.transaction()?;
+        {
+            let mut stmt = tx.prepare_cached(
+                "INSERT INTO task_logs (job_id, task_key, attempt, line) VALUES (?1, ?2, ?3, ?4)",
+            )?;
+            for line in lines {
+                stmt.execute(params![job_id, key, attempt, line])?;
+            }
+        }
+        tx.commit()?;
+        Ok(())
+    }
+
+    /// Every attempt of a job's tasks (or of one task), in task then attempt order, with its log lines.
+    pub fn task_logs(&self, job_id: &str, key: Option<&str>) -> Result<Vec<AttemptLog>> {
+        let mut stmt = self.conn.prepare_cached(
+            "SELECT a.task_key, a.attempt, a.worker, a.outcome, a.error, a.started, a.finished
+             FROM attempts a JOIN tasks t ON t.job_id = a.job_id AND t.key = a.task_key
+             WHERE a.job_id = ?1 AND (?2 IS NULL OR a.task_key = ?2)
+             ORDER BY t.seq, a.attempt",
+        )?;
+        let mut attempts = stmt
+            .query_map(params![job_id, key], |r| {
+                Ok(AttemptLog {
+                    task_key: r.get(0)?,
+                    attempt: r.get(1)?,
+                    worker: r.get(2)?,
+                    outcome: r.get(3)?,
+                    error: r.get(4)?,
+                    started: r.get(5)?,
+                    finished: r.get(6)?,
+                    lines: Vec::new(),
+                })
+            })?
+            .collect::<rusqlite::Result<Vec<_>>>()?;
+        let mut lines = self.conn.prepare_cached(
+            "SELECT line FROM task_logs WHERE job_id = ?1 AND task_key = ?2 AND attempt = ?3 ORDER BY id",
+        )?;
+        for a in &mut attempts {
+            a.lines = lines
+                .query_map(params![job_id, a.task_key, a.attempt], |r| r.get(0))?
+                .collect::<rusqlite::Result<Vec<String>>>()?;
+        }
+        Ok(attempts)
+    }
+
+    /// Whether a job has a task with this key.
+    pub fn has_task(&self, job_id: &str, key: &str) -> Result<bool> {
+        Ok(self
+            .conn
+            .query_row(
+                "SELECT 1 FROM tasks WHERE job_id = ?1 AND key = ?2",
+                params![job_id, key],
+                |_| Ok(()),
+            )
+            .optional()?
+            .is_some())
+    }
+
+    /// Figures the metrics endpoint reads at scrape time; each is one count over an index.
+    pub fn gauges(&self) -> Result<QueueGauges> {
+        let mut g = QueueGauges {
+            queue_depth: self.conn.query_row(
+                "SELECT COUNT(*) FROM tasks t JOIN jobs j ON j.id = t.job_id
+                 WHERE t.state = 'queued' AND j.state IN ('queued', 'running', 'waiting')
+                   AND t.not_before <= ?1
+                   AND NOT EXISTS (SELECT 1 FROM deps d JOIN tasks u ON u.job_id = d.job_id AND u.key = d.dep
+                                   WHERE d.job_id = t.job_id AND d.key = t.key AND u.state != 'done')",
+                params![now()],
+                |r| r.get(0),
+            )?,
+            tasks_running: self.conn.query_row(
+                "SELECT COUNT(*) FROM tasks WHERE state = 'running'",
+                [],
+                |r| r.get(0),
+            )?,
+            jobs: Vec::new(),
+        };
+        let mut stmt = self
+            .conn
+            .prepare_cached("SELECT state, COUNT(*) FROM jobs GROUP BY state")?;
+        g.jobs = stmt
+            .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))?
+            .collect::<rusqlite::Result<Vec<_>>>()?;
+        Ok(g)
+    }
+
     /// Appends an event outside of a state transition.
     pub fn note(&mut self, job_id: &str, kind: &str, key: &str, message: &str) -> Result<()> {
         let tx = self.conn.transaction()?;
@@ -1186,6 +1313,46 @@ mod tests {
         let cl = s.claim(&a, "y", "w2").unwrap().unwrap();
         assert_eq!(cl.attempt, 2);
         assert_eq!(s.job(&a).unwrap().failures, 0);
+    }
+
+    #[test]
+    fn task_logs_are_kept_per_attempt_and_old_queue_files_gain_the_table() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("old.sqlite");
+        {
+            // A queue file from before the task_logs table existed.
+            let conn = Connection::open(&path).unwrap();
+            conn.execute_batch(
+                SCHEMA
+                    .split("CREATE TABLE IF NOT EXISTS task_logs")
+                    .next()
+                    .unwrap(),
+            )
+            .unwrap();
+        }
+        let mut s = Store::open(&path).unwrap();
+        let (a, _) = s
+            .insert_job(&job(0, vec![task("x", &[]), task("y", &["x"])]))
+            .unwrap();
+        s.claim(&a, "x", "w1").unwrap().unwrap();
+        s.append_task_log(&a, "x", 1, &["one".into(), "two".into()])
+            .unwrap();
+        s.fail(&a, "x", 1, "w1", &err(true), 0.0).unwrap();
+        s.claim(&a, "x", "w2").unwrap().unwrap();
+        s.append_task_log(&a, "x", 2, &["three".into()]).unwrap();
+        let logs = s.task_logs(&a, None).unwrap();
+        assert_eq!(logs.len(), 2);
+        assert_eq!((logs[0].attempt, logs[0].worker.as_str()), (1, "w1"));
+        assert_eq!(logs[0].outcome, "failed");
+        assert_eq!(logs[0].error, "boom");
+        assert_eq!(logs[0].lines, vec!["one", "two"]);
+        assert_eq!((logs[1].attempt, logs[1].outcome.as_str()), (2, "running"));
+        assert_eq!(logs[1].lines, vec!["three"]);
+        assert!(s.task_logs(&a, Some("y")).unwrap().is_empty());
+        assert!(s.has_task(&a, "y").unwrap() && !s.has_task(&a, "z").unwrap());
+        let g = s.gauges().unwrap();
+        assert_eq!((g.queue_depth, g.tasks_running), (0, 1));
+        assert_eq!(g.jobs, vec![("running".to_string(), 1)]);
     }
 
     #[test]

@@ -67,9 +67,15 @@ pub struct CoordinatorArgs {
     /// First retry delay in milliseconds (doubles per attempt).
     #[arg(long, default_value_t = 200)]
     pub retry_backoff_ms: u64,
+    #[command(flatten)]
+    pub security: crate::security_args::CoordinatorSecurityArgs,
 }
 
 pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
+    let _ = tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .try_init(); // sec: replaced by obs's logging init at merge
+    let (server_security, worker_channel) = a.security.load()?;
     if !(a.grace_secs.is_finite() && a.grace_secs >= 0.0) {
         bail!(
             "--grace-secs must be a non-negative number, got {}",
@@ -83,6 +89,8 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
         no_worker_grace: Duration::from_secs_f64(a.grace_secs),
         blacklist_after: a.blacklist_after.max(1),
         retry_backoff: Duration::from_millis(a.retry_backoff_ms),
+        server_security,
+        worker_channel,
         ..CoordinatorConfig::default()
     };
     runtime()?.block_on(async move {
@@ -141,9 +149,15 @@ pub struct WorkerArgs {
     /// Protocol version to announce (testing only).
     #[arg(long, hide = true, default_value_t = crease_proto::PROTOCOL_VERSION)]
     pub protocol_version: u32,
+    #[command(flatten)]
+    pub security: crate::security_args::WorkerSecurityArgs,
 }
 
 pub fn worker(a: WorkerArgs) -> Result<()> {
+    let _ = tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .try_init(); // sec: replaced by obs's logging init at merge
+    let security = a.security.load()?;
     if a.capacity == 0 {
         bail!("--capacity must be at least 1");
     }
@@ -170,7 +184,7 @@ pub fn worker(a: WorkerArgs) -> Result<()> {
         protocol_version: a.protocol_version,
         log: true,
     };
-    runtime()?.block_on(crease_worker::run(config, shutdown_signal()))?;
+    runtime()?.block_on(crease_worker::run_with(config, security, shutdown_signal()))?;
     Ok(())
 }
 
@@ -179,6 +193,15 @@ pub struct ClientArgs {
     /// Coordinator URL.
     #[arg(long, env = "CREASE_COORDINATOR", default_value = DEFAULT_COORDINATOR)]
     pub coordinator: String,
+    #[command(flatten)]
+    pub security: crate::security_args::ClientSecurityArgs,
+}
+
+impl ClientArgs {
+    /// Connects with the TLS and token flags.
+    pub async fn connect(&self) -> Result<RemoteClient> {
+        Ok(RemoteClient::connect_with(&self.coordinator, &self.security.load()?).await?)
+    }
 }
 
 #[derive(Args, Debug)]
@@ -250,7 +273,7 @@ pub fn submit(a: SubmitArgs) -> Result<()> {
         _ => bail!("give a job file (crease submit job.toml) or both --input and --output"),
     };
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         let (id, created) = client.submit(text, format).await?;
         if created {
             eprintln!("submitted {id}");
@@ -283,7 +306,7 @@ pub struct StatusArgs {
 
 pub fn status(a: StatusArgs) -> Result<()> {
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         match &a.job {
             Some(id) => {
                 let s = client.status(id, a.tasks || a.json).await?;
@@ -308,7 +331,7 @@ pub struct JobArgs {
 
 pub fn watch(a: JobArgs) -> Result<()> {
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         let progress = CliProgress::new(false);
         let status = follow(&client, &a.job, Some(&progress)).await?;
         finish_status(&status)
@@ -317,7 +340,7 @@ pub fn watch(a: JobArgs) -> Result<()> {
 
 pub fn cancel(a: JobArgs) -> Result<()> {
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         let state = client.cancel(&a.job).await?;
         println!("{} {state}", a.job);
         Ok(())
@@ -334,7 +357,7 @@ pub struct JobsArgs {
 
 pub fn jobs(a: JobsArgs) -> Result<()> {
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         print_jobs(&client.list().await?, a.json)
     })
 }

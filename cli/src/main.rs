@@ -2,6 +2,7 @@
 
 mod bench;
 mod bench_cluster;
+mod certs;
 mod cluster;
 mod eval;
 mod folds_stretch;
@@ -9,6 +10,7 @@ mod folds_video;
 mod local;
 mod progress;
 mod run;
+mod security_args;
 
 use clap::{Parser, Subcommand};
 
@@ -50,6 +52,8 @@ enum Command {
     Cancel(cluster::JobArgs),
     /// List the coordinator's jobs.
     Jobs(cluster::JobsArgs),
+    /// Write a development CA and coordinator/worker certificates for TLS.
+    Certs(certs::CertsArgs),
 }
 
 fn main() {
@@ -75,6 +79,7 @@ fn main() {
         Command::Watch(a) => cluster::watch(a),
         Command::Cancel(a) => cluster::cancel(a),
         Command::Jobs(a) => cluster::jobs(a),
+        Command::Certs(a) => certs::certs(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

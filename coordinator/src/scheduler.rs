@@ -266,14 +266,13 @@ impl Scheduler {
                 req.name
             )));
         }
-        let endpoint =
-            tonic::transport::Endpoint::from_shared(req.address.clone()).map_err(|e| {
-                ApiError::Invalid(format!(
-                    "worker `{}`: address `{}` is not a URL: {e}",
-                    req.name, req.address
-                ))
-            })?;
-        let client = WorkerClient::new(endpoint.connect_lazy());
+        let net = &self.config.worker_channel;
+        let channel = net
+            .connect_lazy(&req.address)
+            .map_err(|e| ApiError::Invalid(format!("worker `{}`: address {e}", req.name)))?;
+        let client = WorkerClient::new(channel)
+            .max_decoding_message_size(net.max_message_bytes)
+            .max_encoding_message_size(net.max_message_bytes);
         let id = {
             let mut n = lock(&self.next_worker);
             *n += 1;
@@ -382,7 +381,7 @@ impl Scheduler {
         self: Arc<Self>,
         claim: Claim,
         wid: String,
-        mut client: WorkerClient<tonic::transport::Channel>,
+        mut client: WorkerClient<crease_net::AuthChannel>,
     ) {
         let req = pb::Task {
             job_id: claim.job_id.clone(),
@@ -400,6 +399,16 @@ impl Scheduler {
             })
         };
         let reported = match client.execute(req).await {
+            // A worker at its capacity (it finished a task the coordinator has not heard of yet, or another
+            // coordinator shares it) stays registered; the task is handed back, not charged.
+            Err(status) if status.code() == tonic::Code::ResourceExhausted => {
+                Reported::Failed(Failure {
+                    retryable: true,
+                    counts: false,
+                    cancelled: true,
+                    reason: format!("worker {wid} is at capacity: {}", status.message()),
+                })
+            }
             Err(status) => {
                 // The worker never started the task (unreachable or draining): not the task's fault.
                 self.drop_worker(

@@ -1,10 +1,10 @@
 //! Registry of live workers: capacity, running count, liveness and drain state. Kept in memory (workers
 //! re-register after a coordinator restart); the `workers` table only keeps history.
 
+use crease_net::AuthChannel as Channel;
 use crease_proto::worker_client::WorkerClient;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
-use tonic::transport::Channel;
 
 /// One registered worker.
 #[derive(Debug, Clone)]

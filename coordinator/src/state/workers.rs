@@ -91,7 +91,9 @@ mod tests {
     use super::*;
 
     fn entry(id: &str, capacity: u32, running: u32, draining: bool) -> WorkerEntry {
-        let channel = tonic::transport::Endpoint::from_static("http://127.0.0.1:9").connect_lazy();
+        let channel = crease_net::ClientSecurity::default()
+            .connect_lazy("http://127.0.0.1:9")
+            .unwrap();
         WorkerEntry {
             id: id.into(),
             name: id.into(),

@@ -88,6 +88,7 @@ impl CoordinatorSecurityArgs {
                 worker: worker.clone().map(Arc::new),
             },
             max_message_bytes: limit,
+            accepts_clients: true,
         };
         let to_workers = ClientSecurity {
             tls: match &self.tls_ca {
@@ -129,6 +130,7 @@ impl WorkerSecurityArgs {
                     worker: worker.clone().map(Arc::new),
                 },
                 max_message_bytes: limit,
+                accepts_clients: false,
             },
             coordinator: ClientSecurity {
                 tls: match &self.tls_ca {

@@ -337,7 +337,12 @@ fn a_job_over_tls_with_tokens_matches_local_mode_and_every_refusal_is_logged_wit
     ] {
         let found = refusals
             .iter()
-            .filter(|l| l.contains(method) && l.contains(kind) && l.contains("peer=127.0.0.1:"))
+            .filter(|l| {
+                l.contains(method)
+                    && l.contains(kind)
+                    && l.contains("peer")
+                    && l.contains("127.0.0.1:")
+            })
             .count();
         assert!(
             found >= n,
@@ -349,7 +354,8 @@ fn a_job_over_tls_with_tokens_matches_local_mode_and_every_refusal_is_logged_wit
         assert!(
             wlog.lines().any(|l| l.contains("refused gRPC call")
                 && l.contains(method)
-                && l.contains("peer=127.0.0.1:")),
+                && l.contains("peer")
+                && l.contains("127.0.0.1:")),
             "{method} refusal not in the worker log:\n{wlog}"
         );
     }
@@ -437,4 +443,96 @@ fn a_worker_at_capacity_refuses_execute_and_the_coordinator_hands_the_task_back_
     // The worker stayed registered: the refusal was not taken for a lost worker.
     let wlog = std::fs::read_to_string(d.join("worker-busy.log")).unwrap();
     assert_eq!(wlog.matches("registered as").count(), 1, "{wlog}");
+}
+
+/// Runs a command that must exit by itself (a misconfiguration), killing it at the deadline.
+fn must_exit(args: &[&str]) -> (bool, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("stderr");
+    let mut p = Proc(
+        Command::new(BIN)
+            .args(args)
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .spawn()
+            .unwrap(),
+    );
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = p.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(start.elapsed() < DEADLINE, "{args:?} did not exit");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    (status.success(), std::fs::read_to_string(&log).unwrap())
+}
+
+#[test]
+fn misconfigurations_are_named_and_half_secured_clusters_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let f = Files::new(d);
+    #[cfg(unix)]
+    for key in ["coordinator.key", "worker.key"] {
+        use std::os::unix::fs::PermissionsExt;
+        let mode = std::fs::metadata(f.certs.join(key))
+            .unwrap()
+            .permissions()
+            .mode();
+        assert_eq!(mode & 0o777, 0o600, "{key}");
+    }
+    let empty = secret_file(&d.join("empty-tokens"), "# none yet\n\n");
+    let listen = format!("127.0.0.1:{}", free_port());
+    let db = d.join("q.sqlite");
+    let base = ["coordinator", "--listen", &listen, "--db", path(&db)];
+    let (cert, key, ca) = (
+        f.cert("coordinator.pem"),
+        f.cert("coordinator.key"),
+        f.cert("ca.pem"),
+    );
+    for (extra, needles) in [
+        (
+            vec!["--client-tokens-file", "/nonexistent/crease-client-tokens"],
+            vec!["--client-tokens-file", "/nonexistent/crease-client-tokens"],
+        ),
+        (
+            vec!["--worker-token-file", path(&empty)],
+            vec!["--worker-token-file", "empty-tokens", "no token"],
+        ),
+        (vec!["--tls-cert", cert.as_str()], vec!["--tls-key"]),
+        (
+            vec!["--tls-cert", ca.as_str(), "--tls-key", ca.as_str()],
+            vec!["--tls-key", "ca.pem", "private key"],
+        ),
+        (vec!["--max-message-mib", "0"], vec!["--max-message-mib"]),
+    ] {
+        let args: Vec<&str> = base.iter().copied().chain(extra.iter().copied()).collect();
+        let (ok, err) = must_exit(&args);
+        assert!(!ok, "{extra:?} was accepted");
+        for n in needles {
+            assert!(err.contains(n), "{extra:?}: `{n}` not in: {err}");
+        }
+    }
+    let (ok, err) = must_exit(&["jobs", "--token-file", path(&empty)]);
+    assert!(
+        !ok && err.contains("--token-file") && err.contains("empty-tokens"),
+        "{err}"
+    );
+
+    // TLS without tokens runs, with a warning that anyone may call it.
+    let log = d.join("tls-only.log");
+    let c = Coordinator::start_logged(
+        d,
+        &["--tls-cert", &cert, "--tls-key", &key],
+        &log,
+        "https",
+        &["--tls-ca", &ca],
+        &[],
+    );
+    wait_until("the unauthenticated warning", || {
+        std::fs::read_to_string(&log).is_ok_and(|t| t.contains("encrypted but unauthenticated"))
+    });
+    let o = c.cli(&["jobs"]);
+    assert!(o.status.success(), "{}", stderr(&o));
 }

@@ -61,6 +61,9 @@ pub struct ServerSecurity {
     pub tls: Option<ServerTls>,
     pub tokens: Tokens,
     pub max_message_bytes: usize,
+    /// Whether users call this server (the coordinator) or only cluster members (a worker); decides whether
+    /// a missing client token file is worth a warning.
+    pub accepts_clients: bool,
 }
 
 impl Default for ServerSecurity {
@@ -69,6 +72,7 @@ impl Default for ServerSecurity {
             tls: None,
             tokens: Tokens::default(),
             max_message_bytes: mib(DEFAULT_MAX_MESSAGE_MIB),
+            accepts_clients: true,
         }
     }
 }
@@ -109,6 +113,60 @@ impl ServerSecurity {
                 "{what}: tokens are required but TLS is off: the cluster is unencrypted and tokens travel in plaintext"
             ));
         }
+        if any_token && self.tokens.client.is_none() && self.accepts_clients {
+            w.push(format!(
+                "{what}: no --client-tokens-file: user calls (submit, status, cancel, ...) are unauthenticated"
+            ));
+        }
+        if any_token && self.tokens.worker.is_none() {
+            w.push(format!(
+                "{what}: no --worker-token-file: worker calls are unauthenticated"
+            ));
+        }
         w
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Arc;
+
+    fn tokens(client: bool, worker: bool) -> Tokens {
+        let t = || Some(Arc::new(vec![Secret::new("t")]));
+        Tokens {
+            client: if client { t() } else { None },
+            worker: if worker { t() } else { None },
+        }
+    }
+
+    #[test]
+    fn half_secured_servers_are_warned_about() {
+        let none = ServerSecurity::default();
+        assert!(none.warnings("coordinator").is_empty());
+        let tokens_only = ServerSecurity {
+            tokens: tokens(true, true),
+            ..ServerSecurity::default()
+        };
+        let w = tokens_only.warnings("coordinator").join("\n");
+        assert!(w.contains("unencrypted"), "{w}");
+        let client_only = ServerSecurity {
+            tokens: tokens(true, false),
+            ..ServerSecurity::default()
+        };
+        let w = client_only.warnings("coordinator").join("\n");
+        assert!(w.contains("worker calls are unauthenticated"), "{w}");
+        let worker_only = ServerSecurity {
+            tokens: tokens(false, true),
+            ..ServerSecurity::default()
+        };
+        let w = worker_only.warnings("coordinator").join("\n");
+        assert!(w.contains("user calls"), "{w}");
+        let worker_server = ServerSecurity {
+            tokens: tokens(false, true),
+            accepts_clients: false,
+            ..ServerSecurity::default()
+        };
+        assert_eq!(worker_server.warnings("worker").len(), 1);
     }
 }

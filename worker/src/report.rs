@@ -108,9 +108,24 @@ impl Reporter {
                 draining: self.tasks.draining(),
                 running: self.tasks.running() as u32,
             })
-            .await
-            .ok()?;
-        Some(r.into_inner().known)
+            .await;
+        match r {
+            Ok(r) => Some(r.into_inner().known),
+            Err(s) => {
+                // A rotated cluster secret shows up here; without a log line the worker would just be lost.
+                if matches!(
+                    s.code(),
+                    tonic::Code::Unauthenticated | tonic::Code::PermissionDenied
+                ) {
+                    tracing::warn!(
+                        worker = %self.name,
+                        "the coordinator refused a heartbeat: {}",
+                        s.message()
+                    );
+                }
+                None
+            }
+        }
     }
 
     async fn register(&self) -> Result<Duration, RegisterError> {

@@ -536,3 +536,25 @@ fn misconfigurations_are_named_and_half_secured_clusters_warned_about() {
     let o = c.cli(&["jobs"]);
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+#[test]
+fn a_task_over_the_workers_message_limit_fails_its_job_clearly_instead_of_looping() {
+    let (dir, anchors) = setup();
+    let d = dir.path();
+    let mut c = Coordinator::start(d, &[]);
+    c.worker_args = vec!["--max-message-mib".into(), "1".into()];
+    let _w = c.worker("small", &[]);
+    // The job name travels in every task's payload: 1.5 MiB of it does not fit a 1 MiB worker.
+    let job = job_file(d, "huge", &fixture(), &anchors, &d.join("out"), "fused", "");
+    let text = std::fs::read_to_string(&job).unwrap().replacen(
+        "name = \"huge\"",
+        &format!("name = \"{}\"", "n".repeat(1536 * 1024)),
+        1,
+    );
+    std::fs::write(&job, text).unwrap();
+    let id = c.submit(&job);
+    let s = c.wait_state(&id, &["done", "failed"]);
+    assert_eq!(s["state"], "failed", "{}", s["message"]);
+    let msg = s["message"].as_str().unwrap();
+    assert!(msg.contains("--max-message-mib"), "{msg}");
+}

@@ -409,6 +409,18 @@ impl Scheduler {
                     reason: format!("worker {wid} is at capacity: {}", status.message()),
                 })
             }
+            // A task bigger than the gRPC message limit (here or on the worker) never fits: fail it clearly
+            // instead of handing it back forever.
+            Err(status) if status.code() == tonic::Code::OutOfRange => Reported::Failed(Failure {
+                retryable: false,
+                counts: true,
+                cancelled: false,
+                reason: format!(
+                    "task `{}` does not fit the gRPC message limit (--max-message-mib of the coordinator or worker {wid}): {}",
+                    claim.key,
+                    status.message()
+                ),
+            }),
             Err(status) => {
                 // The worker never started the task (unreachable or draining): not the task's fault.
                 self.drop_worker(

@@ -69,16 +69,19 @@ pub struct CoordinatorArgs {
     pub retry_backoff_ms: u64,
     #[command(flatten)]
     pub obs: crate::logging::ObsArgs,
+    #[command(flatten)]
+    pub security: crate::security_args::CoordinatorSecurityArgs,
 }
 
 pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
+    crate::logging::init(&a.obs)?;
+    let (server_security, worker_channel) = a.security.load()?;
     if !(a.grace_secs.is_finite() && a.grace_secs >= 0.0) {
         bail!(
             "--grace-secs must be a non-negative number, got {}",
             a.grace_secs
         );
     }
-    crate::logging::init(&a.obs)?;
     let config = CoordinatorConfig {
         db: Some(a.db.clone()),
         heartbeat_interval: Duration::from_millis(a.heartbeat_ms.max(10)),
@@ -86,6 +89,8 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
         no_worker_grace: Duration::from_secs_f64(a.grace_secs),
         blacklist_after: a.blacklist_after.max(1),
         retry_backoff: Duration::from_millis(a.retry_backoff_ms),
+        server_security,
+        worker_channel,
         ..CoordinatorConfig::default()
     };
     runtime()?.block_on(async move {
@@ -163,13 +168,16 @@ pub struct WorkerArgs {
     pub protocol_version: u32,
     #[command(flatten)]
     pub obs: crate::logging::ObsArgs,
+    #[command(flatten)]
+    pub security: crate::security_args::WorkerSecurityArgs,
 }
 
 pub fn worker(a: WorkerArgs) -> Result<()> {
+    crate::logging::init(&a.obs)?;
+    let security = a.security.load()?;
     if a.capacity == 0 {
         bail!("--capacity must be at least 1");
     }
-    crate::logging::init(&a.obs)?;
     if !(a.drain_secs.is_finite() && a.drain_secs >= 0.0) {
         bail!(
             "--drain-secs must be a non-negative number, got {}",
@@ -194,7 +202,7 @@ pub fn worker(a: WorkerArgs) -> Result<()> {
         log: true,
         metrics_listen: a.obs.metrics_listen,
     };
-    runtime()?.block_on(crease_worker::run(config, shutdown_signal()))?;
+    runtime()?.block_on(crease_worker::run_with(config, security, shutdown_signal()))?;
     Ok(())
 }
 
@@ -203,6 +211,15 @@ pub struct ClientArgs {
     /// Coordinator URL.
     #[arg(long, env = "CREASE_COORDINATOR", default_value = DEFAULT_COORDINATOR)]
     pub coordinator: String,
+    #[command(flatten)]
+    pub security: crate::security_args::ClientSecurityArgs,
+}
+
+impl ClientArgs {
+    /// Connects with the TLS and token flags.
+    pub async fn connect(&self) -> Result<RemoteClient> {
+        Ok(RemoteClient::connect_with(&self.coordinator, &self.security.load()?).await?)
+    }
 }
 
 #[derive(Args, Debug)]
@@ -274,7 +291,7 @@ pub fn submit(a: SubmitArgs) -> Result<()> {
         _ => bail!("give a job file (crease submit job.toml) or both --input and --output"),
     };
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         let (id, created) = client.submit(text, format).await?;
         if created {
             eprintln!("submitted {id}");
@@ -307,7 +324,7 @@ pub struct StatusArgs {
 
 pub fn status(a: StatusArgs) -> Result<()> {
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         match &a.job {
             Some(id) => {
                 let s = client.status(id, a.tasks || a.json).await?;
@@ -332,7 +349,7 @@ pub struct JobArgs {
 
 pub fn watch(a: JobArgs) -> Result<()> {
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         let progress = CliProgress::new(false);
         let status = follow(&client, &a.job, Some(&progress)).await?;
         finish_status(&status)
@@ -341,7 +358,7 @@ pub fn watch(a: JobArgs) -> Result<()> {
 
 pub fn cancel(a: JobArgs) -> Result<()> {
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         let state = client.cancel(&a.job).await?;
         println!("{} {state}", a.job);
         Ok(())
@@ -358,7 +375,7 @@ pub struct JobsArgs {
 
 pub fn jobs(a: JobsArgs) -> Result<()> {
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         print_jobs(&client.list().await?, a.json)
     })
 }

@@ -19,7 +19,7 @@ pub struct LogsArgs {
 
 pub fn logs(a: LogsArgs) -> Result<()> {
     runtime()?.block_on(async move {
-        let client = RemoteClient::connect(&a.client.coordinator).await?;
+        let client = a.client.connect().await?;
         let attempts = client.logs(&a.job, a.task.as_deref()).await?;
         print!("{}", render(&a.job, a.task.as_deref(), &attempts));
         Ok(())

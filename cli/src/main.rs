@@ -3,6 +3,7 @@
 mod bench;
 mod bench_cluster;
 mod bench_soak;
+mod certs;
 mod cluster;
 mod eval;
 mod folds_stretch;
@@ -12,6 +13,7 @@ mod logging;
 mod logs;
 mod progress;
 mod run;
+mod security_args;
 
 use clap::{Parser, Subcommand};
 
@@ -55,6 +57,8 @@ enum Command {
     Jobs(cluster::JobsArgs),
     /// Log tail of a job's task attempts (all tasks, or one).
     Logs(logs::LogsArgs),
+    /// Write a development CA and coordinator/worker certificates for TLS.
+    Certs(certs::CertsArgs),
 }
 
 fn main() {
@@ -81,6 +85,7 @@ fn main() {
         Command::Cancel(a) => cluster::cancel(a),
         Command::Jobs(a) => cluster::jobs(a),
         Command::Logs(a) => logs::logs(a),
+        Command::Certs(a) => certs::certs(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

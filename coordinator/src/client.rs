@@ -3,6 +3,7 @@
 //! `watch`, `cancel` and `jobs` and the single-node `crease run` are written once against [`JobClient`].
 
 use crate::scheduler::{ApiError, Scheduler};
+use crease_net::{AuthChannel, ClientSecurity};
 use crease_proto as pb;
 use crease_proto::coordinator_client::CoordinatorClient;
 use futures::stream::BoxStream;
@@ -10,7 +11,6 @@ use futures::StreamExt;
 use std::future::Future;
 use std::sync::Arc;
 use tokio_stream::wrappers::ReceiverStream;
-use tonic::transport::Channel;
 
 /// A client-side error: the message is what the user sees.
 #[derive(Debug, thiserror::Error)]
@@ -19,7 +19,7 @@ pub struct ClientError(pub String);
 
 impl From<tonic::Status> for ClientError {
     fn from(s: tonic::Status) -> Self {
-        ClientError(s.message().to_string())
+        ClientError(crease_net::client::explain(&s))
     }
 }
 
@@ -59,22 +59,60 @@ pub trait JobClient: Send + Sync {
 /// gRPC client of a coordinator.
 #[derive(Clone)]
 pub struct RemoteClient {
-    inner: CoordinatorClient<Channel>,
+    inner: CoordinatorClient<AuthChannel>,
+    plaintext: bool,
 }
 
 impl RemoteClient {
     /// Connects to `url` (e.g. `http://127.0.0.1:7070`).
     pub async fn connect(url: &str) -> Result<Self, ClientError> {
-        let endpoint = tonic::transport::Endpoint::from_shared(url.to_string())
-            .map_err(|e| ClientError(format!("coordinator address `{url}`: {e}")))?
+        Self::connect_with(url, &ClientSecurity::default()).await
+    }
+
+    /// Connects with TLS and a token (`--tls-ca`, `--token-file`).
+    pub async fn connect_with(url: &str, net: &ClientSecurity) -> Result<Self, ClientError> {
+        let endpoint = net
+            .endpoint(url)
+            .map_err(|e| ClientError(format!("coordinator address {e}")))?
             .connect_timeout(std::time::Duration::from_secs(5));
-        let channel = endpoint
-            .connect()
-            .await
-            .map_err(|e| ClientError(format!("cannot reach the coordinator at {url}: {e}")))?;
+        let channel = endpoint.connect().await.map_err(|e| {
+            let msg = crease_net::client::error_chain(&e);
+            let hint = if msg.contains("invalid peer certificate") {
+                " (the coordinator's certificate is not signed by the CA given with --tls-ca)"
+            } else if url.starts_with("http://") {
+                " (if the coordinator serves TLS, use an https:// URL and --tls-ca)"
+            } else {
+                ""
+            };
+            ClientError(format!(
+                "cannot reach the coordinator at {url}: {msg}{hint}"
+            ))
+        })?;
+        let inner = CoordinatorClient::new(tonic::service::interceptor::InterceptedService::new(
+            channel,
+            net.bearer(),
+        ))
+        .max_decoding_message_size(net.max_message_bytes)
+        .max_encoding_message_size(net.max_message_bytes);
         Ok(RemoteClient {
-            inner: CoordinatorClient::new(channel),
+            inner,
+            plaintext: url.starts_with("http://"),
         })
+    }
+
+    /// A failed call, with a hint for the usual causes of a refused connection or token.
+    fn err(&self, s: tonic::Status) -> ClientError {
+        let msg = crease_net::client::explain(&s);
+        let hint = if s.code() == tonic::Code::Unauthenticated {
+            " (give a token with --token-file or CREASE_TOKEN)"
+        } else if msg.contains("invalid peer certificate") {
+            " (the coordinator's certificate is not signed by the CA given with --tls-ca)"
+        } else if self.plaintext && msg.contains("transport error") {
+            " (the coordinator closed the connection: if it serves TLS, use an https:// URL and --tls-ca)"
+        } else {
+            ""
+        };
+        ClientError(format!("{msg}{hint}"))
     }
 }
 
@@ -87,7 +125,8 @@ impl JobClient for RemoteClient {
                 spec,
                 format: format.to_string(),
             })
-            .await?
+            .await
+            .map_err(|e| self.err(e))?
             .into_inner();
         Ok((r.job_id, r.created))
     }
@@ -100,7 +139,8 @@ impl JobClient for RemoteClient {
                 job_id: job_id.to_string(),
                 with_tasks,
             })
-            .await?
+            .await
+            .map_err(|e| self.err(e))?
             .into_inner())
     }
 
@@ -109,7 +149,8 @@ impl JobClient for RemoteClient {
             .inner
             .clone()
             .list_jobs(pb::ListJobsRequest {})
-            .await?
+            .await
+            .map_err(|e| self.err(e))?
             .into_inner()
             .jobs)
     }
@@ -121,7 +162,8 @@ impl JobClient for RemoteClient {
             .cancel_job(pb::CancelJobRequest {
                 job_id: job_id.to_string(),
             })
-            .await?
+            .await
+            .map_err(|e| self.err(e))?
             .into_inner()
             .state)
     }
@@ -133,7 +175,8 @@ impl JobClient for RemoteClient {
             .watch_job(pb::WatchJobRequest {
                 job_id: job_id.to_string(),
             })
-            .await?
+            .await
+            .map_err(|e| self.err(e))?
             .into_inner();
         Ok(stream.map(|r| r.map_err(ClientError::from)).boxed())
     }

@@ -22,6 +22,10 @@ pub struct CoordinatorConfig {
     /// Kept for callers that set it: logs are `tracing` events now, printed only where the process installed a
     /// subscriber (the `crease coordinator` command does, local single-node mode does not).
     pub log: bool,
+    /// TLS, accepted tokens and message limit of the gRPC server (crease-net; default: none, 64 MiB).
+    pub server_security: crease_net::ServerSecurity,
+    /// How the coordinator calls workers: CA and expected name, the worker token, message limit.
+    pub worker_channel: crease_net::ClientSecurity,
 }
 
 impl Default for CoordinatorConfig {
@@ -35,6 +39,8 @@ impl Default for CoordinatorConfig {
             retry_backoff: Duration::from_millis(200),
             retry_backoff_max: Duration::from_secs(10),
             log: true,
+            server_security: crease_net::ServerSecurity::default(),
+            worker_channel: crease_net::ClientSecurity::default(),
         }
     }
 }

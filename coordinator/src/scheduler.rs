@@ -273,14 +273,13 @@ impl Scheduler {
                 req.name
             )));
         }
-        let endpoint =
-            tonic::transport::Endpoint::from_shared(req.address.clone()).map_err(|e| {
-                ApiError::Invalid(format!(
-                    "worker `{}`: address `{}` is not a URL: {e}",
-                    req.name, req.address
-                ))
-            })?;
-        let client = WorkerClient::new(endpoint.connect_lazy());
+        let net = &self.config.worker_channel;
+        let channel = net
+            .connect_lazy(&req.address)
+            .map_err(|e| ApiError::Invalid(format!("worker `{}`: address {e}", req.name)))?;
+        let client = WorkerClient::new(channel)
+            .max_decoding_message_size(net.max_message_bytes)
+            .max_encoding_message_size(net.max_message_bytes);
         let id = {
             let mut n = lock(&self.next_worker);
             *n += 1;
@@ -401,7 +400,7 @@ impl Scheduler {
         self: Arc<Self>,
         claim: Claim,
         wid: String,
-        mut client: WorkerClient<tonic::transport::Channel>,
+        mut client: WorkerClient<crease_net::AuthChannel>,
     ) {
         let req = pb::Task {
             job_id: claim.job_id.clone(),
@@ -421,6 +420,28 @@ impl Scheduler {
         let started = Instant::now();
         let mut worker_tail = Vec::new();
         let reported = match client.execute(req).await {
+            // A worker at its capacity (it finished a task the coordinator has not heard of yet, or another
+            // coordinator shares it) stays registered; the task is handed back, not charged.
+            Err(status) if status.code() == tonic::Code::ResourceExhausted => {
+                Reported::Failed(Failure {
+                    retryable: true,
+                    counts: false,
+                    cancelled: true,
+                    reason: format!("worker {wid} is at capacity: {}", status.message()),
+                })
+            }
+            // A task bigger than the gRPC message limit (here or on the worker) never fits: fail it clearly
+            // instead of handing it back forever.
+            Err(status) if status.code() == tonic::Code::OutOfRange => Reported::Failed(Failure {
+                retryable: false,
+                counts: true,
+                cancelled: false,
+                reason: format!(
+                    "task `{}` does not fit the gRPC message limit (--max-message-mib of the coordinator or worker {wid}): {}",
+                    claim.key,
+                    status.message()
+                ),
+            }),
             Err(status) => {
                 // The worker never started the task (unreachable or draining): not the task's fault.
                 self.drop_worker(

@@ -109,6 +109,14 @@ impl Coordinator for CoordinatorService {
     }
 }
 
+/// Workers register and heartbeat with the cluster secret; every other method is a user's.
+fn method_role(method: &str) -> crease_net::Role {
+    match method {
+        "RegisterWorker" | "Heartbeat" => crease_net::Role::Worker,
+        _ => crease_net::Role::Client,
+    }
+}
+
 /// Binds `listen`, returns the bound address and a future that serves the coordinator (and runs its
 /// dispatch loop) until `shutdown` resolves.
 pub async fn serve(
@@ -119,11 +127,20 @@ pub async fn serve(
     SocketAddr,
     impl std::future::Future<Output = Result<(), tonic::transport::Error>>,
 )> {
+    let net = scheduler.config().server_security.clone();
+    for w in net.warnings("coordinator") {
+        tracing::warn!("{w}");
+    }
+    let builder = net.builder().map_err(std::io::Error::other)?;
     let listener = tokio::net::TcpListener::bind(listen).await?;
     let addr = listener.local_addr()?;
     let dispatch = tokio::spawn(Arc::clone(&scheduler).run());
-    let server = tonic::transport::Server::builder()
-        .add_service(CoordinatorServer::new(CoordinatorService::new(scheduler)))
+    let service = CoordinatorServer::new(CoordinatorService::new(scheduler))
+        .max_decoding_message_size(net.max_message_bytes)
+        .max_encoding_message_size(net.max_message_bytes);
+    let server = builder
+        .layer(net.auth_layer(method_role))
+        .add_service(service)
         .serve_with_incoming_shutdown(TcpListenerStream::new(listener), shutdown);
     Ok((addr, async move {
         let r = server.await;

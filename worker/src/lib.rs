@@ -52,6 +52,14 @@ pub struct WorkerConfig {
     pub metrics_listen: Option<SocketAddr>,
 }
 
+/// TLS, tokens and message limits of a worker (crease-net): its own server (requires the worker token on
+/// Execute/Cancel when configured) and its channel to the coordinator (presents the worker token).
+#[derive(Debug, Clone, Default)]
+pub struct WorkerSecurity {
+    pub server: crease_net::ServerSecurity,
+    pub coordinator: crease_net::ClientSecurity,
+}
+
 /// Errors that stop a worker.
 #[derive(Debug, thiserror::Error)]
 pub enum WorkerError {
@@ -69,6 +77,8 @@ pub enum WorkerError {
         addr: SocketAddr,
         source: std::io::Error,
     },
+    #[error("worker: {0}")]
+    Config(String),
 }
 
 /// Runs a worker until `shutdown` resolves, then drains. Returns an error when the coordinator refuses it.
@@ -76,6 +86,22 @@ pub async fn run(
     config: WorkerConfig,
     shutdown: impl std::future::Future<Output = ()> + Send,
 ) -> Result<(), WorkerError> {
+    run_with(config, WorkerSecurity::default(), shutdown).await
+}
+
+/// [`run`] with TLS, tokens and message limits.
+pub async fn run_with(
+    config: WorkerConfig,
+    net: WorkerSecurity,
+    shutdown: impl std::future::Future<Output = ()> + Send,
+) -> Result<(), WorkerError> {
+    for w in net.server.warnings("worker") {
+        tracing::warn!("{w}");
+    }
+    let builder = net
+        .server
+        .builder()
+        .map_err(|e| WorkerError::Config(e.to_string()))?;
     let listener = tokio::net::TcpListener::bind(config.listen)
         .await
         .map_err(|source| WorkerError::Listen {
@@ -88,10 +114,6 @@ pub async fn run(
             addr: config.listen,
             source,
         })?;
-    let advertise = config
-        .advertise
-        .clone()
-        .unwrap_or_else(|| format!("http://{addr}"));
     let metrics = Arc::new(metrics::WorkerMetrics::new(config.capacity));
     let state = Arc::new(running::Tasks::new(
         config.cache_dir.clone(),
@@ -112,12 +134,27 @@ pub async fn run(
         }
         None => None,
     };
+    let advertise = config.advertise.clone().unwrap_or_else(|| {
+        let scheme = if net.server.tls.is_some() {
+            "https"
+        } else {
+            "http"
+        };
+        format!("{scheme}://{addr}")
+    });
     let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let limit = net.server.max_message_bytes;
+    let service = WorkerServer::new(servant::WorkerService::new(
+        Arc::clone(&state),
+        config.capacity,
+    ))
+    .max_decoding_message_size(limit)
+    .max_encoding_message_size(limit);
     let server = tokio::spawn(
-        tonic::transport::Server::builder()
-            .add_service(WorkerServer::new(servant::WorkerService::new(Arc::clone(
-                &state,
-            ))))
+        builder
+            // Only the coordinator (holding the cluster secret) may run or cancel tasks here.
+            .layer(net.server.auth_layer(|_| crease_net::Role::Worker))
+            .add_service(service)
             .serve_with_incoming_shutdown(TcpListenerStream::new(listener), async {
                 let _ = stop_rx.await;
             }),
@@ -131,7 +168,7 @@ pub async fn run(
         config.coordinator,
         config.capacity
     );
-    let reporter = report::Reporter::new(&config, advertise, Arc::clone(&state));
+    let reporter = report::Reporter::new(&config, advertise, Arc::clone(&state), net.coordinator);
     let outcome = tokio::select! {
         r = reporter.run() => r,
         _ = shutdown => Ok(()),

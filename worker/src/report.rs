@@ -3,12 +3,12 @@
 
 use crate::running::Tasks;
 use crate::{WorkerConfig, WorkerError};
+use crease_net::{AuthChannel, ClientSecurity};
 use crease_proto as pb;
 use crease_proto::coordinator_client::CoordinatorClient;
 use std::sync::Arc;
 use std::time::Duration;
 use tokio::sync::Mutex;
-use tonic::transport::{Channel, Endpoint};
 use tracing::{info, warn};
 
 pub struct Reporter {
@@ -19,11 +19,18 @@ pub struct Reporter {
     protocol_version: u32,
     tasks: Arc<Tasks>,
     /// The current registration: (client, worker id).
-    current: Mutex<Option<(CoordinatorClient<Channel>, String)>>,
+    current: Mutex<Option<(CoordinatorClient<AuthChannel>, String)>>,
+    /// TLS trust, the worker token and the message limit for the coordinator.
+    net: ClientSecurity,
 }
 
 impl Reporter {
-    pub fn new(config: &WorkerConfig, address: String, tasks: Arc<Tasks>) -> Self {
+    pub fn new(
+        config: &WorkerConfig,
+        address: String,
+        tasks: Arc<Tasks>,
+        net: ClientSecurity,
+    ) -> Self {
         Reporter {
             coordinator: config.coordinator.clone(),
             name: config.name.clone(),
@@ -32,6 +39,7 @@ impl Reporter {
             protocol_version: config.protocol_version,
             tasks,
             current: Mutex::new(None),
+            net,
         }
     }
 
@@ -100,22 +108,42 @@ impl Reporter {
                 draining: self.tasks.draining(),
                 running: self.tasks.running() as u32,
             })
-            .await
-            .ok()?;
-        Some(r.into_inner().known)
+            .await;
+        match r {
+            Ok(r) => Some(r.into_inner().known),
+            Err(s) => {
+                // A rotated cluster secret shows up here; without a log line the worker would just be lost.
+                if matches!(
+                    s.code(),
+                    tonic::Code::Unauthenticated | tonic::Code::PermissionDenied
+                ) {
+                    tracing::warn!(
+                        worker = %self.name,
+                        "the coordinator refused a heartbeat: {}",
+                        s.message()
+                    );
+                }
+                None
+            }
+        }
     }
 
     async fn register(&self) -> Result<Duration, RegisterError> {
-        let endpoint = Endpoint::from_shared(self.coordinator.clone())
-            .map_err(|e| {
-                RegisterError::Refused(format!("coordinator URL `{}`: {e}", self.coordinator))
-            })?
+        let endpoint = self
+            .net
+            .endpoint(&self.coordinator)
+            .map_err(|e| RegisterError::Refused(format!("--coordinator {e}")))?
             .connect_timeout(Duration::from_secs(2));
         let channel = endpoint
             .connect()
             .await
-            .map_err(|e| RegisterError::Unreachable(e.to_string()))?;
-        let mut client = CoordinatorClient::new(channel);
+            .map_err(|e| RegisterError::Unreachable(crease_net::client::error_chain(&e)))?;
+        let limit = self.net.max_message_bytes;
+        let mut client = CoordinatorClient::new(
+            tonic::service::interceptor::InterceptedService::new(channel, self.net.bearer()),
+        )
+        .max_decoding_message_size(limit)
+        .max_encoding_message_size(limit);
         let resp = client
             .register_worker(pb::RegisterWorkerRequest {
                 protocol_version: self.protocol_version,
@@ -141,10 +169,18 @@ impl Reporter {
                     r.heartbeat_interval_ms.max(50),
                 )))
             }
-            Err(s) if s.code() == tonic::Code::InvalidArgument => {
+            // A wrong protocol version or a refused token will not fix itself by retrying.
+            Err(s)
+                if matches!(
+                    s.code(),
+                    tonic::Code::InvalidArgument
+                        | tonic::Code::Unauthenticated
+                        | tonic::Code::PermissionDenied
+                ) =>
+            {
                 Err(RegisterError::Refused(s.message().to_string()))
             }
-            Err(s) => Err(RegisterError::Unreachable(s.message().to_string())),
+            Err(s) => Err(RegisterError::Unreachable(crease_net::client::explain(&s))),
         }
     }
 }

@@ -1,25 +1,47 @@
-//! The Worker gRPC service: `Execute` streams one task's events, `Cancel` stops one.
+//! The Worker gRPC service: `Execute` streams one task's events, `Cancel` stops one. `Execute` beyond the
+//! worker's capacity is refused with `RESOURCE_EXHAUSTED` (the coordinator hands the task back without
+//! charging it), so a worker is never overcommitted even if a coordinator miscounts.
 
 use crate::running::Tasks;
 use crease_proto as pb;
 use crease_proto::worker_server::Worker;
 use std::pin::Pin;
 use std::sync::Arc;
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio_stream::wrappers::UnboundedReceiverStream;
-use tokio_stream::Stream;
+use tokio_stream::{Stream, StreamExt};
 use tonic::{Request, Response, Status};
 
 pub struct WorkerService {
     tasks: Arc<Tasks>,
+    capacity: u32,
+    /// One permit per task slot. A permit is released when its task's last event (result or failure) is
+    /// sent, before the coordinator can react to it, so the next Execute never races with the previous
+    /// task's bookkeeping.
+    slots: Arc<Semaphore>,
 }
 
 impl WorkerService {
-    pub fn new(tasks: Arc<Tasks>) -> Self {
-        WorkerService { tasks }
+    pub fn new(tasks: Arc<Tasks>, capacity: u32) -> Self {
+        WorkerService {
+            tasks,
+            capacity,
+            slots: Arc::new(Semaphore::new(capacity.max(1) as usize)),
+        }
     }
 }
 
 type TaskStream = Pin<Box<dyn Stream<Item = Result<pb::TaskEvent, Status>> + Send>>;
+
+fn is_last(ev: &Result<pb::TaskEvent, Status>) -> bool {
+    matches!(
+        ev,
+        Ok(pb::TaskEvent {
+            event: Some(pb::task_event::Event::Result(_) | pb::task_event::Event::Failure(_)),
+            ..
+        }) | Err(_)
+    )
+}
 
 #[tonic::async_trait]
 impl Worker for WorkerService {
@@ -31,9 +53,23 @@ impl Worker for WorkerService {
                 "this worker is shutting down and takes no new tasks",
             ));
         }
+        let permit: OwnedSemaphorePermit =
+            Arc::clone(&self.slots).try_acquire_owned().map_err(|_| {
+                Status::resource_exhausted(format!(
+                    "this worker already runs {} task(s), its capacity",
+                    self.capacity
+                ))
+            })?;
         let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
         self.tasks.start(req.into_inner(), tx);
-        Ok(Response::new(Box::pin(UnboundedReceiverStream::new(rx))))
+        let mut permit = Some(permit);
+        let stream = UnboundedReceiverStream::new(rx).map(move |ev| {
+            if is_last(&ev) {
+                permit.take();
+            }
+            ev
+        });
+        Ok(Response::new(Box::pin(stream)))
     }
 
     async fn cancel(

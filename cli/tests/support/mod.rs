@@ -313,3 +313,43 @@ pub fn setup() -> (tempfile::TempDir, PathBuf) {
     write_anchors(&anchors);
     (dir, anchors)
 }
+
+impl Coordinator {
+    /// Like [`Coordinator::start`], with the coordinator's stderr kept in `log` (the security tests read the
+    /// refusals it logs). Clients and workers use `scheme`, `client_args` and `worker_args`, set here.
+    pub fn start_logged(
+        dir: &Path,
+        extra: &[&str],
+        log: &Path,
+        scheme: &'static str,
+        client_args: &[&str],
+        worker_args: &[&str],
+    ) -> Self {
+        let strings = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let mut c = Coordinator {
+            port: free_port(),
+            db: dir.join("queue.sqlite"),
+            proc: None,
+            extra: strings(extra),
+            client_args: strings(client_args),
+            worker_args: strings(worker_args),
+            scheme,
+        };
+        let child = Command::new(BIN)
+            .args(["coordinator", "--listen", &format!("127.0.0.1:{}", c.port)])
+            .arg("--db")
+            .arg(&c.db)
+            .args(["--heartbeat-ms", "200", "--worker-timeout-ms", "2000"])
+            .args(&c.extra)
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(log).unwrap())
+            .spawn()
+            .expect("start coordinator");
+        c.proc = Some(Proc(child));
+        let addr: SocketAddr = format!("127.0.0.1:{}", c.port).parse().unwrap();
+        wait_until("the coordinator to listen", || {
+            TcpStream::connect_timeout(&addr, Duration::from_millis(200)).is_ok()
+        });
+        c
+    }
+}

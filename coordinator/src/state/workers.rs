@@ -1,10 +1,10 @@
 //! Registry of live workers: capacity, running count, liveness and drain state. Kept in memory (workers
 //! re-register after a coordinator restart); the `workers` table only keeps history.
 
+use crease_net::AuthChannel as Channel;
 use crease_proto::worker_client::WorkerClient;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
-use tonic::transport::Channel;
 
 /// One registered worker.
 #[derive(Debug, Clone)]
@@ -91,7 +91,9 @@ mod tests {
     use super::*;
 
     fn entry(id: &str, capacity: u32, running: u32, draining: bool) -> WorkerEntry {
-        let channel = tonic::transport::Endpoint::from_static("http://127.0.0.1:9").connect_lazy();
+        let channel = crease_net::ClientSecurity::default()
+            .connect_lazy("http://127.0.0.1:9")
+            .unwrap();
         WorkerEntry {
             id: id.into(),
             name: id.into(),

@@ -12,7 +12,7 @@
 //! ```
 //! let job = crease_jobs::JobSpec::from_toml_str(r#"
 //! name = "sleeve take 3"
-//! input = "/data/capture/sleeve"          # plain path, file://…, later s3://…
+//! input = "/data/capture/sleeve"          # plain path, file://…, s3://bucket/…
 //! output = "file:///data/out/sleeve"
 //! priority = 10                            # higher first; FIFO within a priority
 //! client_token = "sleeve-take-3"           # submitting again with this token returns the same job
@@ -45,8 +45,10 @@
 //! Errors name the field: `job spec: \`partition.anchor_block\`: …`, `input /data/x: …`.
 //!
 //! URIs: plain paths (relative ones resolve against the current directory of the process that reads the
-//! spec), `file://…`, and any scheme `object_store` is built with (this build: the local filesystem only), plus
-//! `memory://<name>/…` for process-wide in-memory stores (in-process runs and tests of the remote path).
+//! spec), `file://…`, `s3://bucket/prefix` (S3 or any S3-compatible server, configured by the `AWS_*`
+//! environment, see [`s3`]), plus `memory://<name>/…` for process-wide in-memory stores (in-process runs and
+//! tests of the remote path). Remote URIs with `..`, `.`, empty or percent-encoded separator segments are
+//! refused (see [`confine`]).
 //! Remote inputs are fetched once into the worker's cache; remote outputs are staged there and uploaded.
 //!
 //! # Task graph
@@ -98,19 +100,25 @@
 //! partition sizes (the anchor block size is part of the arithmetic in per-anchor mode, as it is for `deform`).
 //! `jobs/tests/pipeline.rs` checks this.
 
+pub mod confine;
 pub mod detect;
 pub mod error;
 pub mod execute;
 pub mod inspect;
 pub mod keys;
+pub mod limits;
 pub mod plan;
+pub mod s3;
 pub mod spec;
 pub mod storage;
+pub mod storage_errors;
 pub mod task;
 
+pub use confine::StorageRoots;
 pub use error::{JobError, TaskError};
 pub use execute::{execute, ExecContext};
 pub use inspect::{inspect_input, InputInfo};
+pub use limits::JobLimits;
 pub use plan::{expand, final_outputs, plan};
 pub use spec::{FoldSpec, JobSpec, Partition, PreviewOptions};
 pub use storage::{fetch_input_to_cache, Storage};

@@ -67,6 +67,8 @@ pub struct CoordinatorArgs {
     /// First retry delay in milliseconds (doubles per attempt).
     #[arg(long, default_value_t = 200)]
     pub retry_backoff_ms: u64,
+    #[command(flatten)]
+    pub limits: crate::limits_args::LimitsArgs,
 }
 
 pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
@@ -76,7 +78,7 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
             a.grace_secs
         );
     }
-    let config = CoordinatorConfig {
+    let mut config = CoordinatorConfig {
         db: Some(a.db.clone()),
         heartbeat_interval: Duration::from_millis(a.heartbeat_ms.max(10)),
         worker_timeout: Duration::from_millis(a.worker_timeout_ms.max(20)),
@@ -85,6 +87,7 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
         retry_backoff: Duration::from_millis(a.retry_backoff_ms),
         ..CoordinatorConfig::default()
     };
+    a.limits.apply(&mut config)?;
     runtime()?.block_on(async move {
         let scheduler = Scheduler::open(config)
             .with_context(|| format!("opening the queue {}", a.db.display()))?;

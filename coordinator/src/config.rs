@@ -21,6 +21,10 @@ pub struct CoordinatorConfig {
     pub retry_backoff_max: Duration,
     /// Log registrations, lost workers and retries to stderr.
     pub log: bool,
+    /// Locations jobs may read and write (`--storage-root`); empty: any.
+    pub storage_roots: crease_jobs::StorageRoots,
+    /// Largest job accepted at submit (`--max-job-frames`, ...).
+    pub limits: crease_jobs::JobLimits,
 }
 
 impl Default for CoordinatorConfig {
@@ -34,6 +38,8 @@ impl Default for CoordinatorConfig {
             retry_backoff: Duration::from_millis(200),
             retry_backoff_max: Duration::from_secs(10),
             log: true,
+            storage_roots: Default::default(),
+            limits: Default::default(),
         }
     }
 }

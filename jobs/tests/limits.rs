@@ -85,7 +85,7 @@ async fn jobs_over_a_limit_are_refused_naming_the_limit_and_the_value() {
     };
     let e = admit(&spec, &roots, &size).await.unwrap_err().to_string();
     assert!(
-        e.contains("--max-job-input-mib") && e.contains("2.0 MiB") && e.contains("at most 1 MiB"),
+        e.contains("--max-job-input-mib") && e.contains(" MiB (2") && e.contains("at most 1 MiB"),
         "{e}"
     );
 }

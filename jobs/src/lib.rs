@@ -86,6 +86,12 @@
 //!
 //! # Failures
 //!
+//! Storage failures are classified ([`storage_errors`]): a full volume or quota (ENOSPC, EDQUOT, S3 `507`) is
+//! "storage full at <uri>" and not retryable (the worker's own cache or staging disk excepted: another worker
+//! may have room); an endpoint that cannot be reached within the configured retries is "storage unreachable
+//! at <uri> (endpoint …)" and retryable. Either way `finalize` never runs or fails before its report, so a
+//! half-written output is never marked complete.
+//!
 //! [`TaskError::retryable`] says whether another attempt may help: I/O and storage errors are retryable; bad
 //! data (a NaN in a frame, a malformed intermediate, anchors that do not fit), bad parameters and numerical
 //! failures are not, and their reason names the file, frame, window or block. A task stopped through

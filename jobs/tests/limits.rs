@@ -202,6 +202,7 @@ fn disk_full_inner(mnt: &Path) {
             .filter_map(|(k, r)| r.as_ref().err().map(|e| (k, e)))
             .collect();
         assert!(!failures.is_empty(), "the job fit in 192 KiB?");
+        println!("first failure: {}", failures[0].1);
         for (key, e) in &failures {
             assert!(
                 e.reason.contains("storage full at ")

@@ -287,3 +287,111 @@ async fn an_unreachable_s3_endpoint_fails_at_submit_and_in_tasks_naming_the_url(
     let out = Storage::open(remote_out).unwrap();
     assert!(out.exists("report.json").await.is_err());
 }
+
+/// An object store with a byte quota: once it is used up, puts fail with the error a full disk gives
+/// (ENOSPC), as an S3-compatible server in front of a full volume or an exhausted quota would.
+#[derive(Debug)]
+struct QuotaStore {
+    inner: object_store::memory::InMemory,
+    left: std::sync::Mutex<u64>,
+}
+
+impl std::fmt::Display for QuotaStore {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "QuotaStore")
+    }
+}
+
+mod quota {
+    use super::QuotaStore;
+    use futures::stream::BoxStream;
+    use object_store::path::Path;
+    use object_store::{
+        CopyOptions, GetOptions, GetResult, ListResult, MultipartUpload, ObjectMeta, ObjectStore,
+        PutMultipartOptions, PutOptions, PutPayload, PutResult, Result,
+    };
+
+    #[async_trait::async_trait]
+    impl ObjectStore for QuotaStore {
+        async fn put_opts(
+            &self,
+            location: &Path,
+            payload: PutPayload,
+            opts: PutOptions,
+        ) -> Result<PutResult> {
+            {
+                let mut left = self.left.lock().unwrap();
+                let n = payload.content_length() as u64;
+                if n > *left {
+                    return Err(object_store::Error::Generic {
+                        store: "QuotaStore",
+                        source: Box::new(std::io::Error::from_raw_os_error(28)),
+                    });
+                }
+                *left -= n;
+            }
+            self.inner.put_opts(location, payload, opts).await
+        }
+        async fn put_multipart_opts(
+            &self,
+            _location: &Path,
+            _opts: PutMultipartOptions,
+        ) -> Result<Box<dyn MultipartUpload>> {
+            Err(object_store::Error::NotImplemented {
+                operation: "put_multipart_opts".into(),
+                implementer: "QuotaStore".into(),
+            })
+        }
+        async fn get_opts(&self, location: &Path, options: GetOptions) -> Result<GetResult> {
+            self.inner.get_opts(location, options).await
+        }
+        fn delete_stream(
+            &self,
+            locations: BoxStream<'static, Result<Path>>,
+        ) -> BoxStream<'static, Result<Path>> {
+            self.inner.delete_stream(locations)
+        }
+        fn list(&self, prefix: Option<&Path>) -> BoxStream<'static, Result<ObjectMeta>> {
+            self.inner.list(prefix)
+        }
+        async fn list_with_delimiter(&self, prefix: Option<&Path>) -> Result<ListResult> {
+            self.inner.list_with_delimiter(prefix).await
+        }
+        async fn copy_opts(&self, from: &Path, to: &Path, options: CopyOptions) -> Result<()> {
+            self.inner.copy_opts(from, to, options).await
+        }
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_full_object_store_fails_the_job_and_leaves_no_report() {
+    let root = tempfile::tempdir().unwrap();
+    let (input, anchors) = fixture(root.path(), 900, 9);
+    crease_jobs::storage::register_store(
+        "memory://quota-full",
+        std::sync::Arc::new(QuotaStore {
+            inner: object_store::memory::InMemory::new(),
+            left: std::sync::Mutex::new(200 * 1024),
+        }),
+    );
+    let mut spec = job(&input, Some(&anchors), &root.path().join("unused"), "");
+    spec.output = "memory://quota-full/job".into();
+    let run = run_job(&spec, &root.path().join("cache"), PLAN_ORDER).await;
+    let failures: Vec<(&String, &TaskError)> = run
+        .outcomes
+        .iter()
+        .filter_map(|(k, r)| r.as_ref().err().map(|e| (k, e)))
+        .collect();
+    assert!(!failures.is_empty(), "the job fit in 200 KiB?");
+    for (key, e) in &failures {
+        assert!(
+            e.reason
+                .contains("storage full at memory://quota-full/job/"),
+            "{key}: {e}"
+        );
+        assert!(!e.retryable, "{key}: {e}");
+    }
+    assert!(!run.executed.iter().any(|k| k == "finalize"));
+    let out = Storage::open(&spec.output).unwrap();
+    assert!(!out.exists("report.json").await.unwrap());
+}

@@ -153,14 +153,16 @@ fn disk_full_fails_the_job_and_leaves_no_report() {
         println!("disk-full inner test ran on a tmpfs at {dir}");
         return;
     }
-    // Re-run this test in a new user and mount namespace with a 192 KiB tmpfs as the job's output.
+    // Re-run this test in a new user and mount namespace with two small tmpfs: a 192 KiB one for a job's
+    // output, a 96 KiB one for a worker's cache.
     let root = tempfile::tempdir().unwrap();
-    let mnt = root.path().join("small-disk");
-    std::fs::create_dir_all(&mnt).unwrap();
+    let mnt = root.path().join("small-disks");
+    std::fs::create_dir_all(mnt.join("out")).unwrap();
+    std::fs::create_dir_all(mnt.join("cache")).unwrap();
     let exe = std::env::current_exe().unwrap();
     let out = Command::new("unshare")
         .args(["--user", "--map-root-user", "--mount", "sh", "-c"])
-        .arg(r#"mount -t tmpfs -o size=192k crease-test "$DIR" && exec "$EXE" --exact disk_full_fails_the_job_and_leaves_no_report --nocapture --test-threads 1"#)
+        .arg(r#"mount -t tmpfs -o size=192k crease-out "$DIR/out" && mount -t tmpfs -o size=96k crease-cache "$DIR/cache" && exec "$EXE" --exact disk_full_fails_the_job_and_leaves_no_report --nocapture --test-threads 1"#)
         .env("DIR", &mnt)
         .env("EXE", &exe)
         .env(INNER, &mnt)
@@ -178,7 +180,8 @@ fn disk_full_fails_the_job_and_leaves_no_report() {
     );
 }
 
-fn disk_full_inner(mnt: &Path) {
+fn disk_full_inner(disks: &Path) {
+    let mnt = &disks.join("out");
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -229,6 +232,30 @@ fn disk_full_inner(mnt: &Path) {
             })
             .collect();
         assert!(leftovers.is_empty(), "{leftovers:?}");
+
+        // The worker's own disk is full (its cache, where remote outputs are staged): retryable, since another
+        // worker may have room; the message names the cache.
+        let cache = disks.join("cache");
+        let mut spec = spec.clone();
+        spec.output = "memory://full-cache/job".into();
+        let run = run_job(&spec, &cache, PLAN_ORDER).await;
+        let failures: Vec<(&String, &TaskError)> = run
+            .outcomes
+            .iter()
+            .filter_map(|(k, r)| r.as_ref().err().map(|e| (k, e)))
+            .collect();
+        assert!(!failures.is_empty(), "the staged outputs fit in 96 KiB?");
+        println!("first cache failure: {}", failures[0].1);
+        for (key, e) in &failures {
+            assert!(
+                e.reason.contains("storage full at ")
+                    && e.reason.contains(&cache.display().to_string()),
+                "{key}: {e}"
+            );
+            assert!(e.retryable, "{key}: a full worker cache is retryable: {e}");
+        }
+        let out = Storage::open(&spec.output).unwrap();
+        assert!(!out.exists("report.json").await.unwrap());
     });
 }
 

@@ -233,6 +233,48 @@ impl Storage {
         Ok(())
     }
 
+    /// Uploads the local file `file` to `key`. Files of at least `CREASE_STORAGE_MULTIPART_MIB` (default 64)
+    /// going to a remote store are streamed in parts of that size instead of read whole into memory (a point
+    /// cache of a long take can be gigabytes; S3 takes at most 5 GiB in one PUT). A multipart upload that
+    /// fails is aborted, and S3 publishes the object only when the upload completes, so the key never holds
+    /// part of the file.
+    pub async fn put_file(&self, key: &str, file: &Path) -> Result<(), JobError> {
+        let path = self.path(key)?;
+        let read_err = |e: std::io::Error| {
+            crate::storage_errors::classify(&format!("{} (upload source)", file.display()), &e)
+        };
+        let len = std::fs::metadata(file).map_err(read_err)?.len();
+        let part = multipart_part_bytes();
+        if self.local.is_some() || len < part as u64 {
+            let bytes = std::fs::read(file).map_err(read_err)?;
+            return self.put(key, bytes).await;
+        }
+        let fail = |e: object_store::Error| JobError::storage_failure(self.describe(key), &e);
+        let upload = self.store.put_multipart(&path).await.map_err(fail)?;
+        let mut writer = object_store::WriteMultipart::new_with_chunk_size(upload, part);
+        let streamed: Result<(), JobError> = async {
+            use std::io::Read;
+            let mut f = std::fs::File::open(file).map_err(read_err)?;
+            let mut buf = vec![0u8; part.min(8 << 20)];
+            loop {
+                let n = f.read(&mut buf).map_err(read_err)?;
+                if n == 0 {
+                    return Ok(());
+                }
+                writer.wait_for_capacity(4).await.map_err(fail)?;
+                writer.write(&buf[..n]);
+            }
+        }
+        .await;
+        match streamed {
+            Ok(()) => writer.finish().await.map(|_| ()).map_err(fail),
+            Err(e) => {
+                let _ = writer.abort().await;
+                Err(e)
+            }
+        }
+    }
+
     /// Whether an object exists at `key`.
     pub async fn exists(&self, key: &str) -> Result<bool, JobError> {
         let path = self.path(key)?;
@@ -370,6 +412,17 @@ pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf
             })
         }
     }
+}
+
+/// Part size of multipart uploads and the size from which they are used: `CREASE_STORAGE_MULTIPART_MIB`
+/// (default 64, at least 5, S3's smallest part).
+fn multipart_part_bytes() -> usize {
+    let mib = std::env::var("CREASE_STORAGE_MULTIPART_MIB")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .unwrap_or(64)
+        .clamp(5, 4096);
+    mib << 20
 }
 
 /// A failure reading the input at `uri`: unreachable or full storage named as such, anything else an input error.

@@ -145,3 +145,62 @@ async fn s3_keys_cannot_leave_their_prefix_and_errors_hide_credentials() {
     assert!(!no_bucket.contains(SECRET_KEY), "{no_bucket}");
     assert!(!format!("{store:?}").contains(SECRET_KEY));
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn large_files_are_uploaded_in_parts_and_read_back_identically() {
+    moto();
+    let dir = tempfile::tempdir().unwrap();
+    // 12 MiB and a bit: two 5 MiB parts and a short last one.
+    let mut seed = 0x2545f4914f6cdd1du64;
+    let data: Vec<u8> = (0..(12 << 20) + 123)
+        .map(|_| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed as u8
+        })
+        .collect();
+    let file = dir.path().join("take.pc2");
+    std::fs::write(&file, &data).unwrap();
+    let store = Storage::open(&format!("s3://{BUCKET}/multipart/job")).unwrap();
+    store.put_file("take.pc2", &file).await.unwrap();
+    assert!(store.get("take.pc2").await.unwrap() == data);
+    // S3 gives objects assembled from parts an e-tag ending in `-<number of parts>`.
+    let url = url::Url::parse(&format!("s3://{BUCKET}/multipart/job/take.pc2")).unwrap();
+    let (raw, path) = crease_jobs::storage::remote_store(&url).unwrap();
+    let meta = object_store::ObjectStoreExt::head(raw.as_ref(), &path)
+        .await
+        .unwrap();
+    let etag = meta.e_tag.unwrap_or_default();
+    assert!(
+        etag.trim_matches('"').ends_with("-3"),
+        "e-tag {etag}: not a 3-part upload"
+    );
+    // A small file takes the single-PUT path.
+    std::fs::write(dir.path().join("small.obj"), b"v 0 0 0\n").unwrap();
+    store
+        .put_file("small.obj", &dir.path().join("small.obj"))
+        .await
+        .unwrap();
+    assert_eq!(&store.get("small.obj").await.unwrap()[..], b"v 0 0 0\n");
+    // An upload that cannot complete leaves no object behind and names the URI.
+    let nowhere = Storage::open("s3://no-such-bucket-crease/multipart").unwrap();
+    let e = nowhere
+        .put_file("take.pc2", &file)
+        .await
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("s3://no-such-bucket-crease/multipart/take.pc2"),
+        "{e}"
+    );
+    assert!(!e.contains(SECRET_KEY), "{e}");
+    // A missing source file is named too.
+    let e = store
+        .put_file("x", &dir.path().join("missing.pc2"))
+        .await
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("missing.pc2"), "{e}");
+    assert!(!store.exists("x").await.unwrap());
+}

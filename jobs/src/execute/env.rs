@@ -279,13 +279,12 @@ fn upload_dir(env: &TaskEnv, dir: &Path) -> Result<(), TaskError> {
         .collect();
     files.sort();
     for f in files {
-        let bytes = std::fs::read(&f).map_err(|e| staging_err(&f, e))?;
         let name = f
             .file_name()
             .unwrap_or_default()
             .to_string_lossy()
             .into_owned();
-        env.block_on(env.out.put(&name, bytes))
+        env.block_on(env.out.put_file(&name, &f))
             .map_err(storage_err)?;
     }
     Ok(())

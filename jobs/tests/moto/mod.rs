@@ -114,6 +114,8 @@ kill $m 2>/dev/null
             // Small budgets: an unreachable endpoint must fail quickly in the tests.
             ("CREASE_STORAGE_TIMEOUT_SECS", "10"),
             ("CREASE_STORAGE_RETRIES", "2"),
+            // Small parts, so that files of a few MiB already take the multipart path.
+            ("CREASE_STORAGE_MULTIPART_MIB", "5"),
         ] {
             // Set once, before any store is built or any child process started by the caller.
             std::env::set_var(k, v);

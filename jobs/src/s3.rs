@@ -10,7 +10,9 @@
 //! `CREASE_STORAGE_RETRIES` times (default 3) within `CREASE_STORAGE_TIMEOUT_SECS` (default 60) in all, a
 //! connection attempt gives up after `CREASE_STORAGE_CONNECT_TIMEOUT_SECS` (default 5), and one request (a
 //! whole frame or point cache) after `CREASE_STORAGE_REQUEST_TIMEOUT_SECS` (default 300). Then the
-//! operation fails with "storage unreachable at <uri> (endpoint …)".
+//! operation fails with "storage unreachable at <uri> (endpoint …)". Output files of
+//! `CREASE_STORAGE_MULTIPART_MIB` (default 64) or more are uploaded in parts of that size (see
+//! [`crate::Storage::put_file`]).
 
 use object_store::aws::AmazonS3Builder;
 use object_store::{BackoffConfig, ClientOptions, ObjectStore, RetryConfig};

@@ -71,6 +71,8 @@ pub struct CoordinatorArgs {
     pub obs: crate::logging::ObsArgs,
     #[command(flatten)]
     pub security: crate::security_args::CoordinatorSecurityArgs,
+    #[command(flatten)]
+    pub limits: crate::limits_args::LimitsArgs,
 }
 
 pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
@@ -82,7 +84,7 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
             a.grace_secs
         );
     }
-    let config = CoordinatorConfig {
+    let mut config = CoordinatorConfig {
         db: Some(a.db.clone()),
         heartbeat_interval: Duration::from_millis(a.heartbeat_ms.max(10)),
         worker_timeout: Duration::from_millis(a.worker_timeout_ms.max(20)),
@@ -93,6 +95,7 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
         worker_channel,
         ..CoordinatorConfig::default()
     };
+    a.limits.apply(&mut config)?;
     runtime()?.block_on(async move {
         let scheduler = Scheduler::open(config)
             .with_context(|| format!("opening the queue {}", a.db.display()))?;

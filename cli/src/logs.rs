@@ -4,7 +4,7 @@
 use crate::cluster::{runtime, ClientArgs};
 use anyhow::Result;
 use clap::Args;
-use crease_coordinator::{JobClient, RemoteClient};
+use crease_coordinator::JobClient;
 use crease_proto as pb;
 
 #[derive(Args, Debug)]

@@ -8,6 +8,7 @@ mod cluster;
 mod eval;
 mod folds_stretch;
 mod folds_video;
+mod limits_args;
 mod local;
 mod logging;
 mod logs;

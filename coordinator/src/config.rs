@@ -26,6 +26,10 @@ pub struct CoordinatorConfig {
     pub server_security: crease_net::ServerSecurity,
     /// How the coordinator calls workers: CA and expected name, the worker token, message limit.
     pub worker_channel: crease_net::ClientSecurity,
+    /// Locations jobs may read and write (`--storage-root`); empty: any.
+    pub storage_roots: crease_jobs::StorageRoots,
+    /// Largest job accepted at submit (`--max-job-frames`, ...).
+    pub limits: crease_jobs::JobLimits,
 }
 
 impl Default for CoordinatorConfig {
@@ -41,6 +45,8 @@ impl Default for CoordinatorConfig {
             log: true,
             server_security: crease_net::ServerSecurity::default(),
             worker_channel: crease_net::ClientSecurity::default(),
+            storage_roots: Default::default(),
+            limits: Default::default(),
         }
     }
 }

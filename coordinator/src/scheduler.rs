@@ -138,9 +138,10 @@ impl Scheduler {
                 return Ok((id, false));
             }
         }
-        let info = crease_jobs::inspect_input(&spec)
-            .await
-            .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
+        let info =
+            crease_jobs::limits::admit(&spec, &self.config.storage_roots, &self.config.limits)
+                .await
+                .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         let defs = crease_jobs::plan(&spec, &info)
             .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         // A report left by an earlier run must not vouch for this job while it runs.

@@ -17,12 +17,28 @@ pub enum JobError {
     /// Storage (the output location, an intermediate) could not be used.
     #[error("storage {uri}: {msg}")]
     Storage { uri: String, msg: String },
+    /// The storage at `uri` has no room left (ENOSPC, a quota, an S3 `507 Insufficient Storage`). Named apart
+    /// from other storage errors because the fix is an operator's (free space), not a retry.
+    #[error("storage full at {uri}: {msg}")]
+    Full { uri: String, msg: String },
+    /// The storage at `uri` could not be reached within the configured retries and timeout (connection
+    /// refused, timed out, DNS); `uri` names the location and, for object stores, the endpoint.
+    #[error("storage unreachable at {uri}: {msg}")]
+    Unreachable { uri: String, msg: String },
+    /// The job is larger than a limit the coordinator enforces (`--max-job-frames`, ...).
+    #[error("limit {limit}: {msg}")]
+    Limit { limit: String, msg: String },
     /// The task graph could not be built or extended.
     #[error("planning: {0}")]
     Plan(String),
 }
 
 impl JobError {
+    /// A storage failure at `uri`, classified (see [`crate::storage_errors::classify`]): full, unreachable,
+    /// or a plain storage error.
+    pub fn storage_failure(uri: impl Into<String>, e: &(dyn std::error::Error + 'static)) -> Self {
+        crate::storage_errors::classify(&uri.into(), e)
+    }
     pub fn spec(field: impl Into<String>, msg: impl Into<String>) -> Self {
         JobError::Spec {
             field: field.into(),
@@ -87,8 +103,25 @@ impl TaskError {
         use crease_core::Error as E;
         match e {
             E::Cancelled => TaskError::cancelled(),
+            E::Io { path, source } if crate::storage_errors::is_full_io(&source) => {
+                TaskError::from_job(&JobError::Full {
+                    uri: path.display().to_string(),
+                    msg: format!("{context}: {source}"),
+                })
+            }
             E::Io { .. } => TaskError::transient(format!("{context}: {e}")),
             _ => TaskError::fatal(format!("{context}: {e}")),
+        }
+    }
+
+    /// A storage or input failure met by a task. Unreachable storage and plain I/O may pass (an outage, a flaky
+    /// mount): retryable. Full storage is not: it will not free itself within the retry backoff, so the job
+    /// fails at once with "storage full at …" (the worker turns a full local cache back into a retryable
+    /// failure, see `execute::run`, since another worker may have room).
+    pub fn from_job(e: &JobError) -> Self {
+        match e {
+            JobError::Full { .. } | JobError::Limit { .. } => TaskError::fatal(e.to_string()),
+            _ => TaskError::transient(e.to_string()),
         }
     }
 }

@@ -12,7 +12,7 @@
 //! ```
 //! let job = crease_jobs::JobSpec::from_toml_str(r#"
 //! name = "sleeve take 3"
-//! input = "/data/capture/sleeve"          # plain path, file://…, later s3://…
+//! input = "/data/capture/sleeve"          # plain path, file://…, s3://bucket/…
 //! output = "file:///data/out/sleeve"
 //! priority = 10                            # higher first; FIFO within a priority
 //! client_token = "sleeve-take-3"           # submitting again with this token returns the same job
@@ -45,8 +45,10 @@
 //! Errors name the field: `job spec: \`partition.anchor_block\`: …`, `input /data/x: …`.
 //!
 //! URIs: plain paths (relative ones resolve against the current directory of the process that reads the
-//! spec), `file://…`, and any scheme `object_store` is built with (this build: the local filesystem only), plus
-//! `memory://<name>/…` for process-wide in-memory stores (in-process runs and tests of the remote path).
+//! spec), `file://…`, `s3://bucket/prefix` (S3 or any S3-compatible server, configured by the `AWS_*`
+//! environment, see [`s3`]), plus `memory://<name>/…` for process-wide in-memory stores (in-process runs and
+//! tests of the remote path). Remote URIs with `..`, `.`, empty or percent-encoded separator segments are
+//! refused (see [`confine`]).
 //! Remote inputs are fetched once into the worker's cache; remote outputs are staged there and uploaded.
 //!
 //! # Task graph
@@ -84,6 +86,12 @@
 //!
 //! # Failures
 //!
+//! Storage failures are classified ([`storage_errors`]): a full volume or quota (ENOSPC, EDQUOT, S3 `507`) is
+//! "storage full at <uri>" and not retryable (the worker's own cache or staging disk excepted: another worker
+//! may have room); an endpoint that cannot be reached within the configured retries is "storage unreachable
+//! at <uri> (endpoint …)" and retryable. Either way `finalize` never runs or fails before its report, so a
+//! half-written output is never marked complete.
+//!
 //! [`TaskError::retryable`] says whether another attempt may help: I/O and storage errors are retryable; bad
 //! data (a NaN in a frame, a malformed intermediate, anchors that do not fit), bad parameters and numerical
 //! failures are not, and their reason names the file, frame, window or block. A task stopped through
@@ -98,19 +106,25 @@
 //! partition sizes (the anchor block size is part of the arithmetic in per-anchor mode, as it is for `deform`).
 //! `jobs/tests/pipeline.rs` checks this.
 
+pub mod confine;
 pub mod detect;
 pub mod error;
 pub mod execute;
 pub mod inspect;
 pub mod keys;
+pub mod limits;
 pub mod plan;
+pub mod s3;
 pub mod spec;
 pub mod storage;
+pub mod storage_errors;
 pub mod task;
 
+pub use confine::StorageRoots;
 pub use error::{JobError, TaskError};
 pub use execute::{execute, ExecContext};
 pub use inspect::{inspect_input, InputInfo};
+pub use limits::JobLimits;
 pub use plan::{expand, final_outputs, plan};
 pub use spec::{FoldSpec, JobSpec, Partition, PreviewOptions};
 pub use storage::{fetch_input_to_cache, Storage};

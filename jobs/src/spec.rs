@@ -18,7 +18,7 @@ pub struct JobSpec {
     /// Human-readable name shown by `crease jobs` (defaults to the input's last path segment).
     #[serde(default)]
     pub name: String,
-    /// Input sequence URI: a plain path, `file://…` (later `s3://…`): a directory of numbered OBJ/PLY frames,
+    /// Input sequence URI: a plain path, `file://…` or `s3://bucket/…`: a directory of numbered OBJ/PLY frames,
     /// a directory with one `.obj` + one `.pc2`, or the `.pc2` itself.
     pub input: String,
     /// Output location URI (a directory): frames under the input's file names, `report.json` (written last),
@@ -201,6 +201,9 @@ impl JobSpec {
     pub fn validate(&self) -> Result<(), JobError> {
         parse_location(&self.input, "input")?;
         parse_location(&self.output, "output")?;
+        for (field, uri) in crate::confine::spec_uris(self) {
+            crate::confine::check_remote_uri(field, uri)?;
+        }
         // The detectors name parameters as their CLI flags do (`fold-width`, `theta0`); the spec names fields.
         let param_err = |e: crease_core::Error| match e {
             crease_core::Error::Param { name, msg } => {

@@ -56,28 +56,71 @@ pub fn parse_location(uri: &str, field: &str) -> Result<Location, JobError> {
 
 /// The object store serving `url` and the path of `url` inside it. `memory://<name>/…` URLs name process-wide
 /// in-memory stores (one per `<name>`, created on first use), so in-process runs and tests exercise the
-/// remote-storage path (staged outputs, cached inputs) without a network; every other scheme goes to
-/// `object_store::parse_url` (which knows the schemes the crate was built with).
+/// remote-storage path (staged outputs, cached inputs) without a network; `s3://bucket/…` (and `s3a://`)
+/// go to an S3-compatible store configured from the environment (see [`crate::s3`]); every other scheme goes to
+/// `object_store::parse_url` (which knows the schemes the crate was built with). Stores registered with
+/// [`register_store`] take precedence.
 pub fn remote_store(
     url: &url::Url,
 ) -> Result<(Arc<dyn ObjectStore>, ObjectPath), object_store::Error> {
+    let root = store_root(url);
+    if let Some(store) = registered(&root) {
+        return Ok((store, ObjectPath::from_url_path(url.path())?));
+    }
     if url.scheme() == "memory" {
-        static STORES: std::sync::Mutex<Vec<(String, Arc<dyn ObjectStore>)>> =
-            std::sync::Mutex::new(Vec::new());
-        let name = url.host_str().unwrap_or("").to_string();
         let mut stores = STORES.lock().unwrap_or_else(|p| p.into_inner());
-        let store = match stores.iter().find(|(n, _)| *n == name) {
+        let store = match stores.iter().find(|(n, _)| *n == root) {
             Some((_, s)) => s.clone(),
             None => {
                 let s: Arc<dyn ObjectStore> = Arc::new(object_store::memory::InMemory::new());
-                stores.push((name, s.clone()));
+                stores.push((root, s.clone()));
                 s
             }
         };
         return Ok((store, ObjectPath::from_url_path(url.path())?));
     }
+    if matches!(url.scheme(), "s3" | "s3a") {
+        let mut stores = STORES.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some((_, s)) = stores.iter().find(|(n, _)| *n == root) {
+            return Ok((s.clone(), ObjectPath::from_url_path(url.path())?));
+        }
+        let store = crate::s3::store(url)?;
+        stores.push((root, store.clone()));
+        return Ok((store, ObjectPath::from_url_path(url.path())?));
+    }
     let (store, prefix) = object_store::parse_url(url)?;
     Ok((Arc::from(store), prefix))
+}
+
+/// Stores built so far, by `scheme://host` (in-memory stores, and S3 clients, which keep their connection pool
+/// between tasks).
+static STORES: std::sync::Mutex<Vec<(String, Arc<dyn ObjectStore>)>> =
+    std::sync::Mutex::new(Vec::new());
+#[allow(clippy::type_complexity)]
+static REGISTERED: std::sync::Mutex<Vec<(String, Arc<dyn ObjectStore>)>> =
+    std::sync::Mutex::new(Vec::new());
+
+fn store_root(url: &url::Url) -> String {
+    format!(
+        "{}://{}",
+        url.scheme(),
+        &url[url::Position::BeforeHost..url::Position::AfterPort]
+    )
+}
+
+fn registered(root: &str) -> Option<Arc<dyn ObjectStore>> {
+    let reg = REGISTERED.lock().unwrap_or_else(|p| p.into_inner());
+    reg.iter().find(|(r, _)| r == root).map(|(_, s)| s.clone())
+}
+
+/// Serves every URL under `root` (`scheme://host`, e.g. `s3://bucket` or `memory://quota`) from `store` in this
+/// process. For programs embedding crease-jobs with their own `ObjectStore` (a wrapper adding metrics or
+/// quotas, a store configured in code) and for tests (a store that fails on purpose).
+pub fn register_store(root: &str, store: Arc<dyn ObjectStore>) {
+    let root = root.trim_end_matches('/').to_string();
+    let mut reg = REGISTERED.lock().unwrap_or_else(|p| p.into_inner());
+    reg.retain(|(r, _)| *r != root);
+    reg.push((root, store));
 }
 
 /// A storage root: an object store plus the prefix of the root inside it.
@@ -131,7 +174,8 @@ impl Storage {
                 })
             }
             Location::Remote(url) => {
-                let (store, prefix) = remote_store(&url).map_err(|e| JobError::storage(uri, e))?;
+                let (store, prefix) =
+                    remote_store(&url).map_err(|e| JobError::storage_failure(uri, &e))?;
                 Ok(Storage {
                     uri: uri.to_string(),
                     store,
@@ -156,7 +200,11 @@ impl Storage {
         format!("{}/{}", self.uri.trim_end_matches('/'), key)
     }
 
+    /// The object path of `key` under the root. Keys are relative and cannot leave the root (see
+    /// [`crate::confine::check_key`]); a key that tries is refused, not normalised.
     fn path(&self, key: &str) -> Result<ObjectPath, JobError> {
+        crate::confine::check_key(key)
+            .map_err(|e| JobError::storage(self.describe(key), format!("invalid key: {e}")))?;
         let rel = ObjectPath::parse(key)
             .map_err(|e| JobError::storage(self.describe(key), format!("invalid key: {e}")))?;
         Ok(self.prefix.parts().chain(rel.parts()).collect())
@@ -169,10 +217,10 @@ impl Storage {
             .store
             .get(&path)
             .await
-            .map_err(|e| JobError::storage(self.describe(key), e))?;
+            .map_err(|e| JobError::storage_failure(self.describe(key), &e))?;
         got.bytes()
             .await
-            .map_err(|e| JobError::storage(self.describe(key), e))
+            .map_err(|e| JobError::storage_failure(self.describe(key), &e))
     }
 
     /// Writes `bytes` to `key` atomically (replacing any previous object).
@@ -181,8 +229,50 @@ impl Storage {
         self.store
             .put(&path, PutPayload::from(bytes.into()))
             .await
-            .map_err(|e| JobError::storage(self.describe(key), e))?;
+            .map_err(|e| JobError::storage_failure(self.describe(key), &e))?;
         Ok(())
+    }
+
+    /// Uploads the local file `file` to `key`. Files of at least `CREASE_STORAGE_MULTIPART_MIB` (default 64)
+    /// going to a remote store are streamed in parts of that size instead of read whole into memory (a point
+    /// cache of a long take can be gigabytes; S3 takes at most 5 GiB in one PUT). A multipart upload that
+    /// fails is aborted, and S3 publishes the object only when the upload completes, so the key never holds
+    /// part of the file.
+    pub async fn put_file(&self, key: &str, file: &Path) -> Result<(), JobError> {
+        let path = self.path(key)?;
+        let read_err = |e: std::io::Error| {
+            crate::storage_errors::classify(&format!("{} (upload source)", file.display()), &e)
+        };
+        let len = std::fs::metadata(file).map_err(read_err)?.len();
+        let part = multipart_part_bytes();
+        if self.local.is_some() || len < part as u64 {
+            let bytes = std::fs::read(file).map_err(read_err)?;
+            return self.put(key, bytes).await;
+        }
+        let fail = |e: object_store::Error| JobError::storage_failure(self.describe(key), &e);
+        let upload = self.store.put_multipart(&path).await.map_err(fail)?;
+        let mut writer = object_store::WriteMultipart::new_with_chunk_size(upload, part);
+        let streamed: Result<(), JobError> = async {
+            use std::io::Read;
+            let mut f = std::fs::File::open(file).map_err(read_err)?;
+            let mut buf = vec![0u8; part.min(8 << 20)];
+            loop {
+                let n = f.read(&mut buf).map_err(read_err)?;
+                if n == 0 {
+                    return Ok(());
+                }
+                writer.wait_for_capacity(4).await.map_err(fail)?;
+                writer.write(&buf[..n]);
+            }
+        }
+        .await;
+        match streamed {
+            Ok(()) => writer.finish().await.map(|_| ()).map_err(fail),
+            Err(e) => {
+                let _ = writer.abort().await;
+                Err(e)
+            }
+        }
     }
 
     /// Whether an object exists at `key`.
@@ -191,7 +281,7 @@ impl Storage {
         match self.store.head(&path).await {
             Ok(_) => Ok(true),
             Err(object_store::Error::NotFound { .. }) => Ok(false),
-            Err(e) => Err(JobError::storage(self.describe(key), e)),
+            Err(e) => Err(JobError::storage_failure(self.describe(key), &e)),
         }
     }
 
@@ -200,7 +290,7 @@ impl Storage {
         let path = self.path(key)?;
         match self.store.delete(&path).await {
             Ok(()) | Err(object_store::Error::NotFound { .. }) => Ok(()),
-            Err(e) => Err(JobError::storage(self.describe(key), e)),
+            Err(e) => Err(JobError::storage_failure(self.describe(key), &e)),
         }
     }
 
@@ -217,7 +307,7 @@ impl Storage {
             .list(Some(&prefix))
             .try_collect()
             .await
-            .map_err(|e| JobError::storage(self.describe(key_prefix), e))?;
+            .map_err(|e| JobError::storage_failure(self.describe(key_prefix), &e))?;
         let mut keys: Vec<String> = metas
             .into_iter()
             .map(|m| {
@@ -243,13 +333,13 @@ pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf
         Location::Local(p) => Ok(p),
         Location::Remote(url) => {
             let local = cache_dir.join(format!("{:016x}", fnv1a(url.as_str().as_bytes())));
-            let (store, prefix) = remote_store(&url).map_err(|e| JobError::input(uri, e))?;
+            let (store, prefix) = remote_store(&url).map_err(|e| input_err(uri, &e))?;
             let parts = prefix.parts().count();
             let metas: Vec<_> = store
                 .list(Some(&prefix))
                 .try_collect()
                 .await
-                .map_err(|e| JobError::input(uri, e))?;
+                .map_err(|e| input_err(uri, &e))?;
             // A single object (a file URI): fetch its directory's objects of the same stem too.
             let (metas, base_parts, single) = if metas.is_empty() {
                 let parent: ObjectPath = prefix.parts().take(parts.saturating_sub(1)).collect();
@@ -261,7 +351,7 @@ pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf
                     .list(Some(&parent))
                     .try_collect()
                     .await
-                    .map_err(|e| JobError::input(uri, e))?;
+                    .map_err(|e| input_err(uri, &e))?;
                 let same_stem: Vec<_> = all
                     .into_iter()
                     .filter(|m| {
@@ -279,13 +369,18 @@ pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf
                 (metas, parts, false)
             };
             for m in &metas {
-                let rel: PathBuf = m
+                let rel_key = m
                     .location
                     .parts()
                     .skip(base_parts)
                     .map(|p| p.as_ref().to_string())
-                    .collect();
-                let dest = local.join(&rel);
+                    .collect::<Vec<_>>()
+                    .join("/");
+                // A listed name is data from the store: it must stay inside this input's cache directory.
+                crate::confine::check_key(&rel_key).map_err(|e| {
+                    JobError::input(uri, format!("object `{rel_key}` cannot be cached: {e}"))
+                })?;
+                let dest = local.join(&rel_key);
                 // A cached copy is reused only if the object is unchanged: size, modification time and
                 // e-tag are recorded in a hidden sidecar (hidden files are not part of a sequence).
                 let stamp = format!("{} {} {:?}", m.size, m.last_modified.to_rfc3339(), m.e_tag);
@@ -299,24 +394,114 @@ pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf
                 let bytes = store
                     .get(&m.location)
                     .await
-                    .map_err(|e| JobError::input(uri, e))?
+                    .map_err(|e| input_err(uri, &e))?
                     .bytes()
                     .await
-                    .map_err(|e| JobError::input(uri, e))?;
+                    .map_err(|e| input_err(uri, &e))?;
                 if let Some(parent) = dest.parent() {
-                    std::fs::create_dir_all(parent).map_err(|e| {
-                        JobError::input(uri, format!("cache {}: {e}", parent.display()))
-                    })?;
+                    std::fs::create_dir_all(parent).map_err(|e| cache_err(uri, parent, &e))?;
                 }
                 crease_core::fsutil::write_atomic(&dest, &bytes)
                     .and_then(|()| crease_core::fsutil::write_atomic(&sidecar, stamp.as_bytes()))
-                    .map_err(|e| JobError::input(uri, format!("cache: {e}")))?;
+                    .map_err(|e| cache_err(uri, &dest, &e))?;
             }
             Ok(if single {
                 local.join(prefix.filename().unwrap_or_default())
             } else {
                 local
             })
+        }
+    }
+}
+
+/// Part size of multipart uploads and the size from which they are used: `CREASE_STORAGE_MULTIPART_MIB`
+/// (default 64, at least 5, S3's smallest part).
+fn multipart_part_bytes() -> usize {
+    let mib = std::env::var("CREASE_STORAGE_MULTIPART_MIB")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .unwrap_or(64)
+        .clamp(5, 4096);
+    mib << 20
+}
+
+/// A failure reading the input at `uri`: unreachable or full storage named as such, anything else an input error.
+fn input_err(uri: &str, e: &(dyn std::error::Error + 'static)) -> JobError {
+    crate::storage_errors::classify_input(uri, e)
+}
+
+/// A failure writing the worker's cache while fetching `uri` (a full local disk is "storage full at <cache>").
+fn cache_err(uri: &str, path: &Path, e: &(dyn std::error::Error + 'static)) -> JobError {
+    match crate::storage_errors::kind(e) {
+        crate::storage_errors::Kind::Full => {
+            crate::storage_errors::classify(&format!("{} (worker cache)", path.display()), e)
+        }
+        _ => JobError::input(uri, format!("cache {}: {e}", path.display())),
+    }
+}
+
+/// Total size in bytes of the input at `uri` as [`fetch_input_to_cache`] would fetch it (a directory's
+/// objects, or a file with its same-stem siblings), found from metadata alone so that a job too large for
+/// the coordinator's `--max-job-input-mib` is refused before anything is downloaded.
+pub async fn input_size(uri: &str) -> Result<u64, JobError> {
+    match parse_location(uri, "input")? {
+        Location::Local(p) => {
+            let meta = std::fs::metadata(&p).map_err(|e| JobError::input(uri, e))?;
+            if meta.is_dir() {
+                let mut total = 0;
+                for entry in std::fs::read_dir(&p).map_err(|e| JobError::input(uri, e))? {
+                    let entry = entry.map_err(|e| JobError::input(uri, e))?;
+                    let m = entry.metadata().map_err(|e| JobError::input(uri, e))?;
+                    if m.is_file() {
+                        total += m.len();
+                    }
+                }
+                return Ok(total);
+            }
+            let stem = p.file_stem().map(|s| s.to_os_string());
+            let mut total = meta.len();
+            if let (Some(dir), Some(stem)) = (p.parent(), stem) {
+                for entry in std::fs::read_dir(dir).map_err(|e| JobError::input(uri, e))? {
+                    let entry = entry.map_err(|e| JobError::input(uri, e))?;
+                    let q = entry.path();
+                    if q != p && q.file_stem() == Some(stem.as_os_str()) && q.is_file() {
+                        total += entry.metadata().map(|m| m.len()).unwrap_or(0);
+                    }
+                }
+            }
+            Ok(total)
+        }
+        Location::Remote(url) => {
+            let (store, prefix) = remote_store(&url).map_err(|e| input_err(uri, &e))?;
+            let metas: Vec<_> = store
+                .list(Some(&prefix))
+                .try_collect()
+                .await
+                .map_err(|e| input_err(uri, &e))?;
+            if !metas.is_empty() {
+                return Ok(metas.iter().map(|m| m.size).sum());
+            }
+            let parts = prefix.parts().count();
+            let parent: ObjectPath = prefix.parts().take(parts.saturating_sub(1)).collect();
+            let stem = prefix
+                .filename()
+                .and_then(|f| f.rsplit_once('.').map(|(s, _)| s.to_string()))
+                .unwrap_or_default();
+            let all: Vec<_> = store
+                .list(Some(&parent))
+                .try_collect()
+                .await
+                .map_err(|e| input_err(uri, &e))?;
+            Ok(all
+                .iter()
+                .filter(|m| {
+                    m.location.parts().count() == parts
+                        && m.location
+                            .filename()
+                            .is_some_and(|f| f.rsplit_once('.').map(|(s, _)| s) == Some(&stem))
+                })
+                .map(|m| m.size)
+                .sum())
         }
     }
 }

@@ -44,9 +44,10 @@ pub struct TaskEnv<'a> {
     handle: tokio::runtime::Handle,
 }
 
-/// Storage and input problems may pass (a flaky mount, a store outage): retryable.
+/// Storage and input problems may pass (a flaky mount, a store outage): retryable; full storage is not
+/// (see [`TaskError::from_job`]).
 pub fn storage_err(e: JobError) -> TaskError {
-    TaskError::transient(e.to_string())
+    TaskError::from_job(&e)
 }
 
 impl<'a> TaskEnv<'a> {
@@ -246,8 +247,7 @@ impl TaskEnv<'_> {
             .join(format!("{:016x}", fnv(self.job.output.as_bytes())))
             .join(stage.replace('/', "_"));
         let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d)
-            .map_err(|e| TaskError::transient(format!("staging {}: {e}", d.display())))?;
+        std::fs::create_dir_all(&d).map_err(|e| staging_err(&d, e))?;
         Ok(OutputDir {
             path: d,
             staged: true,
@@ -267,8 +267,7 @@ impl OutputDir {
 
 /// Uploads every plain, non-hidden file of a staging directory under its file name.
 fn upload_dir(env: &TaskEnv, dir: &Path) -> Result<(), TaskError> {
-    let entries = std::fs::read_dir(dir)
-        .map_err(|e| TaskError::transient(format!("staging {}: {e}", dir.display())))?;
+    let entries = std::fs::read_dir(dir).map_err(|e| staging_err(dir, e))?;
     let mut files: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
@@ -280,17 +279,28 @@ fn upload_dir(env: &TaskEnv, dir: &Path) -> Result<(), TaskError> {
         .collect();
     files.sort();
     for f in files {
-        let bytes = std::fs::read(&f)
-            .map_err(|e| TaskError::transient(format!("staging {}: {e}", f.display())))?;
         let name = f
             .file_name()
             .unwrap_or_default()
             .to_string_lossy()
             .into_owned();
-        env.block_on(env.out.put(&name, bytes))
+        env.block_on(env.out.put_file(&name, &f))
             .map_err(storage_err)?;
     }
     Ok(())
+}
+
+/// A failure of the worker's local staging area: retryable (another worker may have room), named as full
+/// storage when it is.
+fn staging_err(path: &Path, e: std::io::Error) -> TaskError {
+    if crate::storage_errors::is_full_io(&e) {
+        TaskError::transient(format!(
+            "storage full at {} (worker staging): {e}",
+            path.display()
+        ))
+    } else {
+        TaskError::transient(format!("staging {}: {e}", path.display()))
+    }
 }
 
 fn fnv(bytes: &[u8]) -> u64 {

@@ -54,6 +54,25 @@ fn run(
         return Err(TaskError::cancelled());
     }
     let clock = Instant::now();
+    run_kind(task, ctx, handle, clock).map_err(|e| local_full_is_retryable(e, ctx))
+}
+
+/// Full storage fails a job at once, except the worker's own disk (cache, staging): another worker may have
+/// room, so that failure is retryable (and the coordinator moves the task elsewhere).
+fn local_full_is_retryable(mut e: TaskError, ctx: &ExecContext) -> TaskError {
+    let cache = ctx.cache_dir.display().to_string();
+    if !e.retryable && e.reason.contains("storage full at ") && e.reason.contains(&cache) {
+        e.retryable = true;
+    }
+    e
+}
+
+fn run_kind(
+    task: &TaskSpec,
+    ctx: &ExecContext,
+    handle: tokio::runtime::Handle,
+    clock: Instant,
+) -> Result<TaskOutput, TaskError> {
     let env = TaskEnv::new(task.job(), ctx, handle)?;
     let (summary, written) = match task {
         TaskSpec::FoldDetect { frames, .. } => folds::detect(&env, frames.clone())?,

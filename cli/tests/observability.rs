@@ -7,7 +7,7 @@ mod support;
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
 use support::*;
@@ -98,36 +98,6 @@ fn metrics_addr(log: &Path) -> String {
     addr
 }
 
-/// A coordinator whose stderr goes to `coordinator.log` in `dir`.
-fn logged_coordinator(dir: &Path, port: u16, extra: &[&str]) -> (Coordinator, PathBuf) {
-    let log = dir.join("coordinator.log");
-    let mut c = Coordinator {
-        port,
-        db: dir.join("queue.sqlite"),
-        proc: None,
-        extra: extra.iter().map(|s| s.to_string()).collect(),
-        client_args: Vec::new(),
-        worker_args: Vec::new(),
-        scheme: "http",
-    };
-    let child = Command::new(BIN)
-        .args(["coordinator", "--listen", &format!("127.0.0.1:{port}")])
-        .arg("--db")
-        .arg(&c.db)
-        .args(["--heartbeat-ms", "200", "--worker-timeout-ms", "2000"])
-        .args(&c.extra)
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(&log).unwrap())
-        .spawn()
-        .expect("start coordinator");
-    c.proc = Some(Proc(child));
-    let addr = format!("127.0.0.1:{port}");
-    wait_until("the coordinator to listen", || {
-        TcpStream::connect(&addr).is_ok()
-    });
-    (c, log)
-}
-
 fn json_lines(log: &Path) -> Vec<serde_json::Value> {
     std::fs::read_to_string(log)
         .unwrap()
@@ -157,7 +127,8 @@ fn metrics_json_logs_and_task_log_tails_after_a_job_and_a_failing_task() {
     let obs = ["--metrics-listen", "127.0.0.1:0", "--log-format", "json"];
     let mut extra = vec!["--retry-backoff-ms", "50"];
     extra.extend(obs);
-    let (mut c, clog) = logged_coordinator(d, free_port(), &extra);
+    let clog = d.join("coordinator.log");
+    let mut c = Coordinator::start_logged(d, &extra, &clog, "http", &[], &[]);
     let caddr = metrics_addr(&clog);
     assert_eq!(get(&caddr, "/healthz").0, 200);
     assert_eq!(get(&caddr, "/readyz").0, 200);
@@ -377,7 +348,8 @@ fn a_worker_is_ready_only_while_registered_and_not_draining() {
     let waddr = metrics_addr(&wlog);
     assert_eq!(get(&waddr, "/healthz").0, 200);
     assert_eq!(get(&waddr, "/readyz").0, 503);
-    let (c, _) = logged_coordinator(d, port, &[]);
+    let c =
+        Coordinator::start_logged_on(port, d, &[], &d.join("coordinator.log"), "http", &[], &[]);
     wait_until("the worker to register and be ready", || {
         get(&waddr, "/readyz").0 == 200
     });

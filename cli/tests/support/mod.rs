@@ -77,6 +77,8 @@ pub struct Coordinator {
     pub worker_args: Vec<String>,
     /// URL scheme clients and workers use (`http` or `https`).
     pub scheme: &'static str,
+    /// Where the coordinator's stderr goes (none: discarded).
+    pub log: Option<PathBuf>,
 }
 
 impl Coordinator {
@@ -89,6 +91,7 @@ impl Coordinator {
             client_args: Vec::new(),
             worker_args: Vec::new(),
             scheme: "http",
+            log: None,
         };
         c.spawn();
         c
@@ -106,7 +109,10 @@ impl Coordinator {
             .args(["--heartbeat-ms", "200", "--worker-timeout-ms", "2000"])
             .args(&self.extra)
             .stdout(Stdio::null())
-            .stderr(Stdio::null())
+            .stderr(match &self.log {
+                Some(log) => Stdio::from(std::fs::File::create(log).unwrap()),
+                None => Stdio::null(),
+            })
             .spawn()
             .expect("start coordinator");
         self.proc = Some(Proc(child));
@@ -325,31 +331,39 @@ impl Coordinator {
         client_args: &[&str],
         worker_args: &[&str],
     ) -> Self {
+        Self::start_logged_on(
+            free_port(),
+            dir,
+            extra,
+            log,
+            scheme,
+            client_args,
+            worker_args,
+        )
+    }
+
+    /// [`Coordinator::start_logged`] on a given port (a test that starts a worker before its coordinator).
+    pub fn start_logged_on(
+        port: u16,
+        dir: &Path,
+        extra: &[&str],
+        log: &Path,
+        scheme: &'static str,
+        client_args: &[&str],
+        worker_args: &[&str],
+    ) -> Self {
         let strings = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
         let mut c = Coordinator {
-            port: free_port(),
+            port,
             db: dir.join("queue.sqlite"),
             proc: None,
             extra: strings(extra),
             client_args: strings(client_args),
             worker_args: strings(worker_args),
             scheme,
+            log: Some(log.to_path_buf()),
         };
-        let child = Command::new(BIN)
-            .args(["coordinator", "--listen", &format!("127.0.0.1:{}", c.port)])
-            .arg("--db")
-            .arg(&c.db)
-            .args(["--heartbeat-ms", "200", "--worker-timeout-ms", "2000"])
-            .args(&c.extra)
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(log).unwrap())
-            .spawn()
-            .expect("start coordinator");
-        c.proc = Some(Proc(child));
-        let addr: SocketAddr = format!("127.0.0.1:{}", c.port).parse().unwrap();
-        wait_until("the coordinator to listen", || {
-            TcpStream::connect_timeout(&addr, Duration::from_millis(200)).is_ok()
-        });
+        c.spawn();
         c
     }
 }

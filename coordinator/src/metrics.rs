@@ -3,7 +3,6 @@
 //! counters and the duration histogram are updated on task transitions.
 
 use crate::state::store::QueueGauges;
-use prometheus_client::encoding::text::encode;
 use prometheus_client::metrics::counter::Counter;
 use prometheus_client::metrics::family::Family;
 use prometheus_client::metrics::gauge::Gauge;
@@ -141,11 +140,7 @@ impl CoordinatorMetrics {
                 .map_or(0, |(_, n)| *n);
             self.jobs.get_or_create(&label("state", state)).set(n);
         }
-        let mut out = String::new();
-        if encode(&mut out, &self.registry).is_err() {
-            out = "# metrics could not be encoded\n".to_string();
-        }
-        out
+        crease_telemetry::render(&self.registry)
     }
 }
 

@@ -326,48 +326,19 @@ impl Storage {
 
 /// Makes the input at `uri` readable by crease-core from a local path. A local input is used in place (no
 /// copy); a remote one is downloaded once into `cache_dir/<hash of the URI>/` (objects already there and
-/// unchanged — same size, modification time and e-tag — are kept) and the local copy's path is returned. Works for directories and single files
-/// (a `.pc2` is fetched with its sibling `.obj`).
+/// unchanged — same size, modification time and e-tag — are kept) and the local copy's path is returned. Works
+/// for directories and single files (a `.pc2` is fetched with its sibling `.obj`).
 pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf, JobError> {
     match parse_location(uri, "input")? {
         Location::Local(p) => Ok(p),
         Location::Remote(url) => {
             let local = cache_dir.join(format!("{:016x}", fnv1a(url.as_str().as_bytes())));
             let (store, prefix) = remote_store(&url).map_err(|e| input_err(uri, &e))?;
-            let parts = prefix.parts().count();
-            let metas: Vec<_> = store
-                .list(Some(&prefix))
-                .try_collect()
-                .await
-                .map_err(|e| input_err(uri, &e))?;
-            // A single object (a file URI): fetch its directory's objects of the same stem too.
-            let (metas, base_parts, single) = if metas.is_empty() {
-                let parent: ObjectPath = prefix.parts().take(parts.saturating_sub(1)).collect();
-                let stem = prefix
-                    .filename()
-                    .and_then(|f| f.rsplit_once('.').map(|(s, _)| s.to_string()))
-                    .unwrap_or_default();
-                let all: Vec<_> = store
-                    .list(Some(&parent))
-                    .try_collect()
-                    .await
-                    .map_err(|e| input_err(uri, &e))?;
-                let same_stem: Vec<_> = all
-                    .into_iter()
-                    .filter(|m| {
-                        m.location.parts().count() == parts
-                            && m.location
-                                .filename()
-                                .is_some_and(|f| f.rsplit_once('.').map(|(s, _)| s) == Some(&stem))
-                    })
-                    .collect();
-                if same_stem.is_empty() {
-                    return Err(JobError::input(uri, "no such object or directory"));
-                }
-                (same_stem, parts.saturating_sub(1), true)
-            } else {
-                (metas, parts, false)
-            };
+            let (metas, base_parts, single) =
+                list_input_objects(store.as_ref(), &prefix, uri).await?;
+            if metas.is_empty() {
+                return Err(JobError::input(uri, "no such object or directory"));
+            }
             for m in &metas {
                 let rel_key = m
                     .location
@@ -473,37 +444,50 @@ pub async fn input_size(uri: &str) -> Result<u64, JobError> {
         }
         Location::Remote(url) => {
             let (store, prefix) = remote_store(&url).map_err(|e| input_err(uri, &e))?;
-            let metas: Vec<_> = store
-                .list(Some(&prefix))
-                .try_collect()
-                .await
-                .map_err(|e| input_err(uri, &e))?;
-            if !metas.is_empty() {
-                return Ok(metas.iter().map(|m| m.size).sum());
-            }
-            let parts = prefix.parts().count();
-            let parent: ObjectPath = prefix.parts().take(parts.saturating_sub(1)).collect();
-            let stem = prefix
-                .filename()
-                .and_then(|f| f.rsplit_once('.').map(|(s, _)| s.to_string()))
-                .unwrap_or_default();
-            let all: Vec<_> = store
-                .list(Some(&parent))
-                .try_collect()
-                .await
-                .map_err(|e| input_err(uri, &e))?;
-            Ok(all
-                .iter()
-                .filter(|m| {
-                    m.location.parts().count() == parts
-                        && m.location
-                            .filename()
-                            .is_some_and(|f| f.rsplit_once('.').map(|(s, _)| s) == Some(&stem))
-                })
-                .map(|m| m.size)
-                .sum())
+            let (metas, _, _) = list_input_objects(store.as_ref(), &prefix, uri).await?;
+            Ok(metas.iter().map(|m| m.size).sum())
         }
     }
+}
+
+/// The objects that make up the remote input at `prefix`: everything under it (a directory) or, for a single
+/// object (a file URI), the objects of the same stem beside it, so a `.pc2` travels with its `.obj`. Returns
+/// them (possibly none) with the number of leading path parts that make keys relative to the input, and whether
+/// it was a single object.
+async fn list_input_objects(
+    store: &dyn ObjectStore,
+    prefix: &ObjectPath,
+    uri: &str,
+) -> Result<(Vec<object_store::ObjectMeta>, usize, bool), JobError> {
+    let parts = prefix.parts().count();
+    let metas: Vec<_> = store
+        .list(Some(prefix))
+        .try_collect()
+        .await
+        .map_err(|e| input_err(uri, &e))?;
+    if !metas.is_empty() {
+        return Ok((metas, parts, false));
+    }
+    let parent: ObjectPath = prefix.parts().take(parts.saturating_sub(1)).collect();
+    let stem = prefix
+        .filename()
+        .and_then(|f| f.rsplit_once('.').map(|(s, _)| s.to_string()))
+        .unwrap_or_default();
+    let all: Vec<_> = store
+        .list(Some(&parent))
+        .try_collect()
+        .await
+        .map_err(|e| input_err(uri, &e))?;
+    let same_stem = all
+        .into_iter()
+        .filter(|m| {
+            m.location.parts().count() == parts
+                && m.location
+                    .filename()
+                    .is_some_and(|f| f.rsplit_once('.').map(|(s, _)| s) == Some(&stem))
+        })
+        .collect();
+    Ok((same_stem, parts.saturating_sub(1), true))
 }
 
 /// FNV-1a, to name cache directories after URIs without a hashing dependency (stable across processes, unlike

@@ -1,7 +1,6 @@
 //! What a worker shows the farm's monitoring: Prometheus metrics about the tasks it ran, and its readiness
 //! (registered with the coordinator and not draining) for the Kubernetes probe.
 
-use prometheus_client::encoding::text::encode;
 use prometheus_client::metrics::counter::Counter;
 use prometheus_client::metrics::family::Family;
 use prometheus_client::metrics::gauge::Gauge;
@@ -88,11 +87,7 @@ impl WorkerMetrics {
     /// Encodes every metric (OpenMetrics text) with `running` tasks in flight now.
     pub fn render(&self, running: usize) -> String {
         self.running.set(running as i64);
-        let mut out = String::new();
-        if encode(&mut out, &self.registry).is_err() {
-            out = "# metrics could not be encoded\n".to_string();
-        }
-        out
+        crease_telemetry::render(&self.registry)
     }
 }
 

@@ -823,21 +823,7 @@ fn scrape_metrics(addr: &str) -> Result<EndMetrics> {
             head.lines().next().unwrap_or("no status line")
         );
     }
-    let sample = |series: &str| -> Result<u64> {
-        let v = body
-            .lines()
-            .filter(|l| !l.starts_with('#'))
-            .find_map(|l| l.rsplit_once(' ').filter(|(k, _)| *k == series))
-            .with_context(|| format!("{what}: no sample `{series}`"))?
-            .1;
-        let x: f64 = v
-            .parse()
-            .with_context(|| format!("{what}: `{series}` has the value `{v}`"))?;
-        if !(x.is_finite() && x >= 0.0 && x.fract() == 0.0) {
-            bail!("{what}: `{series}` is {x}, not a count");
-        }
-        Ok(x as u64)
-    };
+    let sample = |series: &str| count_sample(body, series).with_context(|| what.clone());
     Ok(EndMetrics {
         retries: sample("crease_task_retries_total")?,
         failures: sample("crease_task_failures_total")?,
@@ -845,6 +831,23 @@ fn scrape_metrics(addr: &str) -> Result<EndMetrics> {
         queue_depth: sample("crease_queue_depth")?,
         tasks_running: sample("crease_tasks_running")?,
     })
+}
+
+/// The value of the sample `series` (name and labels exactly as exposed) in Prometheus text, as a count.
+fn count_sample(body: &str, series: &str) -> Result<u64> {
+    let v = body
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .find_map(|l| l.rsplit_once(' ').filter(|(k, _)| *k == series))
+        .with_context(|| format!("no sample `{series}`"))?
+        .1;
+    let x: f64 = v
+        .parse()
+        .with_context(|| format!("`{series}` has the value `{v}`"))?;
+    if !(x.is_finite() && x >= 0.0 && x.fract() == 0.0) {
+        bail!("`{series}` is {x}, not a count");
+    }
+    Ok(x as u64)
 }
 
 /// Starts worker `i` (generation `g` after `g` restarts) with one compute thread and one task at a time, so
@@ -1343,4 +1346,58 @@ fn print_summary(s: &serde_json::Value, results: &[JobResult], cases: &[Case]) {
          minutes from the first submission; retried = task attempts beyond the first; retries_total = the \
          coordinator's requeued attempts (failed or handed back)"
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_are_read_by_exact_series_and_anything_else_is_an_error() {
+        let body = "# HELP crease_jobs Jobs by state\n# TYPE crease_jobs gauge\n\
+                    crease_jobs{state=\"done\"} 50\ncrease_jobs{state=\"failed\"} 0\n\
+                    crease_queue_depth 0\ncrease_task_retries_total 7\ncrease_tasks_running 1.5\n\
+                    crease_task_failures_total NaN\n# EOF\n";
+        assert_eq!(
+            count_sample(body, "crease_jobs{state=\"done\"}").unwrap(),
+            50
+        );
+        assert_eq!(count_sample(body, "crease_task_retries_total").unwrap(), 7);
+        assert_eq!(count_sample(body, "crease_queue_depth").unwrap(), 0);
+        let err = |series: &str| format!("{:#}", count_sample(body, series).unwrap_err());
+        assert!(
+            err("crease_jobs").contains("no sample"),
+            "{}",
+            err("crease_jobs")
+        );
+        assert!(err("crease_tasks_running").contains("not a count"));
+        assert!(err("crease_task_failures_total").contains("not a count"));
+    }
+
+    #[test]
+    fn the_metrics_address_is_found_in_text_and_json_logs() {
+        let text =
+            "2026-11-22T11:20:12Z  INFO crease::cluster: metrics listening on 127.0.0.1:46493 \
+                    address=127.0.0.1:46493\n";
+        assert_eq!(
+            logged_address(text, "metrics listening on ").as_deref(),
+            Some("127.0.0.1:46493")
+        );
+        let json = r#"{"fields":{"message":"metrics listening on 127.0.0.1:9100","address":"x"}}"#;
+        assert_eq!(
+            logged_address(json, "metrics listening on ").as_deref(),
+            Some("127.0.0.1:9100")
+        );
+        assert_eq!(
+            logged_address(
+                "coordinator listening on 127.0.0.1:7070",
+                "metrics listening on "
+            ),
+            None
+        );
+        assert_eq!(
+            logged_address("metrics listening on \n", "metrics listening on "),
+            None
+        );
+    }
 }

@@ -9,6 +9,12 @@
 //! there are kills, so the cluster can always finish: a job that still fails or differs is a bug, not bad luck.
 //! Only processes this harness started are ever signalled, and every child is killed when its handle drops,
 //! so a deadline or an error leaves nothing running.
+//!
+//! `--secure` runs the cluster as production does: TLS on every gRPC connection (certificates from
+//! `crease certs`), bearer tokens for clients (two accepted tokens, as during a rotation, the clients split
+//! between them) and a worker token. Either way the coordinator serves Prometheus metrics, and the soak ends by
+//! scraping them: the queue must be empty, nothing running, and the coordinator's count of done jobs must be
+//! the harness's own.
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -16,7 +22,8 @@ use crease_core::mesh::io::write_obj_sequence;
 use crease_core::synth::{self, DemoSpec};
 use serde_json::json;
 use std::collections::BTreeMap;
-use std::io::Read;
+use std::ffi::{OsStr, OsString};
+use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -54,6 +61,10 @@ pub struct SoakArgs {
     /// The soak fails if its jobs have not all ended after this many seconds.
     #[arg(long, default_value_t = 600.0)]
     pub deadline_secs: f64,
+    /// Run the soak's cluster in the production configuration: TLS everywhere (a CA from `crease certs`),
+    /// client tokens (two, in rotation) and a worker token.
+    #[arg(long)]
+    pub secure: bool,
 }
 
 /// Deformation settings shared by the references and the jobs: short windows so even four frames give several
@@ -175,10 +186,152 @@ impl Drop for Scratch {
     }
 }
 
+/// Settings from the environment that would configure the soak's processes behind its back (another
+/// cluster's TLS files or tokens, a fixed metrics port every worker would fight over, JSON logs): the harness
+/// gives each process exactly the flags it means. CREASE_LOG stays, for debugging.
+const FOREIGN_ENV: [&str; 14] = [
+    "CREASE_COORDINATOR",
+    "CREASE_TLS_CERT",
+    "CREASE_TLS_KEY",
+    "CREASE_TLS_CA",
+    "CREASE_CLIENT_TOKENS_FILE",
+    "CREASE_WORKER_TOKEN_FILE",
+    "CREASE_WORKER_TLS_DOMAIN",
+    "CREASE_TOKEN",
+    "CREASE_TOKEN_FILE",
+    "CREASE_METRICS_LISTEN",
+    "CREASE_LOG_FORMAT",
+    "CREASE_MAX_MESSAGE_MIB",
+    "CREASE_STORAGE_ROOTS",
+    "CREASE_CACHE_DIR",
+];
+
+/// `exe` as a child of the harness, with none of [`FOREIGN_ENV`].
+fn crease(exe: &Path) -> Command {
+    let mut cmd = Command::new(exe);
+    for var in FOREIGN_ENV {
+        cmd.env_remove(var);
+    }
+    cmd
+}
+
+/// The files of a `--secure` soak and the flags each kind of process gets from them. Tokens are random per
+/// soak, live only in 0600 files and are never printed.
+struct Security {
+    certs: PathBuf,
+    /// Both user tokens: what the coordinator accepts.
+    client_tokens: PathBuf,
+    /// One user token per file; client `c` presents `user_tokens[c % 2]`, so both are in use at once.
+    user_tokens: [PathBuf; 2],
+    worker_token: PathBuf,
+}
+
+impl Security {
+    /// Certificates from `crease certs` (a child process, as an operator would run it) and fresh tokens.
+    fn create(exe: &Path, dir: &Path) -> Result<Self> {
+        let certs = dir.join("certs");
+        let o = crease(exe)
+            .arg("certs")
+            .arg("--out")
+            .arg(&certs)
+            .output()
+            .context("starting `crease certs`")?;
+        if !o.status.success() {
+            bail!(
+                "`crease certs --out {}` failed: {}",
+                certs.display(),
+                String::from_utf8_lossy(&o.stderr).trim()
+            );
+        }
+        let secrets = dir.join("secrets");
+        crease_core::fsutil::create_dir_all(&secrets)?;
+        let (a, b, w) = (random_token()?, random_token()?, random_token()?);
+        let s = Security {
+            certs,
+            client_tokens: secrets.join("client-tokens"),
+            user_tokens: [secrets.join("user-token-a"), secrets.join("user-token-b")],
+            worker_token: secrets.join("worker-token"),
+        };
+        write_secret(
+            &s.client_tokens,
+            &format!("# two accepted user tokens, as during a rotation\n{a}\n{b}\n"),
+        )?;
+        write_secret(&s.user_tokens[0], &format!("{a}\n"))?;
+        write_secret(&s.user_tokens[1], &format!("{b}\n"))?;
+        write_secret(&s.worker_token, &format!("{w}\n"))?;
+        Ok(s)
+    }
+
+    fn cert(&self, name: &str) -> OsString {
+        self.certs.join(name).into_os_string()
+    }
+
+    fn coordinator_args(&self) -> Vec<OsString> {
+        vec![
+            "--tls-cert".into(),
+            self.cert("coordinator.pem"),
+            "--tls-key".into(),
+            self.cert("coordinator.key"),
+            "--tls-ca".into(),
+            self.cert("ca.pem"),
+            "--client-tokens-file".into(),
+            self.client_tokens.clone().into_os_string(),
+            "--worker-token-file".into(),
+            self.worker_token.clone().into_os_string(),
+        ]
+    }
+
+    fn worker_args(&self) -> Vec<OsString> {
+        vec![
+            "--tls-ca".into(),
+            self.cert("ca.pem"),
+            "--tls-cert".into(),
+            self.cert("worker.pem"),
+            "--tls-key".into(),
+            self.cert("worker.key"),
+            "--worker-token-file".into(),
+            self.worker_token.clone().into_os_string(),
+        ]
+    }
+
+    fn client_args(&self, client: usize) -> Vec<OsString> {
+        vec![
+            "--tls-ca".into(),
+            self.cert("ca.pem"),
+            "--token-file".into(),
+            self.user_tokens[client % 2].clone().into_os_string(),
+        ]
+    }
+}
+
+/// 128 random bits, hex: a token nobody can guess, without a random-number dependency.
+fn random_token() -> Result<String> {
+    let mut bytes = [0u8; 16];
+    std::fs::File::open("/dev/urandom")
+        .and_then(|mut f| f.read_exact(&mut bytes))
+        .context("reading /dev/urandom for a soak token")?;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Writes a token file readable by its owner only (the coordinator warns about anything looser).
+fn write_secret(path: &Path, text: &str) -> Result<()> {
+    let mut opts = std::fs::OpenOptions::new();
+    opts.write(true).create_new(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        opts.mode(0o600);
+    }
+    opts.open(path)
+        .and_then(|mut f| f.write_all(text.as_bytes()))
+        .with_context(|| format!("writing {}", path.display()))
+}
+
 /// What the harness shares with its client and chaos threads.
 struct Ctx {
     exe: PathBuf,
     url: String,
+    security: Option<Security>,
     logs: PathBuf,
     t0: Instant,
     deadline: Instant,
@@ -192,8 +345,14 @@ impl Ctx {
     fn log(&self, msg: &str) {
         eprintln!("[soak {:>6.1}s] {msg}", self.elapsed());
     }
-    fn crease(&self) -> Command {
-        Command::new(&self.exe)
+    /// A client command (`submit`, `status`, `watch`, ...) of client `c` against the soak's coordinator.
+    fn client_cmd<S: AsRef<OsStr>>(&self, c: usize, args: &[S]) -> Command {
+        let mut cmd = crease(&self.exe);
+        cmd.args(args).args(["--coordinator", &self.url]);
+        if let Some(s) = &self.security {
+            cmd.args(s.client_args(c));
+        }
+        cmd
     }
 }
 
@@ -281,11 +440,17 @@ pub fn bench_soak(a: &SoakArgs, json_out: Option<&Path>) -> Result<()> {
     let max_failures = (a.kills as u32 + 3).max(10);
     let plans = write_job_specs(&dir, &cases, a, max_attempts, max_failures)?;
 
-    let (coordinator, url) = start_coordinator(&exe, &dir, &logs)?;
+    let security = if a.secure {
+        Some(Security::create(&exe, &dir)?)
+    } else {
+        None
+    };
+    let (coordinator, url, metrics_addr) = start_coordinator(&exe, &dir, &logs, security.as_ref())?;
     let t0 = Instant::now();
     let ctx = Arc::new(Ctx {
         exe: exe.clone(),
         url: url.clone(),
+        security,
         logs: logs.clone(),
         t0,
         deadline: t0 + Duration::from_secs_f64(a.deadline_secs),
@@ -297,8 +462,15 @@ pub fn bench_soak(a: &SoakArgs, json_out: Option<&Path>) -> Result<()> {
         workers.lock().unwrap().push((Some(p), 0));
     }
     ctx.log(&format!(
-        "coordinator at {url}, {} workers, {} jobs from {} clients, up to {} kills within {:.0}s (seed {})",
-        a.workers, a.jobs, a.clients, a.kills, a.kill_window_secs, a.seed
+        "coordinator at {url} ({}; metrics on {metrics_addr}), {} workers, {} jobs from {} clients, up to {} \
+         kills within {:.0}s (seed {})",
+        transport(a.secure),
+        a.workers,
+        a.jobs,
+        a.clients,
+        a.kills,
+        a.kill_window_secs,
+        a.seed
     ));
 
     let stop = Arc::new(AtomicBool::new(false));
@@ -346,7 +518,7 @@ pub fn bench_soak(a: &SoakArgs, json_out: Option<&Path>) -> Result<()> {
         if r.id.is_empty() {
             continue;
         }
-        let s = job_status(&ctx, &r.id)?;
+        let s = job_status(&ctx, r.client, &r.id)?;
         let state = s["state"].as_str().unwrap_or("?").to_string();
         r.message = s["message"].as_str().unwrap_or("").to_string();
         if r.state == "unfinished" {
@@ -366,16 +538,38 @@ pub fn bench_soak(a: &SoakArgs, json_out: Option<&Path>) -> Result<()> {
             r.identical = r.differs.is_empty();
         }
     }
+    // Everything has ended, so the coordinator's own view must agree: nothing queued or running, and as many
+    // done jobs as the clients saw (the queue file is new, so it holds only this soak's jobs).
+    let metrics = scrape_metrics(&metrics_addr)?;
     workers.lock().unwrap().clear();
     drop(coordinator);
 
-    let summary = summarise(a, &cases, &results, &kills, wall, &dir, scratch.keep);
+    let summary = summarise(
+        a,
+        &cases,
+        &results,
+        &kills,
+        &metrics,
+        wall,
+        &dir,
+        scratch.keep,
+    );
     print_summary(&summary, &results, &cases);
     if let Some(path) = json_out {
         crease_core::fsutil::write_atomic(
             path,
             serde_json::to_string_pretty(&summary)?.as_bytes(),
         )?;
+    }
+    let done = summary["done"].as_u64().unwrap_or(0);
+    if metrics.jobs_done != done || metrics.queue_depth != 0 || metrics.tasks_running != 0 {
+        bail!(
+            "soak: the coordinator's metrics disagree with the end of the soak: crease_jobs{{state=\"done\"}} \
+             {} (the clients saw {done} done), crease_queue_depth {}, crease_tasks_running {} (both must be 0)",
+            metrics.jobs_done,
+            metrics.queue_depth,
+            metrics.tasks_running
+        );
     }
     let bad = summary["failed"].as_u64().unwrap_or(0)
         + summary["unfinished"].as_u64().unwrap_or(0)
@@ -521,29 +715,55 @@ fn free_port() -> Result<u16> {
         .port())
 }
 
-/// Starts the coordinator on a free loopback port (retrying if another process takes the port first) and
-/// waits until it accepts connections.
-fn start_coordinator(exe: &Path, dir: &Path, logs: &Path) -> Result<(Proc, String)> {
+fn transport(secure: bool) -> &'static str {
+    if secure {
+        "TLS, client and worker tokens"
+    } else {
+        "plaintext, no tokens"
+    }
+}
+
+/// Starts the coordinator on a free loopback port (retrying if another process takes the port first), with
+/// metrics on any free port, and waits until it accepts connections and has logged its metrics address.
+/// Returns it, its URL and that address.
+fn start_coordinator(
+    exe: &Path,
+    dir: &Path,
+    logs: &Path,
+    security: Option<&Security>,
+) -> Result<(Proc, String, String)> {
+    let log_path = logs.join("coordinator.log");
+    let scheme = if security.is_some() { "https" } else { "http" };
     for _ in 0..5 {
         let port = free_port()?;
-        let log = std::fs::File::create(logs.join("coordinator.log"))?;
+        let log = std::fs::File::create(&log_path)?;
+        let mut cmd = crease(exe);
+        cmd.args(["coordinator", "--listen", &format!("127.0.0.1:{port}")])
+            .arg("--db")
+            .arg(dir.join("queue.sqlite"))
+            .args(["--heartbeat-ms", "200", "--worker-timeout-ms", "2000"])
+            .args(["--retry-backoff-ms", "100"])
+            .args(["--metrics-listen", "127.0.0.1:0"]);
+        if let Some(s) = security {
+            cmd.args(s.coordinator_args());
+        }
         let mut p = Proc(
-            Command::new(exe)
-                .args(["coordinator", "--listen", &format!("127.0.0.1:{port}")])
-                .arg("--db")
-                .arg(dir.join("queue.sqlite"))
-                .args(["--heartbeat-ms", "200", "--worker-timeout-ms", "2000"])
-                .args(["--retry-backoff-ms", "100"])
-                .stdout(Stdio::null())
+            cmd.stdout(Stdio::null())
                 .stderr(log)
                 .spawn()
                 .context("starting the coordinator")?,
         );
         let addr: SocketAddr = ([127, 0, 0, 1], port).into();
         let start = Instant::now();
+        let mut listening = false;
         while start.elapsed() < Duration::from_secs(30) {
-            if TcpStream::connect_timeout(&addr, Duration::from_millis(200)).is_ok() {
-                return Ok((p, format!("http://127.0.0.1:{port}")));
+            listening =
+                listening || TcpStream::connect_timeout(&addr, Duration::from_millis(200)).is_ok();
+            if listening {
+                let text = std::fs::read_to_string(&log_path).unwrap_or_default();
+                if let Some(metrics) = logged_address(&text, "metrics listening on ") {
+                    return Ok((p, format!("{scheme}://127.0.0.1:{port}"), metrics));
+                }
             }
             if p.0.try_wait()?.is_some() {
                 break;
@@ -551,24 +771,99 @@ fn start_coordinator(exe: &Path, dir: &Path, logs: &Path) -> Result<(Proc, Strin
             std::thread::sleep(Duration::from_millis(50));
         }
         p.kill();
+        if listening {
+            bail!(
+                "the coordinator serves gRPC but logged no metrics address within 30 s (is CREASE_LOG below \
+                 info?); see {}",
+                log_path.display()
+            );
+        }
     }
-    bail!(
-        "the coordinator did not start; see {}",
-        logs.join("coordinator.log").display()
+    bail!("the coordinator did not start; see {}", log_path.display())
+}
+
+/// The `host:port` logged right after `marker` (text or JSON log lines).
+fn logged_address(log: &str, marker: &str) -> Option<String> {
+    let rest = log.split(marker).nth(1)?;
+    let addr: String = rest
+        .chars()
+        .take_while(|c| c.is_ascii_alphanumeric() || matches!(c, '.' | ':' | '[' | ']'))
+        .collect();
+    addr.contains(':').then_some(addr)
+}
+
+/// What the coordinator's `/metrics` said once every job had ended.
+struct EndMetrics {
+    retries: u64,
+    failures: u64,
+    jobs_done: u64,
+    queue_depth: u64,
+    tasks_running: u64,
+}
+
+/// `GET /metrics` over plain HTTP/1.1 (the endpoint is loopback and unauthenticated, by design: it carries no
+/// job data), and the samples the soak reports.
+fn scrape_metrics(addr: &str) -> Result<EndMetrics> {
+    let what = format!("GET http://{addr}/metrics");
+    let mut s = TcpStream::connect(addr).with_context(|| what.clone())?;
+    s.set_read_timeout(Some(Duration::from_secs(10)))?;
+    write!(
+        s,
+        "GET /metrics HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
     )
+    .with_context(|| what.clone())?;
+    let mut reply = String::new();
+    s.read_to_string(&mut reply).with_context(|| what.clone())?;
+    let (head, body) = reply
+        .split_once("\r\n\r\n")
+        .with_context(|| format!("{what}: no HTTP response"))?;
+    if head.split_whitespace().nth(1) != Some("200") {
+        bail!(
+            "{what}: {}",
+            head.lines().next().unwrap_or("no status line")
+        );
+    }
+    let sample = |series: &str| count_sample(body, series).with_context(|| what.clone());
+    Ok(EndMetrics {
+        retries: sample("crease_task_retries_total")?,
+        failures: sample("crease_task_failures_total")?,
+        jobs_done: sample("crease_jobs{state=\"done\"}")?,
+        queue_depth: sample("crease_queue_depth")?,
+        tasks_running: sample("crease_tasks_running")?,
+    })
+}
+
+/// The value of the sample `series` (name and labels exactly as exposed) in Prometheus text, as a count.
+fn count_sample(body: &str, series: &str) -> Result<u64> {
+    let v = body
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .find_map(|l| l.rsplit_once(' ').filter(|(k, _)| *k == series))
+        .with_context(|| format!("no sample `{series}`"))?
+        .1;
+    let x: f64 = v
+        .parse()
+        .with_context(|| format!("`{series}` has the value `{v}`"))?;
+    if !(x.is_finite() && x >= 0.0 && x.fract() == 0.0) {
+        bail!("`{series}` is {x}, not a count");
+    }
+    Ok(x as u64)
 }
 
 /// Starts worker `i` (generation `g` after `g` restarts) with one compute thread and one task at a time, so
 /// several workers on a small machine share its cores instead of oversubscribing them.
 fn spawn_worker(ctx: &Ctx, dir: &Path, i: usize, g: u32) -> Result<Proc> {
     let log = std::fs::File::create(ctx.logs.join(format!("worker-{i}-gen{g}.log")))?;
-    let child = ctx
-        .crease()
-        .args(["--threads", "1", "worker", "--coordinator", &ctx.url])
+    let mut cmd = crease(&ctx.exe);
+    cmd.args(["--threads", "1", "worker", "--coordinator", &ctx.url])
         .args(["--name", &format!("soak-w{i}-gen{g}")])
         .args(["--capacity", "1", "--drain-secs", "5"])
         .arg("--cache-dir")
-        .arg(dir.join("cache").join(format!("w{i}")))
+        .arg(dir.join("cache").join(format!("w{i}")));
+    if let Some(s) = &ctx.security {
+        cmd.args(s.worker_args());
+    }
+    let child = cmd
         .stdout(Stdio::null())
         .stderr(log)
         .spawn()
@@ -671,7 +966,7 @@ fn client(
         }
         let started = Instant::now();
         let submitted_at = ctx.elapsed();
-        let proc = submit(ctx, &plan)?;
+        let proc = submit(ctx, c, &plan)?;
         flying.push(InFlight {
             plan,
             proc,
@@ -711,13 +1006,17 @@ fn client(
     Ok(results)
 }
 
-fn submit(ctx: &Ctx, plan: &JobPlan) -> Result<Proc> {
+fn submit(ctx: &Ctx, c: usize, plan: &JobPlan) -> Result<Proc> {
     let log = std::fs::File::create(ctx.logs.join(format!("client-job-{:03}.log", plan.index)))?;
     let child = ctx
-        .crease()
-        .arg("submit")
-        .arg(&plan.spec)
-        .args(["--watch", "--coordinator", &ctx.url])
+        .client_cmd(
+            c,
+            &[
+                OsStr::new("submit"),
+                plan.spec.as_os_str(),
+                OsStr::new("--watch"),
+            ],
+        )
         .stdout(Stdio::piped())
         .stderr(log)
         .spawn()
@@ -757,11 +1056,11 @@ fn poll(
                 );
             }
             f.submits += 1;
-            f.proc = submit(ctx, &f.plan)?;
+            f.proc = submit(ctx, c, &f.plan)?;
             i += 1;
             continue;
         } else {
-            let s = job_status(ctx, &f.id)?;
+            let s = job_status(ctx, c, &f.id)?;
             let state = s["state"].as_str().unwrap_or("?").to_string();
             if !matches!(state.as_str(), "done" | "failed" | "cancelled") {
                 ctx.log(&format!(
@@ -769,8 +1068,7 @@ fn poll(
                     f.id
                 ));
                 f.proc = Proc(
-                    ctx.crease()
-                        .args(["watch", &f.id, "--coordinator", &ctx.url])
+                    ctx.client_cmd(c, &["watch", &f.id])
                         .stdout(Stdio::null())
                         .stderr(Stdio::null())
                         .spawn()
@@ -819,10 +1117,10 @@ fn read_id(f: &mut InFlight) {
     }
 }
 
-fn job_status(ctx: &Ctx, id: &str) -> Result<serde_json::Value> {
+/// The coordinator's view of job `id`, asked as client `c`.
+fn job_status(ctx: &Ctx, c: usize, id: &str) -> Result<serde_json::Value> {
     let o = ctx
-        .crease()
-        .args(["status", id, "--json", "--coordinator", &ctx.url])
+        .client_cmd(c, &["status", id, "--json"])
         .output()
         .context("running `crease status`")?;
     if !o.status.success() {
@@ -880,11 +1178,13 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[rank.clamp(1, sorted.len()) - 1]
 }
 
+#[allow(clippy::too_many_arguments)]
 fn summarise(
     a: &SoakArgs,
     cases: &[Case],
     results: &[JobResult],
     kills: &[Kill],
+    m: &EndMetrics,
     wall: f64,
     dir: &Path,
     kept: bool,
@@ -910,6 +1210,7 @@ fn summarise(
     let nan_null = |x: f64| if x.is_finite() { json!(x) } else { json!(null) };
     json!({
         "jobs": a.jobs, "clients": a.clients, "workers": a.workers, "seed": a.seed,
+        "secure": a.secure, "transport": transport(a.secure),
         "kills_max": a.kills, "kill_window_secs": a.kill_window_secs,
         "done": done, "failed": failed, "unfinished": unfinished, "mismatched": mismatched,
         "kills": kills.len(),
@@ -922,6 +1223,11 @@ fn summarise(
             "max": nan_null(lat.last().copied().unwrap_or(f64::NAN)), "mean": nan_null(mean),
         },
         "max_task_attempts": a.kills + 3,
+        "metrics": {
+            "task_retries_total": m.retries, "task_failures_total": m.failures, "jobs_done": m.jobs_done,
+            "queue_depth": m.queue_depth, "tasks_running": m.tasks_running,
+            "jobs_done_matches": m.jobs_done == done as u64,
+        },
         "dir": if kept { json!(dir.display().to_string()) } else { json!(null) },
         "cases": cases.iter().map(|c| json!({
             "name": c.def.name, "triangles": c.def.triangles, "frames": c.def.frames, "mode": c.def.mode,
@@ -949,8 +1255,9 @@ fn print_summary(s: &serde_json::Value, results: &[JobResult], cases: &[Case]) {
     let f = |k: &str| s["latency_seconds"][k].as_f64().unwrap_or(f64::NAN);
     let n = |k: &str| s[k].as_u64().unwrap_or(0);
     println!(
-        "crease bench --soak: {} jobs from {} clients on {} workers, {} kills (at most {} within {}s), seed {}",
-        s["jobs"], s["clients"], s["workers"], s["kills"], s["kills_max"], s["kill_window_secs"], s["seed"]
+        "crease bench --soak: {} jobs from {} clients on {} workers, {} kills (at most {} within {}s), seed {}, {}",
+        s["jobs"], s["clients"], s["workers"], s["kills"], s["kills_max"], s["kill_window_secs"], s["seed"],
+        s["transport"].as_str().unwrap_or("?")
     );
     println!(
         "{:<28} {:>5} {:>5} {:>7} {:>9} {:>8}",
@@ -1002,6 +1309,24 @@ fn print_summary(s: &serde_json::Value, results: &[JobResult], cases: &[Case]) {
         f("p95"),
         f("max")
     );
+    let m = |k: &str| s["metrics"][k].as_u64().unwrap_or(0);
+    println!(
+        "coordinator /metrics at the end: {:>10} {:>12} {:>14} {:>11} {:>13}",
+        "jobs done", "retries_total", "failures_total", "queue_depth", "tasks_running"
+    );
+    println!(
+        "{:>32} {:>10} {:>12} {:>14} {:>11} {:>13}",
+        if s["metrics"]["jobs_done_matches"] == true {
+            "(matches the clients)"
+        } else {
+            "(DIFFERS from the clients)"
+        },
+        m("jobs_done"),
+        m("task_retries_total"),
+        m("task_failures_total"),
+        m("queue_depth"),
+        m("tasks_running")
+    );
     for r in results.iter().filter(|r| r.state != "done" || !r.identical) {
         println!(
             "  job {} ({}) {}: {}{}",
@@ -1018,6 +1343,61 @@ fn print_summary(s: &serde_json::Value, results: &[JobResult], cases: &[Case]) {
     }
     println!(
         "latency = `crease submit --watch` start to exit (submit -> done) per job; jobs/min = done jobs / wall \
-         minutes from the first submission; retried = task attempts beyond the first"
+         minutes from the first submission; retried = task attempts beyond the first; retries_total = the \
+         coordinator's requeued attempts (failed or handed back)"
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_are_read_by_exact_series_and_anything_else_is_an_error() {
+        let body = "# HELP crease_jobs Jobs by state\n# TYPE crease_jobs gauge\n\
+                    crease_jobs{state=\"done\"} 50\ncrease_jobs{state=\"failed\"} 0\n\
+                    crease_queue_depth 0\ncrease_task_retries_total 7\ncrease_tasks_running 1.5\n\
+                    crease_task_failures_total NaN\n# EOF\n";
+        assert_eq!(
+            count_sample(body, "crease_jobs{state=\"done\"}").unwrap(),
+            50
+        );
+        assert_eq!(count_sample(body, "crease_task_retries_total").unwrap(), 7);
+        assert_eq!(count_sample(body, "crease_queue_depth").unwrap(), 0);
+        let err = |series: &str| format!("{:#}", count_sample(body, series).unwrap_err());
+        assert!(
+            err("crease_jobs").contains("no sample"),
+            "{}",
+            err("crease_jobs")
+        );
+        assert!(err("crease_tasks_running").contains("not a count"));
+        assert!(err("crease_task_failures_total").contains("not a count"));
+    }
+
+    #[test]
+    fn the_metrics_address_is_found_in_text_and_json_logs() {
+        let text =
+            "2026-11-22T11:20:12Z  INFO crease::cluster: metrics listening on 127.0.0.1:46493 \
+                    address=127.0.0.1:46493\n";
+        assert_eq!(
+            logged_address(text, "metrics listening on ").as_deref(),
+            Some("127.0.0.1:46493")
+        );
+        let json = r#"{"fields":{"message":"metrics listening on 127.0.0.1:9100","address":"x"}}"#;
+        assert_eq!(
+            logged_address(json, "metrics listening on ").as_deref(),
+            Some("127.0.0.1:9100")
+        );
+        assert_eq!(
+            logged_address(
+                "coordinator listening on 127.0.0.1:7070",
+                "metrics listening on "
+            ),
+            None
+        );
+        assert_eq!(
+            logged_address("metrics listening on \n", "metrics listening on "),
+            None
+        );
+    }
 }

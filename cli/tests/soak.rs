@@ -1,7 +1,9 @@
-//! The soak test, for real: `crease bench --soak` runs 50 small jobs from concurrent clients on a loopback
-//! cluster of worker processes that are SIGKILLed and restarted at random, and must report every job done with
-//! the bytes of a single-node run. The test reads the harness's JSON, then checks outputs itself: it runs its
-//! own `crease run` for every input and compares the harness's references and several jobs' outputs with it.
+//! The soak test, for real: `crease bench --soak --secure` runs 50 small jobs from concurrent clients on a
+//! loopback cluster of worker processes that are SIGKILLed and restarted at random, in the production
+//! configuration (TLS on every connection, client tokens in rotation, a worker token), and must report every job
+//! done with the bytes of a single-node run and a coordinator whose metrics agree. The test reads the harness's
+//! JSON, then checks outputs itself: it runs its own `crease run` for every input and compares the harness's
+//! references and several jobs' outputs with it.
 
 mod support;
 
@@ -15,7 +17,8 @@ use support::*;
 const SOAK_DEADLINE: Duration = Duration::from_secs(400);
 
 #[test]
-fn fifty_jobs_from_concurrent_clients_survive_random_worker_kills_with_single_node_bytes() {
+fn fifty_jobs_from_concurrent_clients_survive_random_worker_kills_over_tls_with_single_node_bytes()
+{
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let keep = d.join("soak");
@@ -24,7 +27,15 @@ fn fifty_jobs_from_concurrent_clients_survive_random_worker_kills_with_single_no
     let started = Instant::now();
     let mut p = Proc(
         Command::new(BIN)
-            .args(["bench", "--soak", "--jobs", "50", "--clients", "4"])
+            .args([
+                "bench",
+                "--soak",
+                "--secure",
+                "--jobs",
+                "50",
+                "--clients",
+                "4",
+            ])
             .args(["--workers", "3", "--kills", "6", "--kill-window-secs", "10"])
             .args(["--seed", "11", "--deadline-secs", "300"])
             .arg("--keep")
@@ -58,6 +69,42 @@ fn fifty_jobs_from_concurrent_clients_survive_random_worker_kills_with_single_no
     assert_eq!(s["failed"], 0, "{table}");
     assert_eq!(s["unfinished"], 0, "{table}");
     assert_eq!(s["mismatched"], 0, "{table}");
+    assert_eq!(s["secure"], true, "{s}");
+    // The coordinator's own count, scraped from /metrics after the last job ended.
+    let m = &s["metrics"];
+    assert_eq!(m["jobs_done"], 50, "{table}");
+    assert_eq!(m["jobs_done_matches"], true, "{table}");
+    assert_eq!(m["queue_depth"], 0, "{table}");
+    assert_eq!(m["tasks_running"], 0, "{table}");
+    assert!(m["task_retries_total"].is_u64(), "{m}");
+    assert!(m["task_failures_total"].is_u64(), "{m}");
+    // Really secured: https everywhere, the workers registered over it, and no token in any log.
+    let logs = keep.join("logs");
+    let coordinator_log = std::fs::read_to_string(logs.join("coordinator.log")).unwrap();
+    assert!(
+        coordinator_log.contains("at https://127.0.0.1:"),
+        "workers did not register with https URLs:\n{coordinator_log}"
+    );
+    let mut secrets = Vec::new();
+    for f in ["client-tokens", "worker-token"] {
+        let text = std::fs::read_to_string(keep.join("secrets").join(f)).unwrap();
+        secrets.extend(
+            text.lines()
+                .map(str::trim)
+                .filter(|l| !l.is_empty() && !l.starts_with('#'))
+                .map(String::from),
+        );
+    }
+    assert_eq!(secrets.len(), 3, "two user tokens and a worker token");
+    let mut texts = vec![table.clone(), log.clone()];
+    for e in std::fs::read_dir(&logs).unwrap() {
+        texts.push(std::fs::read_to_string(e.unwrap().path()).unwrap());
+    }
+    for t in &texts {
+        for secret in &secrets {
+            assert!(!t.contains(secret.as_str()), "a token was printed");
+        }
+    }
     let kills = s["kills"].as_u64().unwrap();
     assert!((1..=6).contains(&kills), "kills: {kills}\n{log}");
     assert_eq!(s["kill_log"].as_array().unwrap().len() as u64, kills);

@@ -179,6 +179,7 @@ impl JobSpec {
             let field = e
                 .span()
                 .and_then(|span| toml_field_at(text, span.start))
+                .filter(|f| !f.is_empty())
                 .unwrap_or_else(|| "job.toml".to_string());
             JobError::spec(field, e.to_string())
         })?;
@@ -190,6 +191,7 @@ impl JobSpec {
     pub fn from_json_str(text: &str) -> Result<Self, JobError> {
         let spec: JobSpec = serde_json::from_str(text).map_err(|e| {
             let field = json_key_before(text, e.line(), e.column())
+                .filter(|f| !f.is_empty())
                 .unwrap_or_else(|| "job (JSON)".to_string());
             JobError::spec(field, e.to_string())
         })?;
@@ -374,4 +376,23 @@ fn json_key_before(text: &str, line: usize, column: usize) -> Option<String> {
     let key_end = before[..colon].trim_end().strip_suffix('"')?;
     let key_start = key_end.rfind('"')?;
     Some(key_end[key_start + 1..].to_string())
+}
+
+#[cfg(test)]
+mod fuzz_regressions {
+    use super::*;
+
+    /// Fuzzing found parse errors whose field came out empty (`job spec: ``: …`): a TOML error after an empty
+    /// table header `[]`, a JSON error right after an empty key `""`. The error then names the file instead.
+    #[test]
+    fn parse_errors_never_name_an_empty_field() {
+        let toml_err = JobSpec::from_toml_str("input = \"a\"\n[]\nframes\n").unwrap_err();
+        let json_err = JobSpec::from_json_str("{\"input\": \"\": \"t\"}").unwrap_err();
+        for (e, want) in [(toml_err, "job.toml"), (json_err, "job (JSON)")] {
+            match e {
+                JobError::Spec { field, .. } => assert_eq!(field, want),
+                other => panic!("{other}"),
+            }
+        }
+    }
 }

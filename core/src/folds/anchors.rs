@@ -208,8 +208,16 @@ impl AnchorSet {
                         "frame {f} anchor {k}: axis and angle must be finite numbers"
                     )));
                 }
-                let n = vec3::norm(a.axis);
-                if n < 1e-9 {
+                // Scaled by the largest component first: the squared length of an axis such as
+                // [0, 0, 1e200] overflows, and dividing by an infinite length would silently zero the axis.
+                let big = a.axis.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+                let unit_ish = if big > 0.0 {
+                    vec3::scale(a.axis, 1.0 / big)
+                } else {
+                    a.axis
+                };
+                let n = vec3::norm(unit_ish);
+                if big * n < 1e-9 {
                     return Err(err(format!("frame {f} anchor {k}: axis has zero length")));
                 }
                 if a.angle.abs() > std::f64::consts::PI + 1e-9 {
@@ -218,7 +226,7 @@ impl AnchorSet {
                         a.angle
                     )));
                 }
-                a.axis = vec3::scale(a.axis, 1.0 / n);
+                a.axis = vec3::scale(unit_ish, 1.0 / n);
             }
             fa.anchors.sort_by_key(|a| a.triangle);
             for w in fa.anchors.windows(2) {
@@ -284,6 +292,27 @@ impl AnchorSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Fuzzing found an axis whose squared length overflows ([1, 2, 5.9e182]): it was divided by an infinite
+    /// length and silently became [0, 0, 0], so the anchor asked for no rotation at all and the set no longer
+    /// read back from its own JSON.
+    #[test]
+    fn huge_axes_normalise_instead_of_vanishing() {
+        let text = r#"{"version":1,"frames":[{"frame":0,"anchors":[
+            {"triangle":1,"axis":[1,2,5.9e182],"angle":0.2},{"triangle":2,"axis":[-1e308,1e308,0],"angle":0.1}]}]}"#;
+        let s = AnchorSet::parse(text, None, 1, 10).unwrap();
+        let [a, b] = [s.frame(0)[0], s.frame(0)[1]];
+        assert!(a.axis[2] == 1.0 && a.axis[0] > 0.0 && a.axis[1] == 2.0 * a.axis[0]);
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        assert!((b.axis[0] + h).abs() < 1e-15 && (b.axis[1] - h).abs() < 1e-15 && b.axis[2] == 0.0);
+        let back = AnchorSet::parse(&s.to_json(), None, 1, 10).unwrap();
+        assert_eq!(back.frame(0), s.frame(0));
+        let tiny = r#"{"version":1,"frames":[{"frame":0,"anchors":[{"triangle":1,"axis":[1e-300,0,0],"angle":0.2}]}]}"#;
+        assert!(AnchorSet::parse(tiny, None, 1, 10)
+            .unwrap_err()
+            .to_string()
+            .contains("zero length"));
+    }
 
     #[test]
     fn parse_and_validate() {

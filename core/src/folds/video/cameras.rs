@@ -186,6 +186,9 @@ pub fn bilinear(data: &[f32], w: u32, h: u32, p: [f64; 2]) -> f32 {
     (a * (1.0 - fx) + b * fx) * (1.0 - fy) + (c * (1.0 - fx) + d * fx) * fy
 }
 
+/// Widest `%0Nd` an image pattern may use.
+pub const MAX_PATTERN_WIDTH: usize = 64;
+
 /// Formats a printf-style image pattern: `%s` → camera name, `%d` / `%0Nd` / `%Nd` → frame number, `%%` → `%`.
 pub fn format_pattern(
     pattern: &str,
@@ -212,7 +215,17 @@ pub fn format_pattern(
             Some('s') if spec.is_empty() => out.push_str(camera),
             Some('d') => {
                 let zero = spec.starts_with('0');
-                let width: usize = spec.parse().unwrap_or(0);
+                // A frame number has at most 20 digits; the formatter panics on widths above 65535 and a huge
+                // width would allocate that much per path anyway.
+                let width = match spec.parse::<usize>() {
+                    _ if spec.is_empty() => 0,
+                    Ok(w) if w <= MAX_PATTERN_WIDTH => w,
+                    _ => {
+                        return Err(format!(
+                            "the width of `%{spec}d` is too large (at most {MAX_PATTERN_WIDTH})"
+                        ))
+                    }
+                };
                 if zero {
                     out.push_str(&format!("{number:0width$}"));
                 } else {
@@ -476,6 +489,28 @@ mod tests {
             back.image_path(0, 3),
             Path::new("/z/images/a/frame_0003.png")
         );
+    }
+
+    /// Fuzzing found `%999999999d` in `image_pattern`: the formatter panicked ("Formatting argument out of
+    /// range") when the pattern was checked, instead of the file being rejected.
+    #[test]
+    fn huge_pattern_widths_are_an_error_not_a_panic() {
+        for pattern in [
+            "%999999999d",
+            "%0100000d",
+            "%99999999999999999999999d",
+            "%65d",
+        ] {
+            let text = ONE.replace("images/%s/frame_%04d.png", pattern);
+            let e = CameraRig::parse(&text, Path::new("c.json"), None)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("c.json") && e.contains("image_pattern") && e.contains("too large"),
+                "{pattern}: {e}"
+            );
+        }
+        assert_eq!(format_pattern("%064d", "c", 7).unwrap().len(), 64);
     }
 
     #[test]

@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 /// File format of the frames of a directory sequence.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum FrameFormat {
+pub enum FrameFormat {
     Obj,
     Ply,
 }
@@ -28,20 +28,22 @@ impl FrameFormat {
     }
 }
 
-/// One parsed frame file: its bytes (kept for locating lines in messages), positions and polygons.
-fn read_mesh(format: FrameFormat, path: &Path) -> Result<(Vec<u8>, Vec<V3>, Polygons)> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let (positions, faces) = match format {
+/// Positions and polygons of one frame file's bytes; `path` only names the file in errors.
+fn parse_mesh(format: FrameFormat, path: &Path, bytes: &[u8]) -> Result<(Vec<V3>, Polygons)> {
+    Ok(match format {
         FrameFormat::Obj => {
-            let m = obj::parse_obj(path, &bytes)?;
+            let m = obj::parse_obj(path, bytes)?;
             (m.positions, m.faces)
         }
         FrameFormat::Ply => {
-            let m = ply::parse_ply(path, &bytes)?;
+            let m = ply::parse_ply(path, bytes)?;
             (m.positions, m.faces)
         }
-    };
-    Ok((bytes, positions, faces))
+    })
+}
+
+fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).map_err(|e| Error::io(path, e))
 }
 
 pub(crate) fn out_of_range(t: usize, n: usize) -> Error {
@@ -51,31 +53,59 @@ pub(crate) fn out_of_range(t: usize, n: usize) -> Error {
     )
 }
 
-/// Reads frame `t` from the `t`-th file on demand; only the topology and the first frame's polygon list (to
-/// check that every frame has the same connectivity) stay in memory.
-pub(crate) struct FrameDirSource {
+/// The first frame of a frame-file sequence, against which every later frame is checked. Works on bytes, so
+/// that frames held in memory (fuzzing, services that fetched them) go through exactly the checks that
+/// [`open_sequence`](super::open_sequence) applies to files.
+pub struct FrameReference {
     format: FrameFormat,
-    files: Vec<PathBuf>,
+    /// File name of the first frame, for messages about later frames.
+    first: String,
     topology: Arc<Topology>,
     faces0: Polygons,
 }
 
-impl FrameDirSource {
-    /// Reads the first file for the topology (validated by [`Topology::new`]).
-    pub(crate) fn open(format: FrameFormat, files: Vec<PathBuf>) -> Result<Self> {
-        let first = files
-            .first()
-            .ok_or_else(|| Error::mesh("the sequence has no frames"))?;
-        let (_, positions, faces0) = read_mesh(format, first)?;
+impl FrameReference {
+    /// Parses the first frame and builds its topology (validated by [`Topology::new`]); `path` names it in
+    /// errors.
+    pub fn from_first_frame(format: FrameFormat, path: &Path, bytes: &[u8]) -> Result<Self> {
+        let (positions, faces0) = parse_mesh(format, path, bytes)?;
         let topology = Topology::new(positions.len(), faces0.triangulate()).map_err(|e| {
-            explain_triangle_numbers(e.at(Some(first.clone()), Some(0)), faces0.has_polygons())
+            explain_triangle_numbers(
+                e.at(Some(path.to_path_buf()), Some(0)),
+                faces0.has_polygons(),
+            )
         })?;
-        Ok(FrameDirSource {
+        Ok(FrameReference {
             format,
-            files,
+            first: file_name(path),
             topology: Arc::new(topology),
             faces0,
         })
+    }
+
+    pub fn topology(&self) -> &Arc<Topology> {
+        &self.topology
+    }
+
+    /// Parses frame `t` and checks it against the first frame: same vertex count, same polygons, and valid
+    /// geometry (finite, no degenerate triangles).
+    pub fn check_frame(&self, t: usize, path: &Path, bytes: &[u8]) -> Result<Frame> {
+        let (positions, faces) = parse_mesh(self.format, path, bytes)?;
+        let at = |e: Error| e.at(Some(path.to_path_buf()), Some(t));
+        let n = self.topology.n_vertices();
+        if positions.len() != n {
+            return Err(at(Error::mesh(format!(
+                "has {} vertices, but frame 0 ({}) has {n}; the vertex count must be the same in every frame",
+                positions.len(),
+                self.first
+            ))));
+        }
+        if let Some(e) = self.different_faces(t, path, bytes, &faces) {
+            return Err(e);
+        }
+        geometry::validate_frame(&self.topology, &positions)
+            .map_err(|e| explain_triangle_numbers(at(e), self.faces0.has_polygons()))?;
+        Ok(positions)
     }
 
     fn different_faces(
@@ -93,7 +123,6 @@ impl FrameDirSource {
                 .unwrap_or_default(),
             FrameFormat::Ply => String::new(),
         };
-        let first = self.files.first().map(|p| file_name(p)).unwrap_or_default();
         let detail = if k >= faces.len() || k >= self.faces0.len() {
             format!(
                 "it has {} faces, frame 0 has {}",
@@ -109,17 +138,36 @@ impl FrameDirSource {
         };
         Some(
             Error::mesh(format!(
-                "has a different triangle list than frame 0 ({first}): {detail}; every frame must have the same \
-                 connectivity"
+                "has a different triangle list than frame 0 ({}): {detail}; every frame must have the same \
+                 connectivity",
+                self.first
             ))
             .at(Some(path.to_path_buf()), Some(t)),
         )
     }
 }
 
+/// Reads frame `t` from the `t`-th file on demand; only the first frame's topology and polygon list (to check
+/// that every frame has the same connectivity) stay in memory.
+pub(crate) struct FrameDirSource {
+    files: Vec<PathBuf>,
+    reference: FrameReference,
+}
+
+impl FrameDirSource {
+    /// Reads the first file for the topology.
+    pub(crate) fn open(format: FrameFormat, files: Vec<PathBuf>) -> Result<Self> {
+        let first = files
+            .first()
+            .ok_or_else(|| Error::mesh("the sequence has no frames"))?;
+        let reference = FrameReference::from_first_frame(format, first, &read_bytes(first)?)?;
+        Ok(FrameDirSource { files, reference })
+    }
+}
+
 impl FrameSource for FrameDirSource {
     fn topology(&self) -> &Arc<Topology> {
-        &self.topology
+        self.reference.topology()
     }
 
     fn n_frames(&self) -> usize {
@@ -131,22 +179,7 @@ impl FrameSource for FrameDirSource {
             .files
             .get(t)
             .ok_or_else(|| out_of_range(t, self.files.len()))?;
-        let (bytes, positions, faces) = read_mesh(self.format, path)?;
-        let at = |e: Error| e.at(Some(path.clone()), Some(t));
-        let n = self.topology.n_vertices();
-        if positions.len() != n {
-            let first = self.files.first().map(|p| file_name(p)).unwrap_or_default();
-            return Err(at(Error::mesh(format!(
-                "has {} vertices, but frame 0 ({first}) has {n}; the vertex count must be the same in every frame",
-                positions.len()
-            ))));
-        }
-        if let Some(e) = self.different_faces(t, path, &bytes, &faces) {
-            return Err(e);
-        }
-        geometry::validate_frame(&self.topology, &positions)
-            .map_err(|e| explain_triangle_numbers(at(e), self.faces0.has_polygons()))?;
-        Ok(positions)
+        self.reference.check_frame(t, path, &read_bytes(path)?)
     }
 
     fn describe_frame(&self, t: usize) -> String {

@@ -21,11 +21,13 @@ mod tokens;
 #[cfg(test)]
 mod tests;
 
+pub use frame_dir::{FrameFormat, FrameReference};
 pub use layout::{
     create_sink, detect_layout, open_layout, open_sequence, OpenedSequence, SequenceLayout,
 };
 pub use numbering::{frame_number, sort_numbered, NumberedFile};
 pub use obj::{write_obj, write_obj_sequence};
 pub use obj_frames::ObjFramesSink;
-pub use pc2::{read_pc2_header, write_pc2, Pc2Header};
+pub use pc2::{read_pc2_header, read_pc2_header_from, read_pc2_sample_from, write_pc2, Pc2Header};
 pub use ply::write_ply_frame;
+pub use point_cache::Pc2Reference;

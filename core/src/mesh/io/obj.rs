@@ -158,13 +158,6 @@ pub(crate) fn parse_obj(path: &Path, bytes: &[u8]) -> Result<ObjMesh> {
     Ok(ObjMesh { positions, faces })
 }
 
-/// Reads and parses an OBJ file, returning its bytes as well (callers reuse them for messages).
-pub(crate) fn read_obj(path: &Path) -> Result<(Vec<u8>, ObjMesh)> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let mesh = parse_obj(path, &bytes)?;
-    Ok((bytes, mesh))
-}
-
 /// 1-based line number of face `k` (0-based, in file order) in an OBJ file's bytes.
 pub(crate) fn face_line(bytes: &[u8], k: usize) -> Option<usize> {
     tokens::lines(tokens::strip_bom(bytes))

@@ -70,7 +70,16 @@ fn le_f32(b: &[u8; 32], at: usize) -> f32 {
 /// copy, a wrong file) into an error when the sequence is opened instead of a failure hours into a run.
 pub fn read_pc2_header(path: &Path) -> Result<Pc2Header> {
     let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let actual = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    read_pc2_header_from(path, &mut file)
+}
+
+/// [`read_pc2_header`] on any seekable reader (a file, or bytes in memory); `path` only names it in errors.
+/// Reads the 32 header bytes and the stream's length, nothing else.
+pub fn read_pc2_header_from<R: Read + Seek>(path: &Path, reader: &mut R) -> Result<Pc2Header> {
+    let actual = reader
+        .seek(SeekFrom::End(0))
+        .and_then(|len| reader.seek(SeekFrom::Start(0)).map(|_| len))
+        .map_err(|e| Error::io(path, e))?;
     let bad = |msg: String| Error::format(path, None, msg);
     if actual < Pc2Header::LEN {
         return Err(bad(format!(
@@ -79,7 +88,7 @@ pub fn read_pc2_header(path: &Path) -> Result<Pc2Header> {
         )));
     }
     let mut b = [0u8; 32];
-    file.read_exact(&mut b).map_err(|e| Error::io(path, e))?;
+    reader.read_exact(&mut b).map_err(|e| Error::io(path, e))?;
     if &b[..12] != MAGIC {
         return Err(bad(format!(
             "not a PC2 point cache: the file starts with {:?} instead of \"POINTCACHE2\\0\"",
@@ -121,8 +130,15 @@ pub fn read_pc2_header(path: &Path) -> Result<Pc2Header> {
     Ok(header)
 }
 
-/// Reads sample `t` (0-based) of a cache whose header was validated by [`read_pc2_header`].
-pub(crate) fn read_pc2_sample(path: &Path, header: &Pc2Header, t: usize) -> Result<Vec<V3>> {
+/// Reads sample `t` (0-based) of a cache from any seekable reader holding the whole cache (a file, or bytes in
+/// memory); `path` only names it in errors. `header` should come from [`read_pc2_header_from`] on the same
+/// stream.
+pub fn read_pc2_sample_from<R: Read + Seek>(
+    path: &Path,
+    reader: &mut R,
+    header: &Pc2Header,
+    t: usize,
+) -> Result<Vec<V3>> {
     if t >= header.num_samples {
         return Err(Error::param(
             "frame",
@@ -138,21 +154,24 @@ pub(crate) fn read_pc2_sample(path: &Path, header: &Pc2Header, t: usize) -> Resu
         .ok_or_else(|| Error::format(path, None, "sample offset overflows"))?;
     let len = header.sample_len().and_then(|l| usize::try_from(l).ok());
     let len = len.ok_or_else(|| Error::format(path, None, "sample size overflows"))?;
-    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    file.seek(SeekFrom::Start(offset))
+    reader
+        .seek(SeekFrom::Start(offset))
         .map_err(|e| Error::io(path, e))?;
-    let mut buf = vec![0u8; len];
-    file.read_exact(&mut buf).map_err(|e| {
-        if e.kind() == std::io::ErrorKind::UnexpectedEof {
-            Error::format(
-                path,
-                None,
-                format!("sample {t} is cut short (the file changed after it was opened)"),
-            )
-        } else {
-            Error::io(path, e)
-        }
-    })?;
+    // Grown as the data arrives rather than sized from the header, so a header that was not checked against
+    // this stream cannot make a huge allocation.
+    let mut buf = Vec::with_capacity(len.min(1 << 20));
+    reader
+        .by_ref()
+        .take(len as u64)
+        .read_to_end(&mut buf)
+        .map_err(|e| Error::io(path, e))?;
+    if buf.len() < len {
+        return Err(Error::format(
+            path,
+            None,
+            format!("sample {t} is cut short (the file changed after it was opened)"),
+        ));
+    }
     Ok(decode_sample(&buf))
 }
 

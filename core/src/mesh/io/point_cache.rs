@@ -9,14 +9,15 @@ use crate::error::{Error, Result};
 use crate::fsutil;
 use crate::mesh::{geometry, Frame, FrameSink, FrameSource, Topology};
 use crate::vec3::V3;
-use std::io::{Seek, SeekFrom, Write};
+use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
-/// Reads sample `t` of the cache on demand; the OBJ only provides the connectivity (its own positions, the rest
-/// pose, are not a frame).
-pub(crate) struct Pc2Source {
+/// The topology OBJ of a point cache checked against the cache's header, and the checks every sample goes
+/// through. Works on bytes, so that caches held in memory (fuzzing, services that fetched them) are validated
+/// exactly as [`open_sequence`](super::open_sequence) validates files.
+pub struct Pc2Reference {
     pc2: PathBuf,
     header: Pc2Header,
     topology: Arc<Topology>,
@@ -24,11 +25,16 @@ pub(crate) struct Pc2Source {
     has_polygons: bool,
 }
 
-impl Pc2Source {
-    /// Validates the cache header and size, reads the OBJ's topology, and checks that the point count matches.
-    pub(crate) fn open(obj_path: &Path, pc2_path: &Path) -> Result<Self> {
-        let header = pc2::read_pc2_header(pc2_path)?;
-        let (_, mesh) = obj::read_obj(obj_path)?;
+impl Pc2Reference {
+    /// Parses the topology OBJ (its own positions, the rest pose, are not a frame), checks that its vertex
+    /// count matches the cache's point count and builds the topology. The paths only name the files in errors.
+    pub fn new(
+        obj_path: &Path,
+        obj_bytes: &[u8],
+        pc2_path: &Path,
+        header: Pc2Header,
+    ) -> Result<Self> {
+        let mesh = obj::parse_obj(obj_path, obj_bytes)?;
         if header.num_points != mesh.positions.len() {
             return Err(Error::format(
                 pc2_path,
@@ -48,37 +54,71 @@ impl Pc2Source {
                     mesh.faces.has_polygons(),
                 )
             })?;
-        Ok(Pc2Source {
+        Ok(Pc2Reference {
             pc2: pc2_path.to_path_buf(),
             has_polygons: mesh.faces.has_polygons(),
             header,
             topology: Arc::new(topology),
         })
     }
-}
 
-impl FrameSource for Pc2Source {
-    fn topology(&self) -> &Arc<Topology> {
+    pub fn header(&self) -> &Pc2Header {
+        &self.header
+    }
+
+    pub fn topology(&self) -> &Arc<Topology> {
         &self.topology
     }
 
-    fn n_frames(&self) -> usize {
-        self.header.num_samples
-    }
-
-    fn read_frame(&self, t: usize) -> Result<Frame> {
+    /// Reads sample `t` from `reader` (the whole cache) and validates it against the topology.
+    pub fn read_sample<R: Read + Seek>(&self, reader: &mut R, t: usize) -> Result<Frame> {
         if t >= self.header.num_samples {
             return Err(out_of_range(t, self.header.num_samples));
         }
-        let positions = pc2::read_pc2_sample(&self.pc2, &self.header, t)?;
+        let positions = pc2::read_pc2_sample_from(&self.pc2, reader, &self.header, t)?;
         geometry::validate_frame(&self.topology, &positions).map_err(|e| {
             explain_triangle_numbers(e.at(Some(self.pc2.clone()), Some(t)), self.has_polygons)
         })?;
         Ok(positions)
     }
+}
+
+/// Reads sample `t` of the cache on demand, opening the file for each read.
+pub(crate) struct Pc2Source {
+    reference: Pc2Reference,
+}
+
+impl Pc2Source {
+    /// Validates the cache header and size, reads the OBJ's topology, and checks that the point count matches.
+    pub(crate) fn open(obj_path: &Path, pc2_path: &Path) -> Result<Self> {
+        let header = pc2::read_pc2_header(pc2_path)?;
+        let obj_bytes = std::fs::read(obj_path).map_err(|e| Error::io(obj_path, e))?;
+        Ok(Pc2Source {
+            reference: Pc2Reference::new(obj_path, &obj_bytes, pc2_path, header)?,
+        })
+    }
+}
+
+impl FrameSource for Pc2Source {
+    fn topology(&self) -> &Arc<Topology> {
+        self.reference.topology()
+    }
+
+    fn n_frames(&self) -> usize {
+        self.reference.header.num_samples
+    }
+
+    fn read_frame(&self, t: usize) -> Result<Frame> {
+        let r = &self.reference;
+        if t >= r.header.num_samples {
+            return Err(out_of_range(t, r.header.num_samples));
+        }
+        let mut file = std::fs::File::open(&r.pc2).map_err(|e| Error::io(&r.pc2, e))?;
+        r.read_sample(&mut file, t)
+    }
 
     fn describe_frame(&self, t: usize) -> String {
-        format!("{} sample {t}", self.pc2.display())
+        format!("{} sample {t}", self.reference.pc2.display())
     }
 }
 

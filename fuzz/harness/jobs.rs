@@ -10,9 +10,13 @@ use crease_jobs::{JobError, JobSpec};
 fn assert_named(e: &JobError) {
     match e {
         JobError::Spec { field, .. } => assert!(!field.is_empty(), "no field named: {e}"),
-        JobError::Input { uri, .. } | JobError::Storage { uri, .. } => {
+        JobError::Input { uri, .. }
+        | JobError::Storage { uri, .. }
+        | JobError::Full { uri, .. }
+        | JobError::Unreachable { uri, .. } => {
             assert!(!uri.is_empty(), "no URI named: {e}")
         }
+        JobError::Limit { limit, .. } => assert!(!limit.is_empty(), "no limit named: {e}"),
         JobError::Plan(msg) => assert!(!msg.is_empty()),
     }
 }

@@ -1,6 +1,10 @@
 //! End-to-end tests of the `crease` binary: real processes, real files.
 
-use std::path::{Path, PathBuf};
+mod support;
+
+use support::{fixture, stderr};
+
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn crease(args: &[&str]) -> Output {
@@ -9,10 +13,6 @@ fn crease(args: &[&str]) -> Output {
         .args(["--threads", "2"])
         .output()
         .expect("run crease")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// Runs `crease run` on `input` with `anchors` into `out` (small previews).
@@ -34,10 +34,6 @@ fn run_on(input: &Path, anchors: &Path, out: &Path) -> Output {
 fn run_ok(input: &Path, anchors: &Path, out: &Path) {
     let o = run_on(input, anchors, out);
     assert!(o.status.success(), "{}", stderr(&o));
-}
-
-fn fixture() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/sleeve")
 }
 
 fn obj_vertices(path: &Path) -> Vec<[f64; 3]> {
@@ -111,25 +107,7 @@ fn runs_on_captured_sleeve_fixture_keeping_layout() {
     let dir = tempfile::tempdir().unwrap();
     let anchors = dir.path().join("anchors.json");
     // A short fold edge pair on the sleeve, all four frames.
-    let frames: Vec<String> = (0..4)
-        .map(|f| {
-            let list: Vec<String> = (0..40)
-                .map(|k| {
-                    format!(
-                        r#"{{"triangle":{},"axis":[0,0,{}],"angle":0.6}}"#,
-                        6000 + 2 * k,
-                        if k < 20 { 1 } else { -1 }
-                    )
-                })
-                .collect();
-            format!(r#"{{"frame":{f},"anchors":[{}]}}"#, list.join(","))
-        })
-        .collect();
-    std::fs::write(
-        &anchors,
-        format!(r#"{{"version":1,"frames":[{}]}}"#, frames.join(",")),
-    )
-    .unwrap();
+    support::write_anchors(&anchors);
     let out = dir.path().join("out");
     let o = crease(&[
         "run",

@@ -1,8 +1,6 @@
 //! End-to-end tests of the `crease` binary: real processes, real files.
 
-mod support;
-
-use support::{fixture, stderr};
+use crease_e2e::{fixture, stderr, write_anchors};
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -107,7 +105,7 @@ fn runs_on_captured_sleeve_fixture_keeping_layout() {
     let dir = tempfile::tempdir().unwrap();
     let anchors = dir.path().join("anchors.json");
     // A short fold edge pair on the sleeve, all four frames.
-    support::write_anchors(&anchors);
+    write_anchors(&anchors);
     let out = dir.path().join("out");
     let o = crease(&[
         "run",

@@ -3,15 +3,13 @@
 //! and peer, never with a token; an over-size message is refused; a worker at capacity refuses more work and
 //! the coordinator hands the task back without charging it.
 
-mod support;
-
+use crease_e2e::*;
 use crease_net::{ClientSecurity, ClientTls, Secret};
 use crease_proto as pb;
 use crease_proto::worker_client::WorkerClient;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::Instant;
-use support::*;
 
 const USER_TOKEN: &str = "ct-user-4f2a9c1e7b";
 const ROTATED_TOKEN: &str = "ct-older-0d8e6b5a3c";
@@ -24,7 +22,7 @@ fn path(p: &Path) -> &str {
 }
 
 fn certs(out: &Path) {
-    let o = Command::new(BIN)
+    let o = Command::new(bin())
         .args(["certs", "--out", path(out)])
         .output()
         .unwrap();
@@ -106,7 +104,7 @@ impl Files {
 
 /// A client command against `url` with exactly `args` (no defaults from the coordinator handle).
 fn cli_raw(args: &[&str], env: &[(&str, &str)]) -> Output {
-    let mut cmd = Command::new(BIN);
+    let mut cmd = Command::new(bin());
     cmd.args(args).env_remove("CREASE_TOKEN");
     for (k, v) in env {
         cmd.env(k, v);
@@ -129,7 +127,7 @@ fn assert_fails_with(o: &Output, what: &str, needles: &[&str]) {
 fn refused_worker(c: &Coordinator, d: &Path, name: &str, token_file: &Path, f: &Files) -> String {
     let log = d.join(format!("worker-{name}.log"));
     let mut p = Proc(
-        Command::new(BIN)
+        Command::new(bin())
             .args(["worker", "--coordinator", &c.url(), "--name", name])
             .args(["--tls-ca", &f.cert("ca.pem")])
             .args(["--worker-token-file", path(token_file)])
@@ -450,7 +448,7 @@ fn must_exit(args: &[&str]) -> (bool, String) {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("stderr");
     let mut p = Proc(
-        Command::new(BIN)
+        Command::new(bin())
             .args(args)
             .stdout(Stdio::null())
             .stderr(std::fs::File::create(&log).unwrap())

@@ -3,12 +3,10 @@
 //! single-node mode). Every child is killed when its handle drops and every wait has a deadline, so a broken
 //! build fails instead of hanging.
 
-mod support;
-
+use crease_e2e::*;
 use std::path::PathBuf;
 use std::process::Command;
 use std::time::{Duration, Instant};
-use support::*;
 #[test]
 fn one_worker_three_workers_and_local_mode_write_identical_bytes() {
     let (dir, anchors) = setup();
@@ -423,7 +421,7 @@ fn bad_specs_and_unreachable_inputs_are_rejected_at_submit() {
 fn a_worker_of_another_protocol_version_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let c = Coordinator::start(dir.path(), &[]);
-    let o = Command::new(BIN)
+    let o = Command::new(bin())
         .args([
             "worker",
             "--coordinator",

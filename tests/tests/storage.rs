@@ -6,13 +6,12 @@
 
 #[path = "../../jobs/tests/moto/mod.rs"]
 mod moto;
-mod support;
 
+use crease_e2e::*;
 use crease_jobs::Storage;
 use moto::*;
 use std::path::Path;
 use std::process::Command;
-use support::*;
 
 fn block_on<F: std::future::Future>(f: F) -> F::Output {
     tokio::runtime::Builder::new_current_thread()
@@ -224,7 +223,7 @@ fn traversal_and_oversized_jobs_are_refused_at_submit() {
     assert!(stderr(&o).contains("--max-job-input-mib"), "{}", stderr(&o));
 
     // A root that does not exist stops the coordinator at start, naming the flag (here from the environment).
-    let o = Command::new(BIN)
+    let o = Command::new(bin())
         .args(["coordinator", "--listen", "127.0.0.1:0", "--db"])
         .arg(d.join("never.sqlite"))
         .env(

@@ -2,15 +2,13 @@
 //! and the worker (scraped with a plain HTTP/1.1 GET), JSON logs carrying job and task ids, and the per-task
 //! log tail through `crease logs`.
 
-mod support;
-
+use crease_e2e::*;
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Duration;
-use support::*;
 
 /// `GET path` on `addr`: (status code, body); None when nothing answers.
 fn http_get(addr: &str, path: &str) -> Option<(u16, String)> {
@@ -331,7 +329,7 @@ fn a_worker_is_ready_only_while_registered_and_not_draining() {
     let port = free_port();
     let wlog = d.join("worker.log");
     let mut w = Proc(
-        Command::new(BIN)
+        Command::new(bin())
             .args([
                 "worker",
                 "--coordinator",

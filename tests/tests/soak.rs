@@ -5,13 +5,11 @@
 //! JSON, then checks outputs itself: it runs its own `crease run` for every input and compares the harness's
 //! references and several jobs' outputs with it.
 
-mod support;
-
+use crease_e2e::*;
 use std::collections::BTreeSet;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-use support::*;
 
 /// The harness has its own deadline (`--deadline-secs`); this one only catches a harness that hangs.
 const SOAK_DEADLINE: Duration = Duration::from_secs(400);
@@ -26,7 +24,7 @@ fn fifty_jobs_from_concurrent_clients_survive_random_worker_kills_over_tls_with_
     let (out_log, err_log) = (d.join("stdout.txt"), d.join("stderr.txt"));
     let started = Instant::now();
     let mut p = Proc(
-        Command::new(BIN)
+        Command::new(bin())
             .args([
                 "bench",
                 "--soak",
@@ -143,7 +141,7 @@ fn fifty_jobs_from_concurrent_clients_survive_random_worker_kills_over_tls_with_
             .iter()
             .map(|a| a.as_str().unwrap())
             .collect();
-        let o = Command::new(BIN)
+        let o = Command::new(bin())
             .args(["run", "--quiet", "--input", c["input"].as_str().unwrap()])
             .args(["--anchors", c["anchors_file"].as_str().unwrap()])
             .arg("--out")

@@ -69,8 +69,6 @@ pub struct BenchArgs {
     /// Run only the video edge stage.
     #[arg(long)]
     pub edges_only: bool,
-    #[command(flatten)]
-    pub soak: crate::bench_soak::SoakArgs,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -117,9 +115,6 @@ pub(crate) fn case_input(
 pub fn bench(a: BenchArgs) -> Result<()> {
     if a.cluster {
         return crate::bench_cluster::bench_cluster(&a);
-    }
-    if a.soak.soak {
-        return crate::bench_soak::bench_soak(&a.soak, a.json.as_deref());
     }
     if a.edges_only {
         let edges = edges_stage(&a)?;

@@ -2,7 +2,6 @@
 
 mod bench;
 mod bench_cluster;
-mod bench_soak;
 mod certs;
 mod cluster;
 mod eval;

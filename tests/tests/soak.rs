@@ -1,4 +1,4 @@
-//! The soak test, for real: `crease bench --soak --secure` runs 50 small jobs from concurrent clients on a
+//! The soak test, for real: `crease-soak --secure` (this crate's harness, driving the `crease` under test) runs 50 small jobs from concurrent clients on a
 //! loopback cluster of worker processes that are SIGKILLed and restarted at random, in the production
 //! configuration (TLS on every connection, client tokens in rotation, a worker token), and must report every job
 //! done with the bytes of a single-node run and a coordinator whose metrics agree. The test reads the harness's
@@ -24,16 +24,10 @@ fn fifty_jobs_from_concurrent_clients_survive_random_worker_kills_over_tls_with_
     let (out_log, err_log) = (d.join("stdout.txt"), d.join("stderr.txt"));
     let started = Instant::now();
     let mut p = Proc(
-        Command::new(bin())
-            .args([
-                "bench",
-                "--soak",
-                "--secure",
-                "--jobs",
-                "50",
-                "--clients",
-                "4",
-            ])
+        Command::new(env!("CARGO_BIN_EXE_crease-soak"))
+            .arg("--crease")
+            .arg(bin())
+            .args(["--secure", "--jobs", "50", "--clients", "4"])
             .args(["--workers", "3", "--kills", "6", "--kill-window-secs", "10"])
             .args(["--seed", "11", "--deadline-secs", "300"])
             .arg("--keep")

@@ -1,5 +1,5 @@
-//! `crease bench --soak`: the cluster's crash tolerance measured on loopback. A coordinator and workers run as
-//! child processes of this executable; several client threads submit small jobs concurrently with
+//! The soak: the cluster's crash tolerance measured on loopback. A coordinator and workers run as child
+//! processes (of the `crease` executable under test); several client threads submit small jobs concurrently with
 //! `crease submit --watch` (one process per job, as a user on the farm would), while a chaos thread SIGKILLs
 //! random workers at random times and starts them again. Every job must end `done` with the same bytes as a
 //! single-node `crease run` of its input, whatever partition the job used and however often its tasks were
@@ -20,30 +20,26 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use crease_core::mesh::io::write_obj_sequence;
 use crease_core::synth::{self, DemoSpec};
+use crease_e2e::{try_free_port, try_output_files, Proc};
 use serde_json::json;
-use std::collections::BTreeMap;
 use std::ffi::{OsStr, OsString};
 use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::net::{SocketAddr, TcpStream};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 #[derive(Args, Debug)]
 pub struct SoakArgs {
-    /// Run the soak test instead: concurrent clients submit small jobs to a loopback cluster while workers are
-    /// killed and restarted at random; every output is compared with a single-node run.
-    #[arg(long)]
-    pub soak: bool,
-    /// Jobs submitted (with --soak).
+    /// Jobs submitted.
     #[arg(long, default_value_t = 50)]
     pub jobs: usize,
-    /// Concurrent clients submitting them (with --soak).
+    /// Concurrent clients submitting them.
     #[arg(long, default_value_t = 5)]
     pub clients: usize,
-    /// Worker processes (with --soak).
+    /// Worker processes.
     #[arg(long, default_value_t = 3)]
     pub workers: usize,
     /// Most worker kills (SIGKILL, then a restart) during the soak.
@@ -155,22 +151,6 @@ impl Rng {
 
 /// The worker processes by slot, each with its generation (restarts so far); `None` while one is down.
 type Workers = Mutex<Vec<(Option<Proc>, u32)>>;
-
-/// A child process that is killed (SIGKILL) and reaped when dropped.
-struct Proc(Child);
-
-impl Proc {
-    fn kill(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        self.kill();
-    }
-}
 
 /// The soak's directory: removed at the end unless the user asked to keep it.
 struct Scratch {
@@ -382,7 +362,7 @@ struct JobResult {
     output: PathBuf,
 }
 
-pub fn bench_soak(a: &SoakArgs, json_out: Option<&Path>) -> Result<()> {
+pub fn soak(a: &SoakArgs, exe: &Path, json_out: Option<&Path>) -> Result<()> {
     if a.jobs == 0 || a.clients == 0 || a.workers == 0 {
         bail!("--jobs, --clients and --workers must each be at least 1");
     }
@@ -420,7 +400,7 @@ pub fn bench_soak(a: &SoakArgs, json_out: Option<&Path>) -> Result<()> {
     let dir = scratch.dir.clone();
     let logs = dir.join("logs");
     crease_core::fsutil::create_dir_all(&logs)?;
-    let exe = std::env::current_exe().context("locating the crease executable")?;
+    let exe = exe.to_path_buf();
 
     eprintln!(
         "soak: preparing {} inputs in {}",
@@ -708,13 +688,6 @@ fn write_job_specs(
     Ok(plans)
 }
 
-fn free_port() -> Result<u16> {
-    Ok(TcpListener::bind("127.0.0.1:0")
-        .context("finding a free loopback port")?
-        .local_addr()?
-        .port())
-}
-
 fn transport(secure: bool) -> &'static str {
     if secure {
         "TLS, client and worker tokens"
@@ -735,7 +708,7 @@ fn start_coordinator(
     let log_path = logs.join("coordinator.log");
     let scheme = if security.is_some() { "https" } else { "http" };
     for _ in 0..5 {
-        let port = free_port()?;
+        let port = try_free_port().context("finding a free loopback port")?;
         let log = std::fs::File::create(&log_path)?;
         let mut cmd = crease(exe);
         cmd.args(["coordinator", "--listen", &format!("127.0.0.1:{port}")])
@@ -1132,22 +1105,6 @@ fn job_status(ctx: &Ctx, c: usize, id: &str) -> Result<serde_json::Value> {
     serde_json::from_slice(&o.stdout).with_context(|| format!("crease status {id}: not JSON"))
 }
 
-/// Every file of an output except `report.json` (it holds timings), hidden files and directories.
-fn output_files(dir: &Path) -> Result<BTreeMap<String, Vec<u8>>> {
-    let mut m = BTreeMap::new();
-    for e in std::fs::read_dir(dir).with_context(|| format!("listing {}", dir.display()))? {
-        let e = e?;
-        let name = e.file_name().to_string_lossy().into_owned();
-        if name == "report.json" || name.starts_with('.') || e.path().is_dir() {
-            continue;
-        }
-        let bytes =
-            std::fs::read(e.path()).with_context(|| format!("reading {}", e.path().display()))?;
-        m.insert(name, bytes);
-    }
-    Ok(m)
-}
-
 /// The files that differ between a reference and an output (or are missing from either); also requires the
 /// output's report to say it is complete.
 fn compare(reference: &Path, out: &Path) -> Result<Vec<String>> {
@@ -1158,8 +1115,10 @@ fn compare(reference: &Path, out: &Path) -> Result<Vec<String>> {
     if report.is_none_or(|r| r["complete"] != true) {
         differs.push("report.json (missing or not complete)".to_string());
     }
-    let a = output_files(reference)?;
-    let b = output_files(out)?;
+    let a = try_output_files(reference)
+        .with_context(|| format!("reading the reference {}", reference.display()))?;
+    let b =
+        try_output_files(out).with_context(|| format!("reading the output {}", out.display()))?;
     for (k, v) in &a {
         if b.get(k) != Some(v) {
             differs.push(k.clone());
@@ -1255,7 +1214,7 @@ fn print_summary(s: &serde_json::Value, results: &[JobResult], cases: &[Case]) {
     let f = |k: &str| s["latency_seconds"][k].as_f64().unwrap_or(f64::NAN);
     let n = |k: &str| s[k].as_u64().unwrap_or(0);
     println!(
-        "crease bench --soak: {} jobs from {} clients on {} workers, {} kills (at most {} within {}s), seed {}, {}",
+        "crease-soak: {} jobs from {} clients on {} workers, {} kills (at most {} within {}s), seed {}, {}",
         s["jobs"], s["clients"], s["workers"], s["kills"], s["kills_max"], s["kill_window_secs"], s["seed"],
         s["transport"].as_str().unwrap_or("?")
     );

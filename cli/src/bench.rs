@@ -515,7 +515,7 @@ fn export_case(
         .iter()
         .map(|&p| so3::exp(p))
         .collect();
-    let system = PositionSystem::new(topo.clone(), params.pinning)?;
+    let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?;
     let rest = &seq.frames[0];
     let (lower, _, _, _) = system.assemble(rest)?;
     let (col_ptr, row_idx) = system.pattern();

@@ -92,6 +92,30 @@ fn table(r: &EvalReport) -> String {
     for (name, a, c) in rows {
         s += &format!("{name:<28} {a:>10} {c:>18}\n");
     }
+    let (so, sg) = (&r.shape.output, &r.shape.ground_truth);
+    s += &format!(
+        "shape kept (mean edge lengths; extent: % of the largest)\n{:<28} {:>10} {:>18}\n",
+        "metric", "output", "ground truth"
+    );
+    let shape_rows = [
+        (
+            "displacement mean",
+            so.displacement_mean,
+            sg.displacement_mean,
+        ),
+        ("displacement p99", so.displacement_p99, sg.displacement_p99),
+        ("displacement max", so.displacement_max, sg.displacement_max),
+        ("drift mean", so.drift_mean, sg.drift_mean),
+        ("drift max", so.drift_max, sg.drift_max),
+        (
+            "extent change (%)",
+            100.0 * so.extent_change,
+            100.0 * sg.extent_change,
+        ),
+    ];
+    for (name, a, c) in shape_rows {
+        s += &format!("{name:<28} {a:>10.3} {c:>18.3}\n");
+    }
     s
 }
 

@@ -51,9 +51,26 @@ pub struct DeformArgs {
     /// Stretch-reduction passes.
     #[arg(long, default_value_t = 2)]
     pub stretch_passes: usize,
-    /// `centroid`: keep each component's mean position; `vertex`: keep its lowest-index vertex fixed.
+    /// Shape screen cutoff wavelength in mean edge lengths: longer displacements keep the captured shape,
+    /// shorter ones (folds) are free. `off` (or 0): the unscreened system, with --pinning.
+    #[arg(long, default_value = "10", value_parser = parse_shape_cutoff)]
+    pub shape_cutoff: f64,
+    /// Only with --shape-cutoff off. `centroid`: keep each component's mean position; `vertex`: keep its
+    /// lowest-index vertex fixed.
     #[arg(long, default_value = "centroid", value_parser = parse_pinning)]
     pub pinning: Pinning,
+}
+
+fn parse_shape_cutoff(s: &str) -> Result<f64, String> {
+    if s == "off" {
+        return Ok(0.0);
+    }
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!(
+            "`{s}` is not a wavelength in mean edge lengths (a number ≥ 0) or `off`"
+        )),
+    }
 }
 
 fn parse_pinning(s: &str) -> Result<Pinning, String> {
@@ -80,6 +97,7 @@ impl DeformArgs {
             mode: self.mode,
             anchor_block: self.anchor_block,
             stretch_passes: self.stretch_passes,
+            shape_cutoff: self.shape_cutoff,
             pinning: self.pinning,
         }
     }

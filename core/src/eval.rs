@@ -14,10 +14,14 @@
 //! input's; the IoU of the fold regions after a one-ring dilation (forgiving one-triangle misplacements, but
 //! generous to noise: secondary); and temporal popping, the mean frame-to-frame change of s relative to that of
 //! s_gt. The captured baseline (s = 0 everywhere) is reported beside every figure.
+//!
+//! Beside the folds, whether the shape was kept ([`crate::shape`]): displacement, low-frequency drift and extent
+//! change of the output against the input, next to the same figures of the ground truth against the input.
 
 use crate::mesh::{geometry, FrameSource, Topology};
 use crate::progress::Progress;
 use crate::render::{caption, grid, render, stretch_color, Camera, Style};
+use crate::shape::{ShapeAccumulator, ShapeStats, TaubinFilter};
 use crate::vec3::{self, V3};
 use crate::{Error, Result};
 use image::RgbImage;
@@ -190,6 +194,13 @@ pub struct Figures {
     pub fold_fraction: f64,
 }
 
+/// "Shape kept" figures (DESIGN §9) of the output and of the ground truth, both against the input.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ShapeComparison {
+    pub output: ShapeStats,
+    pub ground_truth: ShapeStats,
+}
+
 /// The whole evaluation.
 #[derive(Debug, Clone, Serialize)]
 pub struct EvalReport {
@@ -199,6 +210,7 @@ pub struct EvalReport {
     pub gt_fold_fraction: f64,
     pub output: Figures,
     pub captured_baseline: Figures,
+    pub shape: ShapeComparison,
     pub per_frame: Vec<FrameEval>,
 }
 
@@ -218,6 +230,8 @@ struct FrameResult {
     dilated: Agreement,
     normal_error_sum: f64,
     captured_error_sum: f64,
+    shape_out: ShapeAccumulator,
+    shape_gt: ShapeAccumulator,
     s: Vec<f32>,
     s_gt: Vec<f32>,
     input: Vec<V3>,
@@ -280,6 +294,7 @@ fn check_shapes(
 fn evaluate_frame(
     t: usize,
     topo: &Topology,
+    filter: &TaubinFilter,
     output: &dyn FrameSource,
     gt: &dyn FrameSource,
     input: &dyn FrameSource,
@@ -321,6 +336,10 @@ fn evaluate_frame(
         d
     };
     let (d_r, d_gt) = (dilate(&in_r), dilate(&in_rgt));
+    let mut shape_out = ShapeAccumulator::default();
+    shape_out.add_frame(topo, filter, &p_in, &p_out);
+    let mut shape_gt = ShapeAccumulator::default();
+    shape_gt.add_frame(topo, filter, &p_in, &p_gt);
     let mut dilated = Agreement::default();
     for v in 0..n {
         dilated.push(d_r[v], d_gt[v]);
@@ -343,6 +362,8 @@ fn evaluate_frame(
         dilated,
         normal_error_sum: err_out,
         captured_error_sum: err_in,
+        shape_out,
+        shape_gt,
         s,
         s_gt,
         input: p_in,
@@ -371,6 +392,8 @@ pub fn evaluate(
         Agreement::default(),
     );
     let (mut err_out, mut err_in) = (0.0, 0.0);
+    let filter = TaubinFilter::captured(&topo);
+    let (mut shape_out, mut shape_gt) = (ShapeAccumulator::default(), ShapeAccumulator::default());
     let (mut pop, mut pop_gt) = (0.0f64, 0.0f64);
     let mut prev: Option<(Vec<f32>, Vec<f32>)> = None;
     let mut per_frame = Vec::with_capacity(n_frames);
@@ -383,7 +406,7 @@ pub fn evaluate(
         let end = (start + chunk).min(n_frames);
         let results: Vec<FrameResult> = (start..end)
             .into_par_iter()
-            .map(|t| evaluate_frame(t, &topo, output, gt, input, params.threshold_deg))
+            .map(|t| evaluate_frame(t, &topo, &filter, output, gt, input, params.threshold_deg))
             .collect::<Result<_>>()?;
         for r in results {
             pearson.merge(&r.pearson);
@@ -391,6 +414,8 @@ pub fn evaluate(
             dilated.merge(&r.dilated);
             err_out += r.normal_error_sum;
             err_in += r.captured_error_sum;
+            shape_out.merge(&r.shape_out);
+            shape_gt.merge(&r.shape_gt);
             if let Some((ps, pg)) = &prev {
                 for v in 0..n {
                     pop += (r.s[v] - ps[v]).abs() as f64;
@@ -441,6 +466,10 @@ pub fn evaluate(
             gt_fold_fraction,
             output: output_figures,
             captured_baseline: baseline,
+            shape: ShapeComparison {
+                output: shape_out.stats(),
+                ground_truth: shape_gt.stats(),
+            },
             per_frame,
         },
         kept,
@@ -474,7 +503,7 @@ pub fn signal_picture(topo: &Topology, kept: &[FrameSignal], size: u32, max_deg:
                 .map(|(i, _)| i as u32)
                 .collect();
             let focus = crate::preview::fold_focus(topo, &k.input, folded.into_iter());
-            let (dir, up) = crate::preview::view_for(lo, hi, focus);
+            let (dir, up) = crate::view::view_for(&k.input, focus);
             let cam = Camera::fit(lo, hi, dir, up, size, size);
             let gt_colors = tri_colors(&k.s_gt);
             let out_colors = tri_colors(&k.s);
@@ -615,6 +644,9 @@ mod tests {
             r.gt_fold_fraction
         );
         assert!(r.captured_baseline.normal_error_deg > 5.0);
+        // The ground truth compared with itself: identical shape figures on both sides.
+        assert_eq!(r.shape.output, r.shape.ground_truth);
+        assert!(r.shape.output.displacement_max > 0.0);
         assert_eq!(kept.len(), 1);
         assert_eq!(kept[0].frame, 1);
 
@@ -632,6 +664,9 @@ mod tests {
         assert!(b.output.kappa.unwrap().abs() < 1e-12);
         assert_eq!(b.output.iou_dilated, Some(0.0));
         assert!((b.output.normal_error_deg - b.captured_baseline.normal_error_deg).abs() < 1e-9);
+        // The input has not moved at all.
+        assert_eq!(b.shape.output.displacement_max, 0.0);
+        assert_eq!(b.shape.output.extent_change, 0.0);
     }
 
     #[test]

@@ -15,9 +15,11 @@ pub mod npy;
 pub mod preview;
 pub mod progress;
 pub mod render;
+pub mod shape;
 pub mod spacetime;
 pub mod synth;
 pub mod synth_video;
 pub mod vec3;
+pub mod view;
 
 pub use error::{Error, Result};

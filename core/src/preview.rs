@@ -10,30 +10,6 @@ use image::RgbImage;
 const WHITE: [u8; 3] = [255, 255, 255];
 const INK: [u8; 3] = [20, 20, 20];
 
-/// Chooses a viewing direction and an up vector: up along the longest bounding-box axis; the camera looks at
-/// the side the folds face (`focus`, the mean normal of the anchored triangles) when there is one, otherwise
-/// from a fixed three-quarter angle; always slightly from above.
-pub fn view_for(lo: V3, hi: V3, focus: Option<V3>) -> (V3, V3) {
-    let ext = vec3::sub(hi, lo);
-    let up_axis = (0..3).fold(0, |b, k| if ext[k] > ext[b] { k } else { b });
-    let mut up = [0.0; 3];
-    up[up_axis] = 1.0;
-    let a = (up_axis + 1) % 3;
-    let b = (up_axis + 2) % 3;
-    let mut dir = [0.0; 3];
-    dir[a] = 0.45;
-    dir[b] = 1.0;
-    if let Some(f) = focus {
-        // Look against the folds' normal, projected to the horizontal plane.
-        let h = vec3::sub(f, vec3::scale(up, vec3::dot(f, up)));
-        if vec3::norm(h) > 1e-6 {
-            dir = vec3::scale(vec3::normalize(h), -1.0);
-        }
-    }
-    dir[up_axis] = -0.3 * vec3::norm(dir);
-    (vec3::normalize(dir), up)
-}
-
 /// Mean unit normal of the given triangles in `positions`, if they agree enough to define a side to look at.
 pub fn fold_focus(
     topo: &Topology,
@@ -70,7 +46,10 @@ pub fn before_after(
             }
         }
     }
-    let (dir, up) = view_for(lo, hi, focus);
+    let (dir, up) = match frames.first() {
+        Some((_, rest, _)) => crate::view::view_for(rest, focus),
+        None => crate::view::view_for(&[], focus),
+    };
     let cam = Camera::fit(lo, hi, dir, up, size, size);
     // The far side, where folds hidden from the first camera show.
     let back_dir = {

@@ -95,7 +95,7 @@ pub fn deform(
         ..Default::default()
     };
     let t0 = Instant::now();
-    let system = PositionSystem::new(topo.clone(), params.pinning)?;
+    let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?;
     timings.symbolic = t0.elapsed().as_secs_f64();
 
     let windows = plan_windows(n, params.window, params.shift);

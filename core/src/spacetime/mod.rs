@@ -10,6 +10,7 @@ pub mod per_anchor;
 pub mod position;
 pub mod so3;
 pub mod stages;
+pub mod stretch;
 pub mod weights;
 pub mod windows;
 

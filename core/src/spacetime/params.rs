@@ -39,6 +39,9 @@ impl std::fmt::Display for WeightMode {
     }
 }
 
+/// Default cutoff wavelength of the shape screen, in mean edge lengths (DESIGN §4; docs/fidelity.md).
+pub const DEFAULT_SHAPE_CUTOFF: f64 = 10.0;
+
 /// Everything the deformation needs besides the sequence and the anchors.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -56,6 +59,12 @@ pub struct DeformParams {
     pub anchor_block: usize,
     /// Stretch-reduction passes after the first positioning.
     pub stretch_passes: usize,
+    /// Cutoff wavelength ℓ_c of the positioning's shape screen, in mean edge lengths (see
+    /// [`super::position`]): displacements much longer than this are held to the captured shape, shorter ones
+    /// (folds) are free. 0 turns the screen off (the paper's unscreened system, with `pinning`).
+    pub shape_cutoff: f64,
+    /// How the unscreened system (`shape_cutoff` 0) removes its translational null space; the screened one
+    /// has none and keeps each component's area-weighted mean displacement at zero by itself.
     pub pinning: Pinning,
 }
 
@@ -70,12 +79,18 @@ impl Default for DeformParams {
             mode: WeightMode::Fused,
             anchor_block: 256,
             stretch_passes: 2,
+            shape_cutoff: DEFAULT_SHAPE_CUTOFF,
             pinning: Pinning::Centroid,
         }
     }
 }
 
 impl DeformParams {
+    /// The screen's cutoff for [`super::position::PositionSystem::new`] (None when off).
+    pub fn screen(&self) -> Option<f64> {
+        (self.shape_cutoff > 0.0).then_some(self.shape_cutoff)
+    }
+
     /// Rejects values the solver cannot honour, naming the parameter.
     pub fn validate(&self) -> Result<()> {
         let c = &self.coefficients;
@@ -122,6 +137,21 @@ impl DeformParams {
         }
         if self.anchor_block == 0 {
             return Err(Error::param("anchor_block", "must be at least 1"));
+        }
+        if !(self.shape_cutoff.is_finite() && self.shape_cutoff >= 0.0) {
+            return Err(Error::param(
+                "shape_cutoff",
+                format!(
+                    "must be a wavelength ≥ 0 mean edge lengths (0: no screen), got {}",
+                    self.shape_cutoff
+                ),
+            ));
+        }
+        if self.shape_cutoff > 0.0 && self.pinning == Pinning::Vertex {
+            return Err(Error::param(
+                "pinning",
+                "`vertex` needs the unscreened system: set shape_cutoff to 0 (off) to fix a vertex",
+            ));
         }
         if self.stretch_passes > 20 {
             return Err(Error::param(

@@ -18,13 +18,29 @@
 //! supernodal Cholesky, faer) and the factor is reused by every stretch-reduction pass; the symbolic analysis
 //! (AMD ordering, elimination tree) depends on connectivity only and is shared by all frames.
 //!
-//! One vertex per connected component is fixed to remove the translational null space. By default the
-//! component is then translated so that its area-weighted mean displacement is zero (the garment stays centred
-//! on the capture instead of hanging from an arbitrary vertex); [`Pinning::Vertex`] keeps the fixed vertex
-//! exactly in place instead.
+//! **Shape screen.** The rotation field is only known up to what the anchors say about folds; integrated over a
+//! whole garment, its smooth part (weights diffuse far from every anchor) adds up to a drift of the garment's
+//! overall shape — a bend, a shrink, a swing — that the capture did not see. The capture is trustworthy exactly
+//! at long wavelengths, so the displacement is screened:
+//!
+//! ```text
+//!   (K + λ M) d = b,      λ = (2π / (ℓ_c h̄))²,      M = lumped (barycentric) vertex areas, h̄ = mean edge length
+//! ```
+//!
+//! An eigenmode of K with wavelength ℓ (K u = (2π/ℓ)² M u) is scaled by 1 / (1 + (ℓ/ℓ_c)²): folds, shorter
+//! than the cutoff ℓ_c, pass; the garment's shape, many cutoffs long, stays the captured one. λ is measured per
+//! frame in the frame's own edge length, so the cutoff means the same on every garment and resolution. The
+//! system stays SPD and depends on the original frame only (one factor per frame, reused by the stretch
+//! passes), b = 0 still gives d = 0 bit for bit, and no vertex needs to be fixed: the translational null
+//! space is gone. Only vertices without triangles (no area, no stiffness) are fixed.
+//!
+//! Without the screen (`shape_cutoff` off), one vertex per connected component is fixed to remove the
+//! translational null space. By default the component is then translated so that its area-weighted mean
+//! displacement is zero (the garment stays centred on the capture instead of hanging from an arbitrary
+//! vertex); [`Pinning::Vertex`] keeps the fixed vertex exactly in place instead.
 
 use crate::error::{Error, Result};
-use crate::mesh::{geometry, Frame, Topology, NONE};
+use crate::mesh::{Frame, Topology, NONE};
 use crate::vec3::{self, M3, V3};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
@@ -51,6 +67,8 @@ pub enum Pinning {
 pub struct PositionSystem {
     topo: Arc<Topology>,
     pinning: Pinning,
+    /// Cutoff wavelength ℓ_c of the shape screen in mean edge lengths, or None for the unscreened system.
+    shape_cutoff: Option<f64>,
     /// Row of each vertex in the reduced system, or NONE for pinned vertices.
     free_index: Vec<u32>,
     n_free: usize,
@@ -65,15 +83,30 @@ const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 
 
 impl PositionSystem {
     /// Builds the pattern and the symbolic Cholesky analysis (AMD ordering) once per sequence.
-    pub fn new(topo: Arc<Topology>, pinning: Pinning) -> Result<Self> {
+    /// `shape_cutoff` is the screen's cutoff wavelength ℓ_c in mean edge lengths (None: no screen, `pinning`
+    /// removes the null space instead).
+    pub fn new(topo: Arc<Topology>, pinning: Pinning, shape_cutoff: Option<f64>) -> Result<Self> {
+        if let Some(l) = shape_cutoff {
+            if !(l.is_finite() && l > 0.0) {
+                return Err(Error::param(
+                    "shape_cutoff",
+                    format!("must be a finite wavelength > 0 mean edge lengths, got {l}"),
+                ));
+            }
+        }
         let nv = topo.n_vertices();
         let mut pinned_component = vec![false; topo.n_components()];
         let mut free_index = vec![NONE; nv];
         let mut n_free = 0usize;
         for (v, fi) in free_index.iter_mut().enumerate() {
             let c = topo.vertex_component()[v] as usize;
-            if !pinned_component[c] {
-                pinned_component[c] = true; // lowest index of its component: pinned
+            let pinned = if shape_cutoff.is_some() {
+                topo.vertex_triangles(v).is_empty() // no area: nothing screens it
+            } else {
+                !pinned_component[c] // lowest index of its component
+            };
+            if pinned {
+                pinned_component[c] = true;
             } else {
                 *fi = n_free as u32;
                 n_free += 1;
@@ -128,6 +161,7 @@ impl PositionSystem {
         Ok(PositionSystem {
             topo,
             pinning,
+            shape_cutoff,
             free_index,
             n_free,
             col_ptr,
@@ -150,6 +184,19 @@ impl PositionSystem {
         let mut areas = Vec::with_capacity(topo.n_triangles());
         let mut normals = Vec::with_capacity(topo.n_triangles());
         let mut values = vec![0.0f64; self.row_idx.len()];
+        // Screen weight λ = (2π / (ℓ_c h̄))² of this frame (0 without the screen).
+        let screen = match self.shape_cutoff {
+            Some(l) => {
+                let h = crate::shape::mean_edge_length(topo, rest);
+                if !(h.is_finite() && h > 0.0) {
+                    return Err(Error::mesh(format!(
+                        "the mean edge length is {h}: the frame has no extent to screen"
+                    )));
+                }
+                (2.0 * std::f64::consts::PI / (l * h)).powi(2)
+            }
+            None => 0.0,
+        };
         for (t, &tri) in topo.triangles().iter().enumerate() {
             let [a, b, c] = tri.map(|i| rest[i as usize]);
             let n = vec3::cross(vec3::sub(b, a), vec3::sub(c, a));
@@ -168,7 +215,9 @@ impl PositionSystem {
             for (k, (i, j)) in PAIRS.iter().enumerate() {
                 let slot = self.scatter[t][k];
                 if slot != NONE {
-                    values[slot as usize] += area * vec3::dot(g[*i], g[*j]);
+                    // The first three pairs are the diagonal: each corner gets a third of the area as mass.
+                    let mass = if k < 3 { screen * area / 3.0 } else { 0.0 };
+                    values[slot as usize] += area * vec3::dot(g[*i], g[*j]) + mass;
                 }
             }
             grads.push(g);
@@ -313,7 +362,8 @@ impl FramePositioner<'_> {
         llt.solve_in_place_with_conj(Conj::No, rhs.as_mut(), Par::Seq, MemStack::new(&mut buf));
     }
 
-    /// Output positions from the solved displacements of the free vertices (applies the pinning policy).
+    /// Output positions from the solved displacements of the free vertices (applies the pinning policy when
+    /// there is no screen).
     fn finish(&self, rhs: &Mat<f64>) -> Frame {
         let sys = self.sys;
         let topo = &sys.topo;
@@ -328,7 +378,7 @@ impl FramePositioner<'_> {
                 ];
             }
         }
-        if sys.pinning == Pinning::Centroid {
+        if sys.shape_cutoff.is_none() && sys.pinning == Pinning::Centroid {
             let nc = topo.n_components();
             let mut sum = vec![[0.0f64; 3]; nc];
             let mut wsum = vec![0.0f64; nc];
@@ -351,20 +401,7 @@ impl FramePositioner<'_> {
             .collect()
     }
 
-    /// Stretch-reduction rotations (Popa et al. 2009 §5.5): for each triangle, the rotation taking its original
-    /// normal to its normal in `current`.
-    pub fn normal_rotations(&self, current: &[V3]) -> Vec<M3> {
-        let n_new = geometry::triangle_normals(&self.sys.topo, current);
-        self.normals
-            .iter()
-            .zip(&n_new)
-            .map(|(n0, n1)| {
-                if vec3::norm(*n1) == 0.0 {
-                    vec3::IDENTITY
-                } else {
-                    super::so3::exp(super::so3::rotation_between(*n0, *n1))
-                }
-            })
-            .collect()
+    pub fn topology(&self) -> &Arc<Topology> {
+        &self.sys.topo
     }
 }

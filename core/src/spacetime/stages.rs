@@ -200,8 +200,7 @@ pub fn position_frame(
     let mut pass_times = Vec::with_capacity(passes);
     for _ in 0..passes {
         let clock = Instant::now();
-        let r = fp.normal_rotations(&out);
-        out = fp.solve(&r);
+        out = super::stretch::pass(&fp, &out);
         pass_times.push(clock.elapsed().as_secs_f64());
         measure(&out, &mut metrics);
     }

@@ -12,6 +12,7 @@ use crate::keys;
 use crate::spec::FoldSpec;
 use crease_core::mesh::{Frame, FrameSource};
 use crease_core::metrics::StretchAccumulator;
+use crease_core::shape::{ShapeAccumulator, TaubinFilter};
 use crease_core::spacetime::deform::StageTimings;
 use crease_core::spacetime::weights::WindowStats;
 use crease_core::spacetime::DeformReport;
@@ -50,10 +51,13 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let mut seq_stretch = vec![StretchAccumulator::default(); params.stretch_passes + 1];
     let mut frame_stretch = vec![Vec::new(); n];
     let mut kept: Vec<(usize, Frame, Frame)> = Vec::new();
+    // "Shape kept" (DESIGN §9): every output frame against its input frame.
+    let filter = TaubinFilter::captured(&topo);
+    let mut shape_kept = ShapeAccumulator::default();
     env.progress().begin("finalize", n as u64);
     for (t, stretch_of_t) in frame_stretch.iter_mut().enumerate() {
         env.check_cancelled()?;
-        if sink.is_some() || keep.contains(&t) {
+        {
             let key = keys::positions(t);
             let (shape, data) = env.get_npy::<f64>(&key)?;
             if shape != [topo.n_vertices(), 3] {
@@ -69,8 +73,9 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
                 sink.write_frame(t, &out).map_err(core_err("output"))?;
                 timings.write += tw.elapsed().as_secs_f64();
             }
+            let rest = source.read_frame(t).map_err(core_err("shape figures"))?;
+            shape_kept.add_frame(&topo, &filter, &rest, &out);
             if keep.contains(&t) {
-                let rest = source.read_frame(t).map_err(core_err("preview"))?;
                 kept.push((t, rest, out));
             }
         }
@@ -202,6 +207,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             "anchors": report.anchors,
             "stretch_after_positioning": first,
             "stretch_final": last,
+            "shape_kept": shape_kept.stats(),
             "seconds_per_frame": {
                 "weights": per_frame(t.weights),
                 "blend": per_frame(t.blend),

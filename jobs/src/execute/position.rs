@@ -49,7 +49,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     let topo = source.topology().clone();
     let n_tri = topo.n_triangles();
     let clock = std::time::Instant::now();
-    let system = PositionSystem::new(topo.clone(), env.params.pinning)
+    let system = PositionSystem::new(topo.clone(), env.params.pinning, env.params.screen())
         .map_err(|e| TaskError::from_core(&label, e))?;
     let symbolic = clock.elapsed().as_secs_f64();
     let windows = env.windows(n);

@@ -605,7 +605,10 @@ mod tests {
             let theta = fold_angle(change, w, &p);
             let gained = w * (1.0 / theta.cos() - 1.0);
             let lost = 2.0 * p.alpha * change * (change - 1.0);
-            assert!((gained - lost).abs() < 1e-12, "{change}: {gained} vs {lost}");
+            assert!(
+                (gained - lost).abs() < 1e-12,
+                "{change}: {gained} vs {lost}"
+            );
             assert!(theta > 0.0 && theta < p.max_angle_deg.to_radians());
         }
         // Strong shrinkage is capped; none gives no anchor.

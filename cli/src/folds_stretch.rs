@@ -49,7 +49,8 @@ pub struct StretchArgs {
     /// Radius of the flattened patch around a seed, in mean edge lengths.
     #[arg(long = "stretch-patch-radius", default_value_t = StretchParams::default().patch_radius, allow_hyphen_values = true)]
     pub patch_radius: f64,
-    /// Anchor angle (radians) per unit of shrinkage |v| − 1.
+    /// Anchor angle (radians) per unit of shrinkage |v| − 1; 0 = the angle that gives back the length the
+    /// capture lost (default).
     #[arg(long = "stretch-angle-gain", default_value_t = StretchParams::default().angle_gain, allow_hyphen_values = true)]
     pub angle_gain: f64,
     /// Cap of the anchor angle, degrees.
@@ -58,6 +59,9 @@ pub struct StretchArgs {
     /// Shortest fold axis kept, in mean edge lengths.
     #[arg(long = "stretch-min-length", default_value_t = StretchParams::default().min_length, allow_hyphen_values = true)]
     pub min_length: f64,
+    /// Frames on each side over which anchors are matched and their angles averaged (0 = off).
+    #[arg(long = "stretch-temporal-radius", default_value_t = StretchParams::default().temporal_radius)]
+    pub temporal_radius: usize,
     /// Levels of midpoint subdivision before detection (0 = none); output is then on the subdivided mesh,
     /// original vertices first.
     #[arg(long, default_value_t = 0)]
@@ -82,6 +86,7 @@ impl StretchArgs {
             angle_gain: self.angle_gain,
             max_angle_deg: self.max_angle,
             min_length: self.min_length,
+            temporal_radius: self.temporal_radius,
         }
     }
 

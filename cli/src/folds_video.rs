@@ -74,6 +74,17 @@ pub struct VideoArgs {
     pub narrow_angle: Option<f64>,
     #[arg(long)]
     pub wide_angle: Option<f64>,
+    /// Pair widths (mean edge lengths of frame 0) that get the narrow / wide angle [default: 1.5, 6].
+    #[arg(long)]
+    pub narrow_width: Option<f64>,
+    #[arg(long)]
+    pub wide_width: Option<f64>,
+    /// Look for fold edges in the raw image, not in its residual against the captured mesh's fitted shading.
+    #[arg(long)]
+    pub raw_darkness: bool,
+    /// Frames on each side over which anchors are matched and their angles averaged, 0 = off [default: 2].
+    #[arg(long)]
+    pub temporal_radius: Option<usize>,
 }
 
 impl VideoArgs {
@@ -103,6 +114,10 @@ impl VideoArgs {
             max_hue_difference: or(self.max_hue_difference, d.max_hue_difference),
             narrow_angle_deg: or(self.narrow_angle, d.narrow_angle_deg),
             wide_angle_deg: or(self.wide_angle, d.wide_angle_deg),
+            narrow_width: or(self.narrow_width, d.narrow_width),
+            wide_width: or(self.wide_width, d.wide_width),
+            temporal_radius: self.temporal_radius.unwrap_or(d.temporal_radius),
+            lighting_residual: !self.raw_darkness,
             skip_border: self.skip_border,
             ..d
         }

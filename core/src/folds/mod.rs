@@ -6,6 +6,7 @@
 
 pub mod anchors;
 pub mod stretch;
+pub mod temporal;
 pub mod video;
 
 pub use anchors::{Anchor, AnchorSet, FrameAnchors};
@@ -52,6 +53,18 @@ pub trait FoldDetector: Sync {
         progress: &dyn Progress,
     ) -> Result<(Vec<FrameAnchors>, Vec<Artifact>)> {
         Ok((self.detect(source, frames, progress)?, Vec::new()))
+    }
+
+    /// Whole-sequence finishing of the anchors of all frames (`frames`: one entry per frame, in order), run
+    /// once after every detection chunk is in: temporal coherence for detectors that find each frame on its
+    /// own ([`temporal::settle`]). Default: unchanged.
+    fn settle(
+        &self,
+        source: &dyn FrameSource,
+        frames: Vec<FrameAnchors>,
+    ) -> Result<Vec<FrameAnchors>> {
+        let _ = source;
+        Ok(frames)
     }
 
     /// What the report says about this detection beyond the anchors (parameters, choices made automatically).

@@ -25,6 +25,11 @@ pub trait FrameSource: Send + Sync {
     fn read_frame(&self, t: usize) -> Result<Frame>;
     /// Human-readable origin of frame `t` (a file path, or `file.pc2 sample 12`), for messages and reports.
     fn describe_frame(&self, t: usize) -> String;
+    /// The coarser source this one subdivides and how, for work that belongs on the input mesh (fold tracing,
+    /// Chen 2011 §4.4) while its result is realised on the subdivided one. `None` for an unsubdivided source.
+    fn subdivided_from(&self) -> Option<(&dyn FrameSource, &subdivide::Subdivision)> {
+        None
+    }
 }
 
 /// Receives output frames. Frames may arrive in any order; nothing is presented as complete before

@@ -67,6 +67,32 @@ impl Subdivision {
         &self.topology
     }
 
+    /// Rounds of subdivision.
+    pub fn levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// The subdivided triangle holding the point with barycentrics `bary` in coarse triangle `tri`, and its
+    /// barycentrics there. Children of coarse triangle `i` are `4i..4i+4`: corner a, corner b, corner c, middle.
+    pub fn locate(&self, tri: usize, bary: [f64; 3]) -> (usize, [f64; 3]) {
+        let (mut t, [mut a, mut b, mut c]) = (tri, bary);
+        for _ in 0..self.levels.len() {
+            let (k, next) = if a >= 0.5 {
+                (0, [2.0 * a - 1.0, 2.0 * b, 2.0 * c])
+            } else if b >= 0.5 {
+                (1, [2.0 * a, 2.0 * b - 1.0, 2.0 * c])
+            } else if c >= 0.5 {
+                (2, [2.0 * a, 2.0 * b, 2.0 * c - 1.0])
+            } else {
+                // Middle child [ab, bc, ca].
+                (3, [1.0 - 2.0 * c, 1.0 - 2.0 * a, 1.0 - 2.0 * b])
+            };
+            t = 4 * t + k;
+            [a, b, c] = next;
+        }
+        (t, [a, b, c])
+    }
+
     /// Positions on the subdivided mesh: the originals first, then the edge midpoints.
     pub fn apply(&self, p: &[V3]) -> Frame {
         let mut cur = p.to_vec();
@@ -125,6 +151,9 @@ impl FrameSource for SubdividedSource<'_> {
     fn topology(&self) -> &Arc<Topology> {
         self.subdivision.topology()
     }
+    fn subdivided_from(&self) -> Option<(&dyn FrameSource, &Subdivision)> {
+        Some((self.inner(), &self.subdivision))
+    }
     fn n_frames(&self) -> usize {
         self.inner().n_frames()
     }
@@ -144,6 +173,38 @@ impl FrameSource for SubdividedSource<'_> {
 mod tests {
     use super::*;
     use crate::mesh::Sequence;
+
+    /// A point given on the coarse mesh lands on the fine triangle that holds the same 3D point.
+    #[test]
+    fn coarse_points_locate_on_their_fine_triangle() {
+        let (topo, p) = crate::synth::sheet(4, 4, 1.0).unwrap();
+        let p: Vec<V3> = p
+            .iter()
+            .map(|q| [q[0], q[1], 0.3 * (q[0] * 1.3).sin() * q[1]])
+            .collect();
+        let sub = Subdivision::new(&topo, 3).unwrap();
+        let fine = sub.apply(&p);
+        let ft = sub.topology().triangles();
+        for (tri, bary) in [
+            (0usize, [0.7, 0.2, 0.1]),
+            (5, [0.1, 0.1, 0.8]),
+            (7, [0.34, 0.33, 0.33]),
+            (11, [0.05, 0.6, 0.35]),
+        ] {
+            let at = |pts: [V3; 3], b: [f64; 3]| {
+                (0..3).fold([0.0; 3], |acc, k| vec3::add(acc, vec3::scale(pts[k], b[k])))
+            };
+            let want = at(topo.triangles()[tri].map(|v| p[v as usize]), bary);
+            let (t, b) = sub.locate(tri, bary);
+            assert_eq!(t / 64, tri);
+            assert!(b.iter().all(|&x| x >= -1e-12) && (b.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+            let got = at(ft[t].map(|v| fine[v as usize]), b);
+            assert!(
+                vec3::norm(vec3::sub(got, want)) < 1e-12,
+                "{tri}: {got:?} {want:?}"
+            );
+        }
+    }
 
     #[test]
     fn midpoint_keeps_original_vertices_first_and_the_surface() {

@@ -84,6 +84,9 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         let chunk: Vec<FrameAnchors> = env.get_json(&keys::fold_chunk(r.start))?;
         frames.extend(chunk);
     }
+    let frames = d
+        .settle(opened.source.as_ref(), frames)
+        .map_err(|e| TaskError::from_core(&format!("{} fold merge", d.name()), e))?;
     let set = AnchorSet::from_frame_anchors(frames, n_tri, None)
         .map_err(|e| TaskError::from_core(&format!("{} fold merge", d.name()), e))?;
     if set.n_frames() != n {

@@ -14,6 +14,7 @@ pub mod lscm;
 pub mod overlay;
 pub mod params;
 pub mod phases;
+pub mod realise;
 pub mod smooth;
 pub mod tensor;
 pub mod trace;
@@ -65,7 +66,10 @@ impl StretchDetector {
     }
 
     /// Runs the whole analysis and calls `each` with every frame's traced folds, in frame order, together with
-    /// the fold signal (integrated shrinkage per triangle, the larger of the two passes).
+    /// the fold signal (integrated shrinkage per triangle, the larger of the two passes). A subdivided `source`
+    /// is analysed and traced on its input mesh ([`FrameSource::subdivided_from`]): positions, signal and
+    /// `FrameFolds::anchors` are then the input mesh's, and [`realise::anchors`] puts the folds on the subdivided
+    /// one.
     pub fn run(
         &self,
         source: &dyn FrameSource,
@@ -73,6 +77,10 @@ impl StretchDetector {
         mut each: impl FnMut(usize, &[V3], &[f64], FrameFolds) -> Result<()>,
     ) -> Result<()> {
         self.params.validate()?;
+        let (source, levels) = match source.subdivided_from() {
+            Some((base, sub)) => (base, sub.levels()),
+            None => (source, 0),
+        };
         let topo = source.topology().clone();
         let n = source.n_frames();
         let nt = topo.n_triangles();
@@ -120,7 +128,7 @@ impl StretchDetector {
         let first = source.read_frame(0)?;
         let h = mean_edge_length(&topo, &first);
         let mut tracker = PhaseTracker::new(&topo, &first);
-        let mut tracer = trace::FoldTracer::new(&topo);
+        let mut tracer = trace::FoldTracer::new(&topo, levels);
         let mut prev = first;
         let mut buf = vec![0u8; record];
         for t in 0..n {
@@ -159,7 +167,15 @@ impl StretchDetector {
                     }
                 }
             }
-            let folds = tracer.trace(&topo, &cur, &geom, &sig.shrink, &sig.dir, h, params);
+            let field = trace::FrameField {
+                topo: &topo,
+                p: &cur,
+                geom: &geom,
+                shrink: &sig.shrink,
+                dir: &sig.dir,
+                h,
+            };
+            let folds = tracer.trace(&field, params);
             each(t, &cur, &sig.shrink, folds)?;
             prev = cur;
             progress.advance(STAGE, 1);
@@ -217,6 +233,11 @@ impl FoldDetector for StretchDetector {
         }
         let mut out = Vec::with_capacity(n);
         let mut shown: Vec<OverlayFrame> = Vec::new();
+        let sub = source.subdivided_from().map(|(_, sub)| sub);
+        let traced_topo = source.subdivided_from().map_or_else(
+            || source.topology().clone(),
+            |(base, _)| base.topology().clone(),
+        );
         self.run(source, progress, |t, positions, shrink, folds| {
             if self.overlay_frames.contains(&t) {
                 shown.push(OverlayFrame {
@@ -229,15 +250,21 @@ impl FoldDetector for StretchDetector {
             }
             out.push(FrameAnchors {
                 frame: t,
-                anchors: folds.anchors,
+                anchors: match sub {
+                    Some(sub) => realise::anchors(&folds.folds, Some(sub)),
+                    None => folds.anchors,
+                },
                 control_lines: folds.folds.into_iter().flat_map(|f| f.lines).collect(),
             });
             Ok(())
         })?;
+        // Whole sequence at hand: temporal coherence here, so detection is complete in one task.
+        let out = crate::folds::temporal::settle(source, out, self.params.temporal_radius)?;
         let mut artifacts = Vec::new();
         if !shown.is_empty() && self.overlay_size > 0 {
+            // Drawn on the traced (input) mesh, with the anchors as traced there.
             let img = overlay::overlay(
-                source.topology(),
+                &traced_topo,
                 &shown,
                 self.overlay_size,
                 1.0 + 4.0 * self.params.min_shrink,

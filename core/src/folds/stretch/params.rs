@@ -40,10 +40,15 @@ pub struct StretchParams {
     pub alpha: f64,
     /// Radius of the parameterised patch around a seed, in mean edge lengths; bounds a fold's half length.
     pub patch_radius: f64,
-    /// Anchor angle per unit of shrinkage: angle = gain · (|v| − 1) radians, capped by `max_angle_deg`.
+    /// 0 (default): anchor angles from the material — the angle at which the fold gives back the length its
+    /// region of influence lost to the measured shrinkage ([`super::trace::fold_angle`]). Positive: the older
+    /// linear law, angle = gain · (|v| − 1) radians. Either way capped by `max_angle_deg`.
     pub angle_gain: f64,
     /// Cap of the anchor rotation, degrees (Popa et al. use 30°–60°).
     pub max_angle_deg: f64,
+    /// Frames on each side over which anchors are matched and their angles averaged (`crate::folds::temporal`),
+    /// on top of the seed memory; 0 leaves each frame's anchors as traced.
+    pub temporal_radius: usize,
     /// Folds whose traced axis is shorter than this (mean edge lengths) are dropped as noise.
     pub min_length: f64,
 }
@@ -63,9 +68,10 @@ impl Default for StretchParams {
             fold_width: 2.0,
             alpha: 2.0,
             patch_radius: 8.0,
-            angle_gain: 4.0,
+            angle_gain: 0.0,
             max_angle_deg: 60.0,
             min_length: 2.0,
+            temporal_radius: 2,
         }
     }
 }
@@ -154,7 +160,7 @@ impl StretchParams {
                 format!("at most 1000 edge lengths, got {}", self.patch_radius),
             ));
         }
-        finite_pos("angle-gain", self.angle_gain)?;
+        finite_nonneg("angle-gain", self.angle_gain)?;
         if !(self.max_angle_deg > 0.0 && self.max_angle_deg <= 180.0) {
             return Err(Error::param(
                 "max-angle",
@@ -162,6 +168,12 @@ impl StretchParams {
             ));
         }
         finite_nonneg("min-length", self.min_length)?;
+        if self.temporal_radius > 50 {
+            return Err(Error::param(
+                "temporal-radius",
+                format!("at most 50 frames, got {}", self.temporal_radius),
+            ));
+        }
         Ok(())
     }
 }

@@ -2,27 +2,57 @@
 //!
 //! * **Seeds** come from a priority queue of integrated shrinkage (absolute change), largest first, one at a
 //!   time; seeds of the previous frame go first (the thesis' seed memory, which keeps folds where they were).
-//! * **Axis**: the patch around the seed is flattened with [`super::lscm`]; from the seed's centroid a line
-//!   is marched in the plane perpendicular to the shrinkage direction, following each crossed triangle's own
-//!   direction, in both senses, until the shrinkage fades below `fade` of the seed's or the direction turns by
-//!   more than `max_turn`.
-//! * **Control lines** at ± width/2 beside the axis, width = `fold_width / |v|` (inversely proportional to the
-//!   absolute change), mapped back to 3D with barycentric coordinates.
-//! * **Region of influence**: patch triangles within α·|v| of the axis (eq. 4.3, measured from the traced axis
-//!   rather than the seed point alone, so one long fold is not seeded twice); their seeds leave the queue.
-//! * **Anchors** (§4.5): the triangles the control lines cross, rotating about the local fold direction —
-//!   opposite senses on the two lines, so the strip between them rises into a ridge on the side of the
-//!   normal (Popa et al. 2009 §5.1 rotate counter-clockwise about the fold edge) — by an angle proportional to
-//!   the local shrinkage, capped at `max_angle`.
+//! * **Axis** ([`FoldTracer::axis`]): the patch around the seed is flattened with [`super::lscm`]; from the
+//!   seed's centroid a line is marched in the plane perpendicular to the shrinkage direction, following each
+//!   crossed triangle's own direction, in both senses, until the shrinkage fades below `fade` of the seed's or
+//!   the direction turns by more than `max_turn`.
+//! * **Control lines** ([`FoldTracer::control_lines`]) at ± width/2 beside the axis, width = `fold_width / |v|`
+//!   (inversely proportional to the absolute change), located on the traced mesh as (triangle, barycentric)
+//!   samples, so that they can be realised on a finer mesh than the one traced ([`super::realise`]).
+//! * **Region of influence** ([`FoldTracer::region`]): patch triangles within α·|v| of the axis (eq. 4.3,
+//!   measured from the traced axis rather than the seed point alone, so one long fold is not seeded twice);
+//!   their seeds leave the queue.
+//! * **Ridge side** ([`ridge_sign`]): the strip between the control lines rises towards the side where the
+//!   captured surface already bulges along the axis (the capture flattened the fold but kept a trace of it), else
+//!   away from the frame's centroid. Never the mesh's winding: flipping every triangle gives the same fold.
+//! * **Anchors** (§4.5, [`super::realise`]): the triangles the control lines cross, rotating about the local
+//!   fold direction by opposite senses on the two lines, so the strip between them rises into a ridge (Popa et
+//!   al. 2009 §5.1 rotate counter-clockwise about the fold edge), by the angle [`fold_angle`] that gives back
+//!   the length the capture lost.
 
 use super::lscm::lscm;
 use super::params::StretchParams;
 use super::smooth::FrameGeometry;
 use super::tensor::shape;
-use crate::folds::Anchor;
 use crate::mesh::{Topology, NONE};
 use crate::vec3::{self, V3};
-use std::collections::{BTreeMap, BinaryHeap};
+use std::collections::BinaryHeap;
+
+/// What tracing reads of one frame.
+pub struct FrameField<'a> {
+    pub topo: &'a Topology,
+    pub p: &'a [V3],
+    pub geom: &'a FrameGeometry,
+    /// Integrated shrinkage (absolute change, 1 = none) per triangle.
+    pub shrink: &'a [f64],
+    /// Unit shrinkage direction per triangle.
+    pub dir: &'a [V3],
+    /// Mean edge length of the traced mesh.
+    pub h: f64,
+}
+
+/// One sample of a control line, located on the traced mesh.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LineSample {
+    pub triangle: u32,
+    pub bary: [f64; 3],
+    pub point: V3,
+    /// The anchor's rotation vector direction there: the local fold direction, signed so that the strip
+    /// between the control lines rises on the fold's ridge side.
+    pub axis: V3,
+    /// Anchor rotation angle, radians (> 0).
+    pub angle: f64,
+}
 
 /// One traced fold.
 #[derive(Debug, Clone)]
@@ -38,14 +68,16 @@ pub struct TracedFold {
     pub direction: V3,
     /// The two control lines (each possibly split where it leaves the patch).
     pub lines: Vec<Vec<V3>>,
+    /// Control-line samples that carry anchors, in order, dense enough for the mesh they are realised on.
+    pub samples: Vec<LineSample>,
 }
 
 /// Result of tracing one frame.
 #[derive(Debug, Clone, Default)]
 pub struct FrameFolds {
     pub folds: Vec<TracedFold>,
-    /// Sorted by triangle, unique.
-    pub anchors: Vec<Anchor>,
+    /// Anchors on the traced mesh ([`super::realise::anchors`]): sorted by triangle, unique.
+    pub anchors: Vec<crate::folds::Anchor>,
     /// Seeds taken from the queue (each one flattened a patch), folds or not.
     pub seeds_tried: usize,
 }
@@ -55,6 +87,9 @@ pub struct FoldTracer {
     prev_seed: Vec<bool>,
     tri_local: Vec<u32>,
     vert_local: Vec<u32>,
+    /// Control-line samples per axis step: 2^levels when the lines are realised on a mesh subdivided `levels`
+    /// times, so that every fine triangle they cross is sampled.
+    density: usize,
 }
 
 /// A flattened patch around a seed.
@@ -64,6 +99,9 @@ struct Patch {
     uv: Vec<[f64; 2]>,
 }
 
+/// An axis in the patch's plane: points with the triangle each lies in.
+type Axis = Vec<([f64; 2], usize)>;
+
 fn tri_pts(topo: &Topology, p: &[V3], t: usize) -> [V3; 3] {
     topo.triangles()[t].map(|v| p[v as usize])
 }
@@ -72,39 +110,71 @@ fn norm2(a: [f64; 2]) -> f64 {
     (a[0] * a[0] + a[1] * a[1]).sqrt()
 }
 
+fn point3(f: &FrameField, t: usize, bary: [f64; 3]) -> V3 {
+    let q = tri_pts(f.topo, f.p, t);
+    vec3::add(
+        vec3::add(vec3::scale(q[0], bary[0]), vec3::scale(q[1], bary[1])),
+        vec3::scale(q[2], bary[2]),
+    )
+}
+
+/// Anchor angle (radians) of a fold of width `width` (in mean edge lengths) where the integrated shrinkage is
+/// `change`. With `angle_gain` > 0, the linear law `gain · (|v| − 1)`. Otherwise (default) from the material:
+/// the region of influence, 2·α·|v| edge lengths across, was `|v|` times longer in its least-compressed state
+/// (the phase's reference, §4.3), so it lost `2α|v|(|v| − 1)`; two anchors rotating ±θ on a strip of width `w`
+/// lengthen it by `w (1/cos θ − 1)`, which gives the length back when `1/cos θ = 1 + lost / w`. Capped at
+/// `max_angle`.
+pub fn fold_angle(change: f64, width: f64, params: &StretchParams) -> f64 {
+    let max_angle = params.max_angle_deg.to_radians();
+    if !(change > 1.0) || !(width > 0.0) {
+        return 0.0;
+    }
+    if params.angle_gain > 0.0 {
+        return (params.angle_gain * (change - 1.0)).clamp(0.0, max_angle);
+    }
+    let lost = 2.0 * params.alpha * change * (change - 1.0);
+    (1.0 / (1.0 + lost / width)).acos().min(max_angle)
+}
+
+/// +1 when the fold's ridge is on the side of the traced axis triangles' normals, −1 when on the other side.
+/// `bulge` sums, along the axis, the height of the axis point above the chord between the two control lines,
+/// measured along the axis triangle's normal: the fold the capture flattened still shows there. A flat
+/// surface falls back to "away from the frame's centroid".
+fn ridge_sign(bulge: f64, scale: f64, outward: f64) -> f64 {
+    if bulge.abs() > 1e-9 * scale {
+        bulge.signum()
+    } else if outward != 0.0 {
+        outward.signum()
+    } else {
+        1.0
+    }
+}
+
 impl FoldTracer {
-    pub fn new(topo: &Topology) -> Self {
+    /// A tracer whose control lines are realised on the traced mesh after `levels` rounds of subdivision.
+    pub fn new(topo: &Topology, levels: usize) -> Self {
         FoldTracer {
             prev_seed: vec![false; topo.n_triangles()],
             tri_local: vec![NONE; topo.n_triangles()],
             vert_local: vec![NONE; topo.n_vertices()],
+            density: 1 << levels.min(8),
         }
     }
 
-    /// Traces the folds of one frame from its integrated shrinkage `shrink` (absolute change per triangle)
-    /// and unit shrinkage directions `dir`. `h` is the mesh's mean edge length.
-    #[allow(clippy::too_many_arguments)]
-    pub fn trace(
-        &mut self,
-        topo: &Topology,
-        p: &[V3],
-        geom: &FrameGeometry,
-        shrink: &[f64],
-        dir: &[V3],
-        h: f64,
-        params: &StretchParams,
-    ) -> FrameFolds {
-        let n_tri = topo.n_triangles();
+    /// Traces the folds of one frame.
+    pub fn trace(&mut self, f: &FrameField, params: &StretchParams) -> FrameFolds {
+        let n_tri = f.topo.n_triangles();
         let seed_min = 1.0 + params.min_shrink;
-        let mut heap: BinaryHeap<(bool, u64, std::cmp::Reverse<u32>)> = shrink
+        let mut heap: BinaryHeap<(bool, u64, std::cmp::Reverse<u32>)> = f
+            .shrink
             .iter()
             .enumerate()
             .filter(|(_, &s)| s >= seed_min && s.is_finite())
             .map(|(t, &s)| (self.prev_seed[t], s.to_bits(), std::cmp::Reverse(t as u32)))
             .collect();
+        let centroid = crate::folds::video::views::centroid(f.p);
         let mut consumed = vec![false; n_tri];
         let mut new_seed = vec![false; n_tri];
-        let mut anchors: BTreeMap<u32, Anchor> = BTreeMap::new();
         let mut folds = Vec::new();
         let mut seeds_tried = 0;
         while let Some((_, _, std::cmp::Reverse(s))) = heap.pop() {
@@ -114,54 +184,36 @@ impl FoldTracer {
             }
             consumed[s] = true;
             seeds_tried += 1;
-            let Some(patch) = self.patch(topo, p, geom, s, params.patch_radius * h) else {
+            let Some(patch) = self.patch(f, s, params.patch_radius * f.h) else {
                 continue;
             };
-            let fold = self.trace_seed(
-                topo,
-                p,
-                geom,
-                shrink,
-                dir,
-                h,
-                params,
-                s,
-                &patch,
-                &mut anchors,
-            );
-            if let Some(fold) = fold {
-                // Region of influence (eq. 4.3), measured from the axis in the plane.
-                let reach = params.alpha * shrink[s] * h;
-                let axis_uv = &fold.1;
-                for &t in &patch.tris {
-                    let c = self.uv_centroid(topo, &patch, t as usize);
-                    if dist_to_polyline(c, axis_uv) <= reach {
-                        consumed[t as usize] = true;
-                    }
-                }
+            if let Some(axis) = self.axis(f, params, s, &patch) {
+                let fold = self.control_lines(f, params, s, &patch, &axis, centroid);
+                self.region(
+                    f,
+                    &patch,
+                    &axis,
+                    params.alpha * f.shrink[s] * f.h,
+                    &mut consumed,
+                );
                 new_seed[s] = true;
-                folds.push(fold.0);
+                folds.push(fold);
             }
             self.release(&patch);
         }
         self.prev_seed = new_seed;
         FrameFolds {
+            anchors: super::realise::anchors(&folds, None),
             folds,
-            anchors: anchors.into_values().collect(),
             seeds_tried,
         }
     }
 
     /// Triangles whose centroid lies within `radius` of the seed's (breadth-first, so the patch is connected),
-    /// flattened with LSCM. Fills `tri_local` / `vert_local`; [`Self::release`] clears them.
-    fn patch(
-        &mut self,
-        topo: &Topology,
-        p: &[V3],
-        geom: &FrameGeometry,
-        s: usize,
-        radius: f64,
-    ) -> Option<Patch> {
+    /// flattened with LSCM. Fills `tri_local` / `vert_local`; [`Self::release`] clears them. The pins are chosen
+    /// by vertex index, not by corner order, so a flipped triangle gives the mirrored flattening.
+    fn patch(&mut self, f: &FrameField, s: usize, radius: f64) -> Option<Patch> {
+        let (topo, geom) = (f.topo, f.geom);
         let c0 = geom.centroids[s];
         let mut tris = vec![s as u32];
         self.tri_local[s] = 0;
@@ -191,13 +243,14 @@ impl FoldTracer {
                 self.vert_local[v as usize]
             }));
         }
-        let pos: Vec<V3> = verts.iter().map(|&v| p[v as usize]).collect();
-        let pin0 = local_tris[0][0] as usize;
+        let pos: Vec<V3> = verts.iter().map(|&v| f.p[v as usize]).collect();
+        let seed_min = *topo.triangles()[s].iter().min().expect("three");
+        let pin0 = self.vert_local[seed_min as usize] as usize;
         let pin1 = (0..pos.len())
             .max_by(|&a, &b| {
                 let da = vec3::norm(vec3::sub(pos[a], pos[pin0]));
                 let db = vec3::norm(vec3::sub(pos[b], pos[pin0]));
-                da.total_cmp(&db)
+                da.total_cmp(&db).then(verts[b].cmp(&verts[a]))
             })
             .unwrap_or(pin0);
         let patch_uv = lscm(&pos, &local_tris, (pin0, pin1));
@@ -235,12 +288,12 @@ impl FoldTracer {
     }
 
     /// The linear map of triangle `t` from its local 3D frame (e1, e2) to the plane, as a 2x2 matrix.
-    fn uv_map(&self, topo: &Topology, p: &[V3], patch: &Patch, t: usize) -> Option<[[f64; 2]; 2]> {
-        let [l1, a, b] = shape(tri_pts(topo, p, t));
+    fn uv_map(&self, f: &FrameField, patch: &Patch, t: usize) -> Option<[[f64; 2]; 2]> {
+        let [l1, a, b] = shape(tri_pts(f.topo, f.p, t));
         if l1 <= 0.0 || b <= 0.0 {
             return None;
         }
-        let q = self.uv_tri(topo, patch, t);
+        let q = self.uv_tri(f.topo, patch, t);
         let d1 = [q[1][0] - q[0][0], q[1][1] - q[0][1]];
         let d2 = [q[2][0] - q[0][0], q[2][1] - q[0][1]];
         // B [l1 a; 0 b] = [d1 d2]  ⇒  B = [d1/l1, (d2 − a d1/l1)/b].
@@ -250,17 +303,9 @@ impl FoldTracer {
     }
 
     /// A 3D tangent vector of triangle `t` in the plane.
-    fn to_uv(
-        &self,
-        topo: &Topology,
-        p: &[V3],
-        geom: &FrameGeometry,
-        patch: &Patch,
-        t: usize,
-        d: V3,
-    ) -> Option<[f64; 2]> {
-        let m = self.uv_map(topo, p, patch, t)?;
-        let x = [vec3::dot(d, geom.e1[t]), vec3::dot(d, geom.e2[t])];
+    fn to_uv(&self, f: &FrameField, patch: &Patch, t: usize, d: V3) -> Option<[f64; 2]> {
+        let m = self.uv_map(f, patch, t)?;
+        let x = [vec3::dot(d, f.geom.e1[t]), vec3::dot(d, f.geom.e2[t])];
         Some([
             m[0][0] * x[0] + m[0][1] * x[1],
             m[1][0] * x[0] + m[1][1] * x[1],
@@ -268,16 +313,8 @@ impl FoldTracer {
     }
 
     /// A plane vector at triangle `t` back on the surface (unit 3D tangent).
-    fn to_3d(
-        &self,
-        topo: &Topology,
-        p: &[V3],
-        geom: &FrameGeometry,
-        patch: &Patch,
-        t: usize,
-        d: [f64; 2],
-    ) -> Option<V3> {
-        let m = self.uv_map(topo, p, patch, t)?;
+    fn to_3d(&self, f: &FrameField, patch: &Patch, t: usize, d: [f64; 2]) -> Option<V3> {
+        let m = self.uv_map(f, patch, t)?;
         let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
         if det.abs() < 1e-300 {
             return None;
@@ -287,8 +324,8 @@ impl FoldTracer {
             (-m[1][0] * d[0] + m[0][0] * d[1]) / det,
         ];
         let v = vec3::normalize(vec3::add(
-            vec3::scale(geom.e1[t], x[0]),
-            vec3::scale(geom.e2[t], x[1]),
+            vec3::scale(f.geom.e1[t], x[0]),
+            vec3::scale(f.geom.e2[t], x[1]),
         ));
         (vec3::norm(v) > 0.0).then_some(v)
     }
@@ -328,46 +365,39 @@ impl FoldTracer {
         None
     }
 
-    /// Traces the axis and control lines from seed `s`; adds its anchors. Returns the fold and its axis in the
-    /// plane, or `None` when the axis is too short to be a fold.
-    #[allow(clippy::too_many_arguments)]
-    fn trace_seed(
+    /// The fold axis through seed `s` in the patch's plane, marched both ways perpendicular to the shrinkage;
+    /// `None` when it is shorter than `min_length`.
+    fn axis(
         &self,
-        topo: &Topology,
-        p: &[V3],
-        geom: &FrameGeometry,
-        shrink: &[f64],
-        dir: &[V3],
-        h: f64,
+        f: &FrameField,
         params: &StretchParams,
         s: usize,
         patch: &Patch,
-        anchors: &mut BTreeMap<u32, Anchor>,
-    ) -> Option<(TracedFold, Vec<[f64; 2]>)> {
+    ) -> Option<Axis> {
         let axis_of = |t: usize| -> Option<[f64; 2]> {
-            let a3 = vec3::cross(geom.normals[t], dir[t]);
-            let a = self.to_uv(topo, p, geom, patch, t, a3)?;
+            let a3 = vec3::cross(f.geom.normals[t], f.dir[t]);
+            let a = self.to_uv(f, patch, t, a3)?;
             let n = norm2(a);
             (n > 0.0).then(|| [a[0] / n, a[1] / n])
         };
-        let start = self.uv_centroid(topo, patch, s);
+        let start = self.uv_centroid(f.topo, patch, s);
         let h0 = axis_of(s)?;
-        let fade = 1.0 + params.fade * (shrink[s] - 1.0);
+        let fade = 1.0 + params.fade * (f.shrink[s] - 1.0);
         let cos_turn = params.max_turn_deg.to_radians().cos();
-        let step = 0.4 * h;
-        let max_steps = (2.0 * params.patch_radius * h / step) as usize + 1;
+        let step = 0.4 * f.h;
+        let max_steps = (2.0 * params.patch_radius * f.h / step) as usize + 1;
         // March in both senses; each point remembers its triangle.
-        let mut halves: [Vec<([f64; 2], usize)>; 2] = [Vec::new(), Vec::new()];
+        let mut halves: [Axis; 2] = [Vec::new(), Vec::new()];
         for (half, sense) in halves.iter_mut().zip([1.0, -1.0]) {
             let mut heading = [h0[0] * sense, h0[1] * sense];
             let (mut q, mut t) = (start, s);
             for _ in 0..max_steps {
                 let nq = [q[0] + step * heading[0], q[1] + step * heading[1]];
-                let Some((nt, _)) = self.locate(topo, patch, t, nq) else {
+                let Some((nt, _)) = self.locate(f.topo, patch, t, nq) else {
                     break;
                 };
                 if nt != t {
-                    if shrink[nt] < fade {
+                    if f.shrink[nt] < fade {
                         break;
                     }
                     let Some(mut a) = axis_of(nt) else { break };
@@ -385,28 +415,33 @@ impl FoldTracer {
                 half.push((q, t));
             }
         }
-        let mut axis: Vec<([f64; 2], usize)> = halves[1].iter().rev().copied().collect();
+        let mut axis: Axis = halves[1].iter().rev().copied().collect();
         axis.push((start, s));
         axis.extend(halves[0].iter().copied());
         let length: f64 = axis
             .windows(2)
             .map(|w| norm2([w[1].0[0] - w[0].0[0], w[1].0[1] - w[0].0[1]]))
             .sum();
-        if length < params.min_length * h || axis.len() < 2 {
-            return None;
-        }
-        let width = params.fold_width * h / shrink[s];
-        let max_angle = params.max_angle_deg.to_radians();
-        let point3 = |t: usize, bary: [f64; 3]| -> V3 {
-            let q = tri_pts(topo, p, t);
-            vec3::add(
-                vec3::add(vec3::scale(q[0], bary[0]), vec3::scale(q[1], bary[1])),
-                vec3::scale(q[2], bary[2]),
-            )
-        };
+        (length >= params.min_length * f.h && axis.len() >= 2).then_some(axis)
+    }
+
+    /// The control lines at ± width/2 beside `axis`, and their anchor samples (ridge side and angle decided
+    /// here, see the module documentation).
+    fn control_lines(
+        &self,
+        f: &FrameField,
+        params: &StretchParams,
+        s: usize,
+        patch: &Patch,
+        axis: &Axis,
+        centroid: V3,
+    ) -> TracedFold {
+        let width = params.fold_width * f.h / f.shrink[s];
+        let density = self.density;
+        // Per side: (axis index, sample on the mesh, unit 3D tangent).
+        let mut raw: [Vec<(usize, usize, [f64; 3], V3, Option<V3>)>; 2] = [Vec::new(), Vec::new()];
         let mut lines: Vec<Vec<V3>> = Vec::new();
-        // side −1: the line on the −normal side of the axis rotates about +tangent; side +1 about −tangent.
-        for side in [-1.0f64, 1.0] {
+        for (k, side) in [-1.0f64, 1.0].into_iter().enumerate() {
             let mut line: Vec<V3> = Vec::new();
             for i in 0..axis.len() {
                 let (a, b) = (
@@ -420,54 +455,120 @@ impl FoldTracer {
                 }
                 let tg = [tg[0] / tn, tg[1] / tn];
                 let nrm = [-tg[1], tg[0]];
-                let (q, ta) = axis[i];
-                let off = [
-                    q[0] + side * 0.5 * width * nrm[0],
-                    q[1] + side * 0.5 * width * nrm[1],
-                ];
-                let Some((t, bary)) = self.locate(topo, patch, ta, off) else {
-                    if line.len() >= 2 {
-                        lines.push(std::mem::take(&mut line));
+                let (q0, ta) = axis[i];
+                let sub = if i + 1 < axis.len() { density } else { 1 };
+                for j in 0..sub {
+                    let q = if j == 0 {
+                        q0
                     } else {
-                        line.clear();
+                        let q1 = axis[i + 1].0;
+                        let w = j as f64 / sub as f64;
+                        [q0[0] + w * (q1[0] - q0[0]), q0[1] + w * (q1[1] - q0[1])]
+                    };
+                    let off = [
+                        q[0] + side * 0.5 * width * nrm[0],
+                        q[1] + side * 0.5 * width * nrm[1],
+                    ];
+                    let Some((t, bary)) = self.locate(f.topo, patch, ta, off) else {
+                        if j == 0 {
+                            if line.len() >= 2 {
+                                lines.push(std::mem::take(&mut line));
+                            } else {
+                                line.clear();
+                            }
+                        }
+                        continue;
+                    };
+                    let pt = point3(f, t, bary);
+                    if j == 0 {
+                        line.push(pt);
                     }
-                    continue;
-                };
-                line.push(point3(t, bary));
-                let Some(tan3) = self.to_3d(topo, p, geom, patch, t, tg) else {
-                    continue;
-                };
-                let angle = (params.angle_gain * (shrink[ta] - 1.0)).clamp(0.0, max_angle);
-                if angle <= 0.0 {
-                    continue;
+                    let tan3 = self.to_3d(f, patch, t, tg);
+                    raw[k].push((i * density + j, t, bary, pt, tan3));
                 }
-                anchors.entry(t as u32).or_insert(Anchor {
-                    triangle: t as u32,
-                    axis: vec3::scale(tan3, -side),
-                    angle,
-                });
             }
             if line.len() >= 2 {
                 lines.push(line);
             }
         }
-        let axis3: Vec<V3> = axis
+        let axis3: Vec<Option<(V3, usize)>> = axis
             .iter()
-            .filter_map(|&(q, t)| self.locate(topo, patch, t, q).map(|(t, b)| point3(t, b)))
+            .map(|&(q, t)| {
+                self.locate(f.topo, patch, t, q)
+                    .map(|(t, b)| (point3(f, t, b), t))
+            })
             .collect();
-        let direction = self.to_3d(topo, p, geom, patch, s, h0).unwrap_or([0.0; 3]);
-        let axis_uv = axis.iter().map(|a| a.0).collect();
-        Some((
-            TracedFold {
-                seed: s as u32,
-                change: shrink[s],
-                width,
-                axis: axis3,
-                direction,
-                lines,
-            },
-            axis_uv,
-        ))
+        // Ridge side: the axis' height above the chord between the lines, along the axis triangle's normal,
+        // summed where both lines have a sample beside the same axis point.
+        let mut bulge = 0.0;
+        for l in raw[0].iter().filter(|l| l.0 % density == 0) {
+            let Ok(r) = raw[1].binary_search_by_key(&l.0, |r| r.0) else {
+                continue;
+            };
+            if let Some((a3, at)) = axis3[l.0 / density] {
+                let mid = vec3::scale(vec3::add(l.3, raw[1][r].3), 0.5);
+                bulge += vec3::dot(vec3::sub(a3, mid), f.geom.normals[at]);
+            }
+        }
+        let outward = vec3::dot(vec3::sub(f.geom.centroids[s], centroid), f.geom.normals[s]);
+        let sigma = ridge_sign(bulge, f.h, outward);
+        let mut samples = Vec::new();
+        for (k, side) in [-1.0f64, 1.0].into_iter().enumerate() {
+            for &(idx, t, bary, point, tan3) in &raw[k] {
+                let Some(tan3) = tan3 else { continue };
+                let ta = axis[idx / density].1;
+                let angle = fold_angle(f.shrink[ta], width / f.h, params);
+                if angle <= 0.0 {
+                    continue;
+                }
+                // side −1 (the line on the −normal side of the axis in the plane) rotates about +tangent for a
+                // ridge on the +normal side; σ turns it to the ridge's side.
+                samples.push(LineSample {
+                    triangle: t as u32,
+                    bary,
+                    point,
+                    axis: vec3::scale(tan3, -side * sigma),
+                    angle,
+                });
+            }
+        }
+        let start = axis.iter().position(|a| a.1 == s).unwrap_or(0);
+        let direction = self
+            .to_3d(f, patch, s, {
+                let (a, b) = (
+                    axis[start.saturating_sub(1)].0,
+                    axis[(start + 1).min(axis.len() - 1)].0,
+                );
+                [b[0] - a[0], b[1] - a[1]]
+            })
+            .unwrap_or([0.0; 3]);
+        TracedFold {
+            seed: s as u32,
+            change: f.shrink[s],
+            width,
+            axis: axis3.into_iter().flatten().map(|a| a.0).collect(),
+            direction,
+            lines,
+            samples,
+        }
+    }
+
+    /// Region of influence (eq. 4.3): marks the patch triangles within `reach` of the axis, in the plane.
+    fn region(
+        &self,
+        f: &FrameField,
+        patch: &Patch,
+        axis: &Axis,
+        reach: f64,
+        consumed: &mut [bool],
+    ) {
+        let axis_uv: Vec<[f64; 2]> = axis.iter().map(|a| a.0).collect();
+        for &t in &patch.tris {
+            let c = self.uv_centroid(f.topo, patch, t as usize);
+            if dist_to_polyline(c, &axis_uv) <= reach {
+                consumed[t as usize] = true;
+            }
+        }
     }
 }
 
@@ -489,4 +590,43 @@ fn dist_to_polyline(q: [f64; 2], line: &[[f64; 2]]) -> f64 {
             norm2([q[0] - a[0] - t * ab[0], q[1] - a[1] - t * ab[1]])
         })
         .fold(f64::INFINITY, f64::min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The material angle gives back exactly the length the region of influence lost, until the cap.
+    #[test]
+    fn fold_angle_recovers_the_lost_length() {
+        let p = StretchParams::default();
+        for change in [1.02, 1.05, 1.1] {
+            let w = p.fold_width / change;
+            let theta = fold_angle(change, w, &p);
+            let gained = w * (1.0 / theta.cos() - 1.0);
+            let lost = 2.0 * p.alpha * change * (change - 1.0);
+            assert!(
+                (gained - lost).abs() < 1e-12,
+                "{change}: {gained} vs {lost}"
+            );
+            assert!(theta > 0.0 && theta < p.max_angle_deg.to_radians());
+        }
+        // Strong shrinkage is capped; none gives no anchor.
+        assert_eq!(fold_angle(1.8, 1.0, &p), p.max_angle_deg.to_radians());
+        assert_eq!(fold_angle(1.0, 1.0, &p), 0.0);
+        // The linear law when asked for.
+        let lin = StretchParams {
+            angle_gain: 4.0,
+            ..p
+        };
+        assert!((fold_angle(1.05, 1.0, &lin) - 0.2).abs() < 1e-12);
+    }
+
+    #[test]
+    fn ridge_side_follows_the_bulge_then_the_outside() {
+        assert_eq!(ridge_sign(0.3, 1.0, -1.0), 1.0);
+        assert_eq!(ridge_sign(-0.3, 1.0, 1.0), -1.0);
+        assert_eq!(ridge_sign(0.0, 1.0, -2.0), -1.0);
+        assert_eq!(ridge_sign(0.0, 1.0, 0.0), 1.0);
+    }
 }

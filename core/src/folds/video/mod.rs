@@ -1,6 +1,7 @@
 //! Fold estimation from the capture video (Popa et al. 2009 §3.1, §4, anchors as in §5.1).
 //!
-//! Per frame: pick the best front and back cameras ([`views`]); in each chosen image, find Canny edges at several
+//! Per frame: pick the best front and back cameras ([`views`]); take out of each chosen image the shading the
+//! captured mesh explains under lighting fitted to it ([`shading`]); in what remains, find Canny edges at several
 //! resolutions and radii, fit and split them with quadrics ([`edges`], [`quadric`]), orient them dark-on-the-left
 //! and drop unclear or hue edges ([`orient`]), merge broken contours ([`merge`]), pair parallel edges of opposite
 //! orientation and unite the levels ([`pairing`]); cast the pairs onto the frame mesh and turn the crossed
@@ -18,6 +19,7 @@ pub mod pairing;
 pub mod params;
 pub mod project;
 pub mod quadric;
+pub mod shading;
 pub mod views;
 
 pub use cameras::{CameraRig, Photo};
@@ -107,7 +109,8 @@ pub fn image_pairs(photo: &Photo, params: &VideoParams) -> (Vec<LevelResult>, Ve
         let merged = merge::merge(
             oriented,
             params.merge_gap,
-            params.fit_tolerance * le.factor / level.scale,
+            // `fit_tolerance` is in pixels of the level's resolution; merged edges are in full-resolution pixels.
+            params.fit_tolerance / level.scale,
             params.max_curvature,
         );
         let pairs = pairing::pair_edges(&merged, params, li);
@@ -166,13 +169,20 @@ impl VideoFolds {
         Ok(())
     }
 
-    /// Analyses frame `t` with positions `positions`.
+    /// The sequence's width scale for anchor angles: the mean edge length of frame 0.
+    pub fn width_scale(&self, source: &dyn FrameSource) -> Result<f64> {
+        let first = source.read_frame(0)?;
+        Ok(super::stretch::mean_edge_length(source.topology(), &first))
+    }
+
+    /// Analyses frame `t` with positions `positions`; `h` is the sequence's [`Self::width_scale`].
     pub fn analyze(
         &self,
         topo: &Topology,
         positions: &[V3],
         t: usize,
         vertices: (usize, usize),
+        h: f64,
     ) -> Result<FrameAnalysis> {
         let choice = views::select(
             &self.rig,
@@ -197,6 +207,19 @@ impl VideoFolds {
                 ));
                 continue;
             }
+            let photo = if self.params.lighting_residual {
+                let camera = &self.rig.cameras[cam].camera;
+                shading::residual_photo(&photo, topo, positions, camera).unwrap_or_else(|| {
+                    notes.push(format!(
+                        "camera {} frame {t}: too little of the garment is seen to fit its lighting; \
+                         fold edges are looked for in the raw image",
+                        self.rig.cameras[cam].name
+                    ));
+                    photo
+                })
+            } else {
+                photo
+            };
             let (levels, union) = image_pairs(&photo, &self.params);
             let mut caster =
                 project::MeshCaster::new(topo, positions, &self.rig.cameras[cam].camera)?;
@@ -214,7 +237,7 @@ impl VideoFolds {
                 projected,
             });
         }
-        let anchors = self.frame_anchors(topo, positions, t, &views);
+        let anchors = self.frame_anchors(topo, positions, t, &views, h);
         Ok(FrameAnalysis {
             frame: t,
             views,
@@ -230,16 +253,15 @@ impl VideoFolds {
         positions: &[V3],
         t: usize,
         views: &[ViewResult],
+        h: f64,
     ) -> FrameAnchors {
         let normals = geometry::triangle_normals(topo, positions);
         let all: Vec<&ProjectedPair> = views.iter().flat_map(|v| &v.projected).collect();
-        let narrow = all.iter().map(|p| p.width).fold(f64::INFINITY, f64::min);
-        let wide = all.iter().map(|p| p.width).fold(0.0, f64::max);
         let mut seen = HashSet::new();
         let mut anchors: Vec<Anchor> = Vec::new();
         let mut control_lines = Vec::new();
         for p in &all {
-            let angle = project::angle_for(p.width, narrow, wide, &self.params);
+            let angle = project::pair_angle(p.width, h, &self.params);
             for hits in [&p.a, &p.b] {
                 for a in project::edge_anchors(hits, &normals, angle) {
                     if seen.insert(a.triangle) {
@@ -294,6 +316,7 @@ impl FoldDetector for VideoFolds {
             ));
         }
         let vertices = self.tracked_vertices(source)?;
+        let h = self.width_scale(source)?;
         let topo = source.topology().clone();
         let names: Vec<String> = self.rig.cameras.iter().map(|c| c.name.clone()).collect();
         progress.begin("video folds", frames.len() as u64);
@@ -305,7 +328,7 @@ impl FoldDetector for VideoFolds {
                     return Err(Error::Cancelled);
                 }
                 let positions = source.read_frame(t)?;
-                let a = self.analyze(&topo, &positions, t, vertices)?;
+                let a = self.analyze(&topo, &positions, t, vertices, h)?;
                 for n in &a.notes {
                     progress.note(n);
                 }
@@ -326,6 +349,15 @@ impl FoldDetector for VideoFolds {
         Ok((anchors, arts.into_iter().flatten().collect()))
     }
 
+    /// Anchors matched over frames, angles smoothed in time, single-frame folds dropped.
+    fn settle(
+        &self,
+        source: &dyn FrameSource,
+        frames: Vec<FrameAnchors>,
+    ) -> Result<Vec<FrameAnchors>> {
+        super::temporal::settle(source, frames, self.params.temporal_radius)
+    }
+
     /// The cameras and the tracked vertices (and whether they were chosen automatically).
     fn summary(&self, source: &dyn FrameSource) -> Result<serde_json::Value> {
         let (front, back) = self.tracked_vertices(source)?;
@@ -334,5 +366,116 @@ impl FoldDetector for VideoFolds {
             "tracked_vertices": { "front": front, "back": back, "automatic": self.vertices.is_none() },
             "parameters": self.params,
         }))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::folds::video::cameras::{NamedCamera, DEFAULT_IMAGE_PATTERN};
+    use crate::render::CalibratedCamera;
+
+    /// A 1 x 1 sheet (5 cm edges) in z = 0 under a camera looking down -z.
+    fn setup() -> (std::sync::Arc<Topology>, Vec<V3>, CalibratedCamera) {
+        let (topo, frame) = crate::synth::sheet(21, 21, 0.05).unwrap();
+        let cam = CalibratedCamera {
+            fx: 400.0,
+            fy: 400.0,
+            cx: 199.5,
+            cy: 199.5,
+            r: [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],
+            t: [-0.5, 0.5, 2.0],
+            width: 400,
+            height: 400,
+        };
+        (topo, frame, cam)
+    }
+
+    /// A projected pair of two vertical world lines at x = `x0` and `x0 + width`.
+    fn pair(
+        caster: &project::MeshCaster,
+        cam: &CalibratedCamera,
+        x0: f64,
+        width: f64,
+    ) -> ProjectedPair {
+        let line = |x: f64| -> Vec<[f64; 2]> {
+            (0..30)
+                .map(|i| cam.project([x, 0.2 + 0.02 * i as f64, 0.0]).unwrap())
+                .collect()
+        };
+        let (a, _) = caster.cast_polyline(&line(x0), 0.5, 0.2);
+        let (b, _) = caster.cast_polyline(&line(x0 + width), 0.5, 0.2);
+        let pair = Pair {
+            a: line(x0),
+            b: line(x0 + width),
+            ridge: false,
+            width: 0.0,
+            length: 0.0,
+            midline: Vec::new(),
+            level: 0,
+        };
+        ProjectedPair { pair, a, b, width }
+    }
+
+    /// Before, angles were spread between the frame's narrowest and widest pair: a fold of constant width got
+    /// 45° alone and 30° as soon as a narrower fold appeared beside it. On one scale its angle cannot change.
+    #[test]
+    fn a_fold_of_constant_width_keeps_its_angle_across_frames() {
+        let (topo, p, cam) = setup();
+        let rig = CameraRig {
+            cameras: vec![NamedCamera {
+                name: "cam00".into(),
+                camera: cam,
+            }],
+            images_dir: "unused".into(),
+            image_pattern: DEFAULT_IMAGE_PATTERN.to_string(),
+        };
+        let det = VideoFolds::new(rig, VideoParams::default(), vec![1, 2, 3]).unwrap();
+        let caster = project::MeshCaster::new(&topo, &p, &cam).unwrap();
+        let h = crate::folds::stretch::mean_edge_length(&topo, &p);
+        let view = |pairs: Vec<ProjectedPair>| ViewResult {
+            camera: 0,
+            role: "front",
+            photo: Photo {
+                width: 1,
+                height: 1,
+                gray: vec![0.0],
+                rgb: vec![[0.0; 3]],
+                mask: vec![true],
+                has_alpha: false,
+            },
+            levels: Vec::new(),
+            union: Vec::new(),
+            projected: pairs,
+        };
+        let fold = || pair(&caster, &cam, 0.3, 0.15);
+        let frames = [
+            vec![fold()],
+            vec![fold(), pair(&caster, &cam, 0.7, 0.06)],
+            vec![fold(), pair(&caster, &cam, 0.7, 0.4)],
+        ];
+        let mut angles = Vec::new();
+        for (t, pairs) in frames.into_iter().enumerate() {
+            let fa = det.frame_anchors(&topo, &p, t, &[view(pairs)], h);
+            // The fold's triangles lie left of x = 0.5.
+            let mine: Vec<f64> = fa
+                .anchors
+                .iter()
+                .filter(|a| {
+                    let tri = topo.triangles()[a.triangle as usize];
+                    tri.iter().all(|&v| p[v as usize][0] < 0.5)
+                })
+                .map(|a| a.angle)
+                .collect();
+            assert!(mine.len() >= 4, "frame {t}: {:?}", fa.anchors);
+            angles.push(mine[0]);
+            assert!(mine.iter().all(|&a| a == mine[0]));
+        }
+        assert!(angles.iter().all(|&a| a == angles[0]), "{angles:?}");
+        // Between 60° (1.5 edge lengths) and 30° (6), inversely proportional.
+        let w = 0.15 / h;
+        assert!(w > 1.5 && w < 6.0);
+        let want = 60.0 * 30.0 / (30.0 + (w - 1.5) / (6.0 - 1.5) * 30.0);
+        assert!((angles[0].to_degrees() - want).abs() < 1e-6, "{angles:?}");
     }
 }

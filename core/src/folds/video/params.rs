@@ -53,9 +53,21 @@ pub struct VideoParams {
     /// outlining a border are dropped. Off by default: on the sample sleeve the compression folds crowd the cuff
     /// and dropping border pairs lowered the fold-signal correlation (0.320 → 0.303).
     pub skip_border: bool,
-    /// Anchor rotation for the narrowest and the widest pairs of a frame, degrees (§5.1: 60° down to 30°).
+    /// Anchor rotation for narrow and wide pairs, degrees (§5.1: 60° down to 30°, inversely proportional to the
+    /// width).
     pub narrow_angle_deg: f64,
     pub wide_angle_deg: f64,
+    /// Pair widths (on the surface, in mean edge lengths of the sequence's first frame) that get
+    /// `narrow_angle_deg` and `wide_angle_deg`. One absolute scale for the whole sequence, so a fold of constant
+    /// width keeps its angle from frame to frame; narrower and wider pairs are clamped to the ends.
+    pub narrow_width: f64,
+    pub wide_width: f64,
+    /// Look for fold edges in the residual between the image and the captured mesh shaded under lighting fitted
+    /// to the image (spherical harmonics, [`super::shading`]) rather than in the raw image.
+    pub lighting_residual: bool,
+    /// Frames on each side over which anchors are matched and their angles averaged (`crate::folds::temporal`);
+    /// 0 leaves each frame's anchors as detected.
+    pub temporal_radius: usize,
     /// Rings of the neighbourhood over which the tracked vertices' stable normals are averaged (§4: eight).
     pub stable_normal_rings: usize,
 }
@@ -84,6 +96,10 @@ impl Default for VideoParams {
             skip_border: false,
             narrow_angle_deg: 60.0,
             wide_angle_deg: 30.0,
+            narrow_width: 1.5,
+            wide_width: 6.0,
+            lighting_residual: true,
+            temporal_radius: 2,
             stable_normal_rings: 8,
         }
     }
@@ -170,6 +186,23 @@ impl VideoParams {
                     format!("must be in [0, 180] degrees, got {a}"),
                 ));
             }
+        }
+        if self.temporal_radius > 50 {
+            return Err(Error::param(
+                "temporal_radius",
+                format!("at most 50 frames, got {}", self.temporal_radius),
+            ));
+        }
+        pos("narrow_width", self.narrow_width)?;
+        pos("wide_width", self.wide_width)?;
+        if self.wide_width <= self.narrow_width {
+            return Err(Error::param(
+                "wide_width",
+                format!(
+                    "must exceed narrow_width ({}), got {}",
+                    self.narrow_width, self.wide_width
+                ),
+            ));
         }
         Ok(())
     }

@@ -7,7 +7,8 @@
 //! deeper: with `d` the edge's world direction (dark side on the left as seen from the camera) and `n` the
 //! camera-facing normal, the left side is `n × d`, and the rotation about `-d` by `θ > 0` turns `n` towards it
 //! (`n ↦ n cos θ + (n × d) sin θ`), lowering the left side. The angle is inversely proportional to the pair's
-//! width: 60° for the frame's narrowest pair down to 30° for its widest.
+//! width on one scale for the whole sequence: 60° at `narrow_width` mean edge lengths down to 30° at
+//! `wide_width`.
 
 use super::pairing::Pair;
 use super::params::VideoParams;
@@ -182,8 +183,20 @@ pub fn project_pair(
     })
 }
 
-/// Anchor angle (radians) for a pair of `width` when the frame's pairs span `[narrow, wide]`: inversely
-/// proportional to the width, `narrow_deg` at the narrowest and `wide_deg` at the widest.
+/// Anchor angle (radians) for a pair of `width` (world units) on a mesh of mean edge length `h`: inversely
+/// proportional to the width, `narrow_angle_deg` at `narrow_width · h`, `wide_angle_deg` at `wide_width · h`,
+/// clamped beyond.
+pub fn pair_angle(width: f64, h: f64, params: &VideoParams) -> f64 {
+    angle_for(
+        width,
+        params.narrow_width * h,
+        params.wide_width * h,
+        params,
+    )
+}
+
+/// Anchor angle (radians) for a pair of `width` on the scale `[narrow, wide]`: inversely proportional to the
+/// width, `narrow_deg` at `narrow` and `wide_deg` at `wide`.
 pub fn angle_for(width: f64, narrow: f64, wide: f64, params: &VideoParams) -> f64 {
     let f = if wide - narrow > 1e-12 {
         ((width - narrow) / (wide - narrow)).clamp(0.0, 1.0)

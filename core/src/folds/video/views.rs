@@ -4,33 +4,26 @@
 //! and a tracked back vertex: the largest dot product of the vertex's *stable* normal — the area-weighted normal
 //! averaged over a large (eight-ring) neighbourhood, so that the folds themselves do not swing it — with the unit
 //! vector from the vertex to the camera. Vertex identity is tracked through the sequence by the shared
-//! connectivity. Normals are oriented away from the garment's centroid, so the choice does not depend on the
-//! mesh's winding.
+//! connectivity.
+//!
+//! The normal's sign is not the mesh's winding (which is arbitrary). The front normal points away from the
+//! garment's centroid where that is clear (closed and tube-like garments); on open garments (a hanging sheet) or
+//! at a rim, where the centroid lies in the surface's own plane, it points to the camera that faces the surface
+//! most squarely. The back normal then points away from the chosen front camera, so the back view sees the other
+//! side of the garment whichever vertices are tracked: the far side of a tube, the reverse of a sheet.
 
 use super::cameras::CameraRig;
 use crate::mesh::{geometry, Topology};
 use crate::vec3::{self, V3};
 
-/// Stable normal at `v`: the mean of the area-weighted vertex normals over `rings` rings, oriented away from the
-/// centroid of `positions`.
-pub fn stable_normal(
-    topo: &Topology,
-    positions: &[V3],
-    normals: &[V3],
-    v: usize,
-    rings: usize,
-) -> V3 {
+/// Stable normal at `v`: the mean of the area-weighted vertex normals `normals` over `rings` rings, with the
+/// mesh's (arbitrary) sign.
+pub fn ring_normal(topo: &Topology, normals: &[V3], v: usize, rings: usize) -> V3 {
     let mut n = [0.0; 3];
     for u in topo.vertex_ring_neighborhood(v, rings) {
         n = vec3::add(n, normals[u as usize]);
     }
-    let n = vec3::normalize(n);
-    let c = centroid(positions);
-    if vec3::dot(n, vec3::sub(positions[v], c)) < 0.0 {
-        vec3::scale(n, -1.0)
-    } else {
-        n
-    }
+    vec3::normalize(n)
 }
 
 pub fn centroid(positions: &[V3]) -> V3 {
@@ -52,13 +45,17 @@ pub fn auto_vertices(topo: &Topology, positions: &[V3], rig: &CameraRig) -> (usi
             let r = vec3::sub(positions[i], c);
             vec3::norm(vec3::sub(r, vec3::scale(d, vec3::dot(r, d))))
         };
+        // Away from the centroid where that is clear, else towards `d` (open garments, rims).
         let outward = |i: usize| {
             let n = normals[i];
-            if vec3::dot(n, vec3::sub(positions[i], c)) < 0.0 {
-                vec3::scale(n, -1.0)
+            let o = vec3::normalize(vec3::sub(positions[i], c));
+            let k = vec3::dot(n, o);
+            let s = if k.abs() >= CLEAR_OUTWARD {
+                k.signum()
             } else {
-                n
-            }
+                vec3::dot(n, d).signum()
+            };
+            vec3::scale(n, s)
         };
         (0..positions.len())
             .filter(|&i| {
@@ -111,8 +108,13 @@ pub struct ViewChoice {
     pub notes: Vec<String>,
 }
 
+/// Below this |cosine| between a vertex's normal and its offset from the centroid, "away from the centroid" says
+/// nothing about the side (the vertex lies in the surface's plane through the centroid, or on a rim).
+const CLEAR_OUTWARD: f64 = 0.3;
+
 /// Picks the front and back cameras of frame `t` for the tracked vertices. Cameras that see none of the garment
-/// are skipped with a note naming camera and frame; the back view is a different camera from the front view.
+/// are skipped with a note naming camera and frame; the back view is a different camera from the front view and
+/// looks at the side of the garment facing away from the front camera (module documentation).
 pub fn select(
     rig: &CameraRig,
     topo: &Topology,
@@ -135,8 +137,8 @@ pub fn select(
             ok
         })
         .collect();
-    let mut pick = |v: usize, exclude: Option<usize>, which: &str| {
-        let n = stable_normal(topo, positions, &normals, v, rings);
+    let c = centroid(positions);
+    let mut pick = |v: usize, n: V3, exclude: Option<usize>, which: &str| {
         let scores = camera_scores(rig, positions[v], n);
         let best = (0..scores.len())
             .filter(|&c| sees[c] && Some(c) != exclude)
@@ -154,7 +156,100 @@ pub fn select(
             None => None,
         }
     };
-    let front = pick(vertices.0, None, "front");
-    let back = pick(vertices.1, front, "back");
+    let (vf, vb) = vertices;
+    let raw_normal = |v: usize| ring_normal(topo, &normals, v, rings);
+    let nf = raw_normal(vf);
+    let out = vec3::normalize(vec3::sub(positions[vf], c));
+    let cos_out = vec3::dot(nf, out);
+    let nf = if cos_out.abs() >= CLEAR_OUTWARD {
+        vec3::scale(nf, cos_out.signum())
+    } else {
+        // No inside or outside here: face the camera that sees this spot most squarely.
+        let scores = camera_scores(rig, positions[vf], nf);
+        let best = (0..scores.len())
+            .filter(|&c| sees[c])
+            .max_by(|&a, &b| scores[a].abs().total_cmp(&scores[b].abs()));
+        match best {
+            Some(b) if scores[b] < 0.0 => vec3::scale(nf, -1.0),
+            _ => nf,
+        }
+    };
+    let front = pick(vf, nf, None, "front");
+    let mut nb = raw_normal(vb);
+    let away = match front {
+        Some(f) => vec3::sub(positions[vb], rig.cameras[f].camera.center()),
+        None => vec3::sub(positions[vb], c),
+    };
+    if vec3::dot(nb, away) < 0.0 {
+        nb = vec3::scale(nb, -1.0);
+    }
+    let back = pick(vb, nb, front, "back");
     ViewChoice { front, back, notes }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::folds::video::cameras::{NamedCamera, DEFAULT_IMAGE_PATTERN};
+    use crate::render::{Camera, Projection};
+
+    /// A flat 1 m sheet in z = 0 and four cameras, two over each side, one of each pair more oblique.
+    fn sheet_and_rig() -> (std::sync::Arc<Topology>, Vec<V3>, CameraRig) {
+        let (topo, p) = crate::synth::sheet(21, 21, 0.05).unwrap();
+        let (lo, hi) = geometry::bounding_box(&p);
+        let dirs: [V3; 4] = [
+            [0.1, 0.0, -1.0],
+            [0.8, 0.2, -1.0],
+            [-0.1, 0.1, 1.0],
+            [-0.7, -0.3, 1.0],
+        ];
+        let cameras = dirs
+            .iter()
+            .enumerate()
+            .map(|(k, &d)| NamedCamera {
+                name: format!("cam{k:02}"),
+                camera: Camera::fit(lo, hi, d, [0.0, 1.0, 0.0], 200, 200).calibrated(),
+            })
+            .collect();
+        let rig = CameraRig {
+            cameras,
+            images_dir: std::path::PathBuf::from("unused"),
+            image_pattern: DEFAULT_IMAGE_PATTERN.to_string(),
+        };
+        (topo, p, rig)
+    }
+
+    /// The drape case: the tracked vertices of an open sheet land on its rim (or in its middle); the front and
+    /// back views must still look at opposite faces of the sheet, not at the same face twice.
+    #[test]
+    fn open_sheet_views_see_opposite_sides() {
+        let (topo, p, rig) = sheet_and_rig();
+        let side = |c: usize| rig.cameras[c].camera.center()[2].signum();
+        let centre = 10 * 21 + 10;
+        let cases = [(0, 20), (5, 5), (0, 440), (centre, centre), (20, centre)];
+        for (vf, vb) in cases {
+            let choice = select(&rig, &topo, &p, (vf, vb), 8, 0);
+            let (Some(f), Some(b)) = (choice.front, choice.back) else {
+                panic!("{vf}/{vb}: a view is missing: {choice:?}");
+            };
+            assert_ne!(side(f), side(b), "{vf}/{vb}: {choice:?}");
+        }
+        // Flipping every triangle changes nothing.
+        let flipped: Vec<[u32; 3]> = topo
+            .triangles()
+            .iter()
+            .map(|t| [t[0], t[2], t[1]])
+            .collect();
+        let topo2 = Topology::new(p.len(), flipped).unwrap();
+        for (vf, vb) in cases {
+            assert_eq!(
+                select(&rig, &topo2, &p, (vf, vb), 8, 0),
+                select(&rig, &topo, &p, (vf, vb), 8, 0)
+            );
+        }
+        // The automatic vertices are an interior front and back, with views on opposite sides as well.
+        let (vf, vb) = auto_vertices(&topo, &p, &rig);
+        let choice = select(&rig, &topo, &p, (vf, vb), 8, 0);
+        assert_ne!(side(choice.front.unwrap()), side(choice.back.unwrap()));
+    }
 }

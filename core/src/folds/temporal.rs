@@ -1,0 +1,176 @@
+//! Temporal coherence of detected anchors: folds that persist keep their anchors, their angles change smoothly,
+//! and a fold seen in a single frame neither appears nor vanishes for that frame alone.
+//!
+//! Detectors find anchors frame by frame (video edges) or carry only a seed memory (geometry), so the same fold
+//! gets anchors on slightly different triangles, with a different angle, or goes missing for a frame; the
+//! deformation turns each of those changes into a visible pop. Here anchors are matched from frame to frame —
+//! an anchor at triangle `i` in frame `t` matches the anchor of frame `t + k` on `i` or a triangle sharing a
+//! vertex with it whose rotation turns the same way, the closest one in rotation — and each anchor's rotation
+//! becomes a Gaussian-weighted mean over `±radius` frames of its matches, a missing match counting as no
+//! rotation. So a fold fades in and out over a few frames instead of switching. Anchors with no match in
+//! either neighbouring frame are dropped (single-frame births and deaths), and a triangle whose fold is matched
+//! in the frames before and after but missed in between gets an anchor there.
+//!
+//! Rotations are compared in each triangle's own frame (first edge, normal), carried along with the cloth, so
+//! a fold that moves rigidly with the garment matches itself. Only a window of `2·radius + 1` frames of
+//! triangle frames is held at a time.
+
+use super::{Anchor, FrameAnchors};
+use crate::error::Result;
+use crate::mesh::{FrameSource, Topology, NONE};
+use crate::vec3::{self, V3};
+use std::collections::{HashMap, VecDeque};
+
+/// Orthonormal frame (e1, e2, n) of every triangle of one frame.
+type Frames = Vec<[V3; 3]>;
+
+fn triangle_frames(topo: &Topology, p: &[V3]) -> Frames {
+    topo.triangles()
+        .iter()
+        .map(|t| {
+            let q = t.map(|v| p[v as usize]);
+            let (e1, e2, n) = super::stretch::tensor::local_frame(q);
+            [e1, e2, n]
+        })
+        .collect()
+}
+
+fn to_local(f: &[V3; 3], v: V3) -> V3 {
+    [vec3::dot(v, f[0]), vec3::dot(v, f[1]), vec3::dot(v, f[2])]
+}
+
+fn to_world(f: &[V3; 3], c: V3) -> V3 {
+    vec3::add(
+        vec3::add(vec3::scale(f[0], c[0]), vec3::scale(f[1], c[1])),
+        vec3::scale(f[2], c[2]),
+    )
+}
+
+/// Gaussian weight of a frame `k` frames away, σ = radius / 2 (at least 0.5).
+fn weight(k: usize, radius: usize) -> f64 {
+    let sigma = (radius as f64 / 2.0).max(0.5);
+    (-(k as f64).powi(2) / (2.0 * sigma * sigma)).exp()
+}
+
+/// Triangles sharing a vertex with `t` (including `t`).
+fn ring(topo: &Topology, t: usize) -> Vec<u32> {
+    let mut out: Vec<u32> = topo.triangles()[t]
+        .iter()
+        .flat_map(|&v| topo.vertex_triangles(v as usize).iter().copied())
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+/// Makes `frames` (one entry per frame of `source`, in order) temporally coherent; `radius` = 0 returns them
+/// unchanged. Control lines are kept as detected.
+pub fn settle(
+    source: &dyn FrameSource,
+    frames: Vec<FrameAnchors>,
+    radius: usize,
+) -> Result<Vec<FrameAnchors>> {
+    let n = frames.len();
+    if radius == 0 || n < 2 {
+        return Ok(frames);
+    }
+    let topo = source.topology().clone();
+    let lookup: Vec<HashMap<u32, V3>> = frames
+        .iter()
+        .map(|f| {
+            f.anchors
+                .iter()
+                .map(|a| (a.triangle, a.rotation_vector()))
+                .collect()
+        })
+        .collect();
+    // Frames t − radius ..= t + radius; `window[k]` is frame `first + k`.
+    let mut window: VecDeque<Frames> = VecDeque::new();
+    let mut first = 0usize;
+    let mut rings: HashMap<u32, Vec<u32>> = HashMap::new();
+    let mut out = Vec::with_capacity(n);
+    for (t, fa) in frames.iter().enumerate() {
+        let lo = t.saturating_sub(radius);
+        let hi = (t + radius).min(n - 1);
+        while first < lo {
+            window.pop_front();
+            first += 1;
+        }
+        while first + window.len() <= hi {
+            let p = source.read_frame(first + window.len())?;
+            window.push_back(triangle_frames(&topo, &p));
+        }
+        let fr = |u: usize| &window[u - first];
+        // The best match in frame `u` of a rotation `c` (local coordinates of triangle `i`), in the local
+        // coordinates of `i` at `u`.
+        let mut find = |i: u32, c: V3, u: usize| -> Option<V3> {
+            let cand = rings.entry(i).or_insert_with(|| ring(&topo, i as usize));
+            cand.iter()
+                .filter_map(|j| lookup[u].get(j))
+                .map(|&phi| to_local(&fr(u)[i as usize], phi))
+                .filter(|m| vec3::dot(*m, c) > 0.0)
+                .min_by(|a, b| {
+                    vec3::norm(vec3::sub(*a, c)).total_cmp(&vec3::norm(vec3::sub(*b, c)))
+                })
+        };
+        // Gaussian mean over the window of the matches of `c` (its value at `t`), missing ones counting as 0.
+        let smooth = |i: u32, c: V3, find: &mut dyn FnMut(u32, V3, usize) -> Option<V3>| {
+            let (mut sum, mut wsum) = ([0.0; 3], 0.0);
+            for u in lo..=hi {
+                let w = weight(u.abs_diff(t), radius);
+                wsum += w;
+                let m = if u == t { Some(c) } else { find(i, c, u) };
+                if let Some(m) = m {
+                    sum = vec3::add(sum, vec3::scale(m, w));
+                }
+            }
+            vec3::scale(sum, 1.0 / wsum)
+        };
+        let mut anchors: Vec<Anchor> = Vec::with_capacity(fa.anchors.len());
+        for a in &fa.anchors {
+            let i = a.triangle;
+            let c = to_local(&fr(t)[i as usize], a.rotation_vector());
+            let before = t > 0 && find(i, c, t - 1).is_some();
+            let after = t + 1 < n && find(i, c, t + 1).is_some();
+            if !before && !after {
+                continue;
+            }
+            let s = smooth(i, c, &mut find);
+            push(&mut anchors, i, to_world(&fr(t)[i as usize], s));
+        }
+        // Single-frame gaps: a fold matched in the frames before and after, missing here.
+        if t > 0 && t + 1 < n {
+            for a in &frames[t - 1].anchors {
+                let i = a.triangle;
+                let c = to_local(&fr(t - 1)[i as usize], a.rotation_vector());
+                if find(i, c, t).is_some() {
+                    continue;
+                }
+                if let Some(next) = find(i, c, t + 1) {
+                    let mid = vec3::scale(vec3::add(c, next), 0.5);
+                    let s = smooth(i, mid, &mut find);
+                    push(&mut anchors, i, to_world(&fr(t)[i as usize], s));
+                }
+            }
+        }
+        anchors.sort_by_key(|a| a.triangle);
+        anchors.dedup_by_key(|a| a.triangle);
+        out.push(FrameAnchors {
+            frame: fa.frame,
+            anchors,
+            control_lines: fa.control_lines.clone(),
+        });
+    }
+    Ok(out)
+}
+
+fn push(anchors: &mut Vec<Anchor>, triangle: u32, phi: V3) {
+    let angle = vec3::norm(phi);
+    if angle > 1e-9 && angle.is_finite() && triangle != NONE {
+        anchors.push(Anchor {
+            triangle,
+            axis: vec3::scale(phi, 1.0 / angle),
+            angle: angle.min(std::f64::consts::PI),
+        });
+    }
+}

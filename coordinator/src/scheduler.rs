@@ -18,6 +18,9 @@ use std::time::{Duration, Instant};
 use tokio::sync::{broadcast, mpsc, Notify};
 use tracing::{info, warn};
 
+mod views;
+pub use views::WorkerView;
+
 /// Errors of client and worker requests, mapped to gRPC codes by the server.
 #[derive(Debug, thiserror::Error)]
 pub enum ApiError {

@@ -67,6 +67,10 @@ pub struct CoordinatorArgs {
     /// First retry delay in milliseconds (doubles per attempt).
     #[arg(long, default_value_t = 200)]
     pub retry_backoff_ms: u64,
+    /// Serve the web dashboard and its JSON API here (HTTPS with --tls-cert; client token with
+    /// --client-tokens-file). See docs/dashboard.md.
+    #[arg(long, env = "CREASE_HTTP_LISTEN")]
+    pub http_listen: Option<SocketAddr>,
     #[command(flatten)]
     pub obs: crate::logging::ObsArgs,
     #[command(flatten)]
@@ -116,6 +120,17 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
             "coordinator listening on {addr} (queue {})",
             a.db.display()
         );
+        if let Some(at) = a.http_listen {
+            let (bound, _) = crease_dashboard::serve(std::sync::Arc::clone(&observed), at)
+                .await
+                .with_context(|| format!("serving the dashboard on --http-listen {at}"))?;
+            let scheme = if observed.config().server_security.tls.is_some() {
+                "https"
+            } else {
+                "http"
+            };
+            tracing::info!(address = %bound, "dashboard listening on {scheme}://{bound}/");
+        }
         if let Some(at) = a.obs.metrics_listen {
             // Ready while the queue is open and the gRPC server has not begun to shut down.
             let stopping = stop_rx.clone();

@@ -80,6 +80,11 @@ impl ServerTls {
         }
     }
 
+    /// The certificate chain and key as read (PEM), for servers outside tonic (the dashboard's HTTPS).
+    pub fn pem(&self) -> (&[u8], &[u8]) {
+        (&self.cert_pem, &self.key_pem)
+    }
+
     pub fn config(&self) -> ServerTlsConfig {
         ServerTlsConfig::new().identity(Identity::from_pem(&self.cert_pem, &self.key_pem))
     }

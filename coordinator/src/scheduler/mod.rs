@@ -7,6 +7,8 @@
 //! keeps the registry of workers (registration, heartbeats, loss) and the no-worker grace period; this module
 //! holds the client requests and the shared state.
 mod dispatch;
+mod views;
+pub use views::WorkerView;
 mod worker_book;
 
 use crate::config::CoordinatorConfig;

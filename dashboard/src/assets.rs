@@ -10,16 +10,18 @@ use axum::response::{Html, IntoResponse, Response};
 const INDEX: &str = include_str!("../assets/index.html");
 const APP_JS: &str = include_str!("../assets/app.js");
 const APP_CSS: &str = include_str!("../assets/app.css");
+const FAVICON: &str = include_str!("../assets/favicon.svg");
 
 pub async fn index() -> Response {
     Html(INDEX).into_response()
 }
 
-/// `GET /assets/{name}`: the two fixed assets; anything else is 404.
+/// `GET /assets/{name}`: the fixed assets; anything else is 404.
 pub async fn asset(Path(name): Path<String>) -> Response {
     let (body, kind) = match name.as_str() {
         "app.js" => (APP_JS, "text/javascript; charset=utf-8"),
         "app.css" => (APP_CSS, "text/css; charset=utf-8"),
+        "favicon.svg" => (FAVICON, "image/svg+xml"),
         _ => return crate::json::error(StatusCode::NOT_FOUND, "no such asset"),
     };
     ([(header::CONTENT_TYPE, kind)], body).into_response()
@@ -42,7 +44,7 @@ pub async fn security_headers(req: Request, next: Next) -> Response {
     h.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
     h.insert(
         header::REFERRER_POLICY,
-        HeaderValue::from_static("no-referrer"),
+        HeaderValue::from_static("same-origin"),
     );
     r
 }

@@ -1,7 +1,9 @@
 //! `GET /api/events`: server-sent events that keep the page current without polling. On connect the stream
 //! sends `jobs` (the whole list) and `workers`; then one `job` event per scheduler event (the event and the
-//! job's row after it), and `workers` again every few seconds while heartbeats move. A reader that falls
-//! behind gets a fresh `jobs` list instead of the events it missed.
+//! job's row after it), and `workers` again every few seconds while heartbeats move. Some changes publish no
+//! event (a cancelled job's last running task being handed back), so on the same tick the jobs' rows are
+//! compared with what this stream last sent and the changed ones are sent as `job` events of kind `refresh`.
+//! A reader that falls behind gets a fresh `jobs` list instead of the events it missed.
 
 use crate::json;
 use crate::AppState;
@@ -9,6 +11,7 @@ use axum::extract::State;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use futures::Stream;
 use serde_json::{json, Value};
+use std::collections::HashMap;
 use std::convert::Infallible;
 use std::time::Duration;
 use tokio::sync::{broadcast, mpsc};
@@ -22,14 +25,45 @@ fn event(name: &str, data: &Value) -> Event {
     Event::default().event(name).data(data.to_string())
 }
 
-fn jobs_event(s: &AppState) -> Event {
+/// What a client was last told of each job (state and task counts), to send only what changed.
+type Sent = HashMap<String, Value>;
+
+fn seen(summary: &Value) -> Value {
+    json!([summary["state"], summary["tasks"], summary["message"]])
+}
+
+fn jobs_event(s: &AppState, sent: &mut Sent) -> Event {
     match s.scheduler.list() {
-        Ok(list) => event(
-            "jobs",
-            &json!({ "jobs": list.iter().map(json::job_summary).collect::<Vec<_>>() }),
-        ),
+        Ok(list) => {
+            let jobs: Vec<Value> = list.iter().map(json::job_summary).collect();
+            sent.clear();
+            for j in &jobs {
+                sent.insert(j["id"].as_str().unwrap_or_default().to_string(), seen(j));
+            }
+            event("jobs", &json!({ "jobs": jobs }))
+        }
         Err(e) => event("problem", &json!({ "error": e.to_string() })),
     }
+}
+
+/// `job` events of kind `refresh` for the jobs whose row changed since it was last sent.
+fn changed_jobs(s: &AppState, sent: &mut Sent) -> Vec<Event> {
+    let Ok(list) = s.scheduler.list() else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for st in &list {
+        let j = json::job_summary(st);
+        let now = seen(&j);
+        if sent.get(&st.job_id) != Some(&now) {
+            sent.insert(st.job_id.clone(), now);
+            out.push(event(
+                "job",
+                &json!({ "kind": "refresh", "task_key": "", "message": "", "job": j }),
+            ));
+        }
+    }
+    out
 }
 
 fn workers_event(s: &AppState) -> Event {
@@ -48,31 +82,43 @@ pub async fn stream(
     let mut rx = s.scheduler.subscribe();
     let (tx, out) = mpsc::channel::<Event>(64);
     tokio::spawn(async move {
-        if tx.send(jobs_event(&s)).await.is_err() || tx.send(workers_event(&s)).await.is_err() {
+        let mut sent = Sent::new();
+        let first = jobs_event(&s, &mut sent);
+        if tx.send(first).await.is_err() || tx.send(workers_event(&s)).await.is_err() {
             return;
         }
         let mut tick = tokio::time::interval(WORKERS_EVERY);
         tick.tick().await;
         loop {
-            let next = tokio::select! {
+            let next: Vec<Event> = tokio::select! {
                 ev = rx.recv() => match ev {
                     Ok(ev) => match s.scheduler.status(&ev.job_id, false) {
-                        Ok(st) => event("job", &json!({
-                            "kind": ev.kind,
-                            "task_key": ev.task_key,
-                            "message": ev.message,
-                            "job": json::job_summary(&st),
-                        })),
+                        Ok(st) => {
+                            let j = json::job_summary(&st);
+                            sent.insert(st.job_id.clone(), seen(&j));
+                            vec![event("job", &json!({
+                                "kind": ev.kind,
+                                "task_key": ev.task_key,
+                                "message": ev.message,
+                                "job": j,
+                            }))]
+                        }
                         Err(_) => continue,
                     },
-                    Err(broadcast::error::RecvError::Lagged(_)) => jobs_event(&s),
+                    Err(broadcast::error::RecvError::Lagged(_)) => vec![jobs_event(&s, &mut sent)],
                     Err(broadcast::error::RecvError::Closed) => return,
                 },
-                _ = tick.tick() => workers_event(&s),
+                _ = tick.tick() => {
+                    let mut v = changed_jobs(&s, &mut sent);
+                    v.push(workers_event(&s));
+                    v
+                }
                 _ = tx.closed() => return,
             };
-            if tx.send(next).await.is_err() {
-                return;
+            for e in next {
+                if tx.send(e).await.is_err() {
+                    return;
+                }
             }
         }
     });

@@ -5,6 +5,8 @@ mod bench_cluster;
 mod certs;
 mod cluster;
 mod eval;
+mod export;
+mod farm;
 mod folds_stretch;
 mod folds_video;
 mod limits_args;
@@ -59,6 +61,12 @@ enum Command {
     Logs(logs::LogsArgs),
     /// Write a development CA and coordinator/worker certificates for TLS.
     Certs(certs::CertsArgs),
+    /// Farm tasks: `crease task run` runs one task of a job's graph with no coordinator.
+    Task(farm::TaskArgs),
+    /// Write a job's task graph for a render farm (OpenJD, Flamenco, OpenCue).
+    ExportJob(farm::ExportJobArgs),
+    /// Write a sequence as GLB, USD, MDD or PC2.
+    Export(export::ExportArgs),
 }
 
 fn main() {
@@ -86,6 +94,9 @@ fn main() {
         Command::Jobs(a) => cluster::jobs(a),
         Command::Logs(a) => logs::logs(a),
         Command::Certs(a) => certs::certs(a),
+        Command::Task(a) => farm::task(a),
+        Command::ExportJob(a) => farm::export_job_cmd(a),
+        Command::Export(a) => export::export_cmd(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -7,6 +7,7 @@
 
 pub mod error;
 pub mod eval;
+pub mod export;
 pub mod folds;
 pub mod fsutil;
 pub mod mesh;

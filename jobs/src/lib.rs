@@ -110,6 +110,8 @@ pub mod confine;
 pub mod detect;
 pub mod error;
 pub mod execute;
+pub mod export_spec;
+pub mod farm;
 pub mod inspect;
 pub mod keys;
 pub mod limits;

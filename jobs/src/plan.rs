@@ -111,9 +111,11 @@ pub fn final_outputs(job: &JobSpec, info: &InputInfo) -> Vec<String> {
         out.push(keys::ANCHORS.to_string());
         out.push(keys::CONTROL_LINES.to_string());
     }
-    let _ = job;
     out.push(keys::PREVIEW.to_string());
     out.push(keys::STRETCH_PLOT.to_string());
+    for &f in &job.export.formats {
+        out.push(crate::export_spec::export_key(&job.display_name(), f));
+    }
     out.push(keys::REPORT.to_string());
     out
 }

@@ -46,6 +46,9 @@ pub struct JobSpec {
     pub max_task_failures_per_job: u32,
     #[serde(default)]
     pub preview: PreviewOptions,
+    /// Formats finalize also writes (`[export]`, see [`crate::export_spec`]).
+    #[serde(default)]
+    pub export: crate::export_spec::ExportSpec,
 }
 
 fn default_max_task_attempts() -> u32 {
@@ -264,6 +267,7 @@ impl JobSpec {
             }
             e => JobError::spec("deform", e.to_string()),
         })?;
+        self.export.validate()?;
         // The block size lives in [partition]; `deform.anchor_block` is accepted only when left at its default
         // or equal, so that a value set there is never silently ignored.
         if self.deform.anchor_block != DeformParams::default().anchor_block

@@ -160,6 +160,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     written.push(keys::PREVIEW.into());
     written.push(keys::STRETCH_PLOT.into());
     out_dir.upload(env)?;
+    written.extend(super::export::write_exports(env, &topo, n)?);
 
     let report = DeformReport {
         params: params.clone(),

@@ -11,6 +11,7 @@
 
 mod env;
 mod exact;
+mod export;
 mod finalize;
 mod folds;
 mod position;

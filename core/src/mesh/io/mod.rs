@@ -28,6 +28,7 @@ pub use layout::{
 pub use numbering::{frame_number, sort_numbered, NumberedFile};
 pub use obj::{write_obj, write_obj_sequence};
 pub use obj_frames::ObjFramesSink;
+pub(crate) use pc2::{check_counts as pc2_check_counts, encode_sample as pc2_encode_sample};
 pub use pc2::{read_pc2_header, read_pc2_header_from, read_pc2_sample_from, write_pc2, Pc2Header};
 pub use ply::write_ply_frame;
 pub use point_cache::Pc2Reference;

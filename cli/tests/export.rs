@@ -1,0 +1,193 @@
+//! `crease export` writes files the DCCs and engines read: GLB that Khronos' glTF-Validator passes, USD that
+//! Pixar's USD opens with the OBJ's points, and MDD/PC2 point caches that read back frame for frame.
+
+mod support;
+mod tools;
+
+use crease_core::mesh::io::{open_sequence, read_pc2_header, read_pc2_sample_from};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use support::{fixture, stderr, BIN};
+
+fn export(input: &Path, format: &str, out: &Path) -> std::process::Output {
+    Command::new(BIN)
+        .args([
+            "export",
+            "--input",
+            input.to_str().unwrap(),
+            "--format",
+            format,
+        ])
+        .args(["--out", out.to_str().unwrap(), "--quiet"])
+        .output()
+        .unwrap()
+}
+
+/// The fixture's frames, as the f32 every format stores.
+fn frames_f32(input: &Path) -> Vec<Vec<[f32; 3]>> {
+    let s = open_sequence(input).unwrap();
+    (0..s.source.n_frames())
+        .map(|t| {
+            s.source
+                .read_frame(t)
+                .unwrap()
+                .iter()
+                .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
+                .collect()
+        })
+        .collect()
+}
+
+/// Khronos' validator report for a .glb.
+pub fn validate_gltf(glb: &Path) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools/validate_gltf.js");
+    let o = Command::new(tools::tool("node"))
+        .arg(script)
+        .arg(glb)
+        .env("NODE_PATH", tools::node_modules())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "gltf-validator: {}", stderr(&o));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+/// USD's view of a .usda at the given time codes.
+pub fn read_usd(usda: &Path, times: &[&str]) -> serde_json::Value {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools/read_usd.py");
+    let o = Command::new(tools::python())
+        .arg(script)
+        .arg(usda)
+        .args(times)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "usd-core: {}", stderr(&o));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+fn out_dir() -> (tempfile::TempDir, PathBuf) {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().to_path_buf();
+    (d, p)
+}
+
+#[test]
+fn glb_passes_khronos_gltf_validator_with_no_errors() {
+    let (_d, dir) = out_dir();
+    let glb = dir.join("sleeve.glb");
+    let o = export(&fixture(), "glb", &glb);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = validate_gltf(&glb);
+    std::fs::write(dir.join("validator.json"), report.to_string()).unwrap();
+    let issues = &report["issues"];
+    assert_eq!(
+        issues["numErrors"], 0,
+        "validator errors: {}",
+        issues["messages"]
+    );
+    // It is the animated mesh: 4 frames = base + 3 morph targets, one animation.
+    let info = &report["info"];
+    assert_eq!(info["hasMorphTargets"], true, "{info}");
+    assert_eq!(info["animationCount"], 1, "{info}");
+    let n = frames_f32(&fixture())[0].len() as u64;
+    assert_eq!(info["totalVertexCount"], n, "{info}");
+}
+
+#[test]
+fn usd_opens_in_pixar_usd_with_the_obj_points() {
+    let (_d, dir) = out_dir();
+    let usda = dir.join("sleeve.usda");
+    let o = export(&fixture(), "usd", &usda);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let frames = frames_f32(&fixture());
+    let usd = read_usd(&usda, &["1", "3", "4"]);
+    assert_eq!(usd["start"], 1.0);
+    assert_eq!(usd["end"], frames.len() as f64);
+    assert_eq!(usd["fps"], 30.0);
+    assert_eq!(usd["up"], "Z");
+    assert_eq!(usd["samples"], frames.len());
+    for (code, t) in [("1", 0), ("3", 2), ("4", 3)] {
+        let f = &usd["frames"][code];
+        let pts = f["points"].as_array().unwrap();
+        assert_eq!(pts.len(), frames[t].len());
+        for (v, p) in pts.iter().enumerate() {
+            for c in 0..3 {
+                let got = p[c].as_f64().unwrap() as f32;
+                assert_eq!(got, frames[t][v][c], "time {code} vertex {v}");
+            }
+        }
+        assert_eq!(f["normals"], frames[t].len());
+        assert_eq!(f["normals_interpolation"], "vertex");
+    }
+}
+
+#[test]
+fn mdd_and_pc2_read_back_frame_for_frame() {
+    let (_d, dir) = out_dir();
+    let frames = frames_f32(&fixture());
+    let pc2 = dir.join("sleeve.pc2");
+    let o = export(&fixture(), "pc2", &pc2);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let h = read_pc2_header(&pc2).unwrap();
+    assert_eq!(
+        (h.num_samples, h.num_points),
+        (frames.len(), frames[0].len())
+    );
+    let mut f = std::fs::File::open(&pc2).unwrap();
+    for (t, want) in frames.iter().enumerate() {
+        let got = read_pc2_sample_from(&pc2, &mut f, &h, t).unwrap();
+        let got: Vec<[f32; 3]> = got
+            .iter()
+            .map(|p| [p[0] as f32, p[1] as f32, p[2] as f32])
+            .collect();
+        assert_eq!(&got, want, "pc2 frame {t}");
+    }
+    let mdd = dir.join("sleeve.mdd");
+    let o = export(&fixture(), "mdd", &mdd);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let b = std::fs::read(&mdd).unwrap();
+    let be = |at: usize| <[u8; 4]>::try_from(&b[at..at + 4]).unwrap();
+    let (n, v) = (
+        i32::from_be_bytes(be(0)) as usize,
+        i32::from_be_bytes(be(4)) as usize,
+    );
+    assert_eq!((n, v), (frames.len(), frames[0].len()));
+    assert_eq!(b.len(), 8 + 4 * n + 12 * n * v);
+    assert_eq!(f32::from_be_bytes(be(8 + 4)), 1.0 / 30.0);
+    for (t, want) in frames.iter().enumerate() {
+        for (i, p) in want.iter().enumerate() {
+            for c in 0..3 {
+                let at = 8 + 4 * n + (t * v + i) * 12 + c * 4;
+                assert_eq!(f32::from_be_bytes(be(at)), p[c], "mdd frame {t} vertex {i}");
+            }
+        }
+    }
+}
+
+#[test]
+fn bad_export_requests_are_named_and_write_nothing() {
+    let (_d, dir) = out_dir();
+    let o = export(&fixture(), "fbx", &dir.join("a.fbx"));
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("unknown export format `fbx`"),
+        "{}",
+        stderr(&o)
+    );
+    let o = export(&dir.join("missing"), "glb", &dir.join("a.glb"));
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("missing"), "{}", stderr(&o));
+    let o = Command::new(BIN)
+        .args([
+            "export",
+            "--input",
+            fixture().to_str().unwrap(),
+            "--format",
+            "usd",
+        ])
+        .args(["--out", dir.join("a.usda").to_str().unwrap(), "--fps", "0"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("`fps`"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+}

@@ -100,6 +100,9 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
         ..CoordinatorConfig::default()
     };
     a.limits.apply(&mut config)?;
+    // Before the queue is opened: recovery would requeue the running tasks of a coordinator already on it.
+    let mut lock =
+        crease_coordinator::queue_lock::QueueLock::acquire(&a.db, &a.listen.to_string())?;
     runtime()?.block_on(async move {
         let scheduler = Scheduler::open(config)
             .with_context(|| format!("opening the queue {}", a.db.display()))?;
@@ -115,6 +118,8 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
         })
         .await
         .with_context(|| format!("listening on {}", a.listen))?;
+        lock.record(&addr.to_string())
+            .with_context(|| format!("writing the lock file {}", lock.path().display()))?;
         tracing::info!(
             address = %addr,
             "coordinator listening on {addr} (queue {})",
@@ -384,6 +389,31 @@ pub fn cancel(a: JobArgs) -> Result<()> {
 }
 
 #[derive(Args, Debug)]
+pub struct UnblockArgs {
+    /// The job whose worker blocklist to clear.
+    pub job: String,
+    /// Clear only this worker (an id such as `w3`, as `crease status JOB` lists it); default: every worker.
+    #[arg(long)]
+    pub worker: Option<String>,
+    #[command(flatten)]
+    pub client: ClientArgs,
+}
+
+/// `crease unblock`: the job's tasks may go to the cleared workers again.
+pub fn unblock(a: UnblockArgs) -> Result<()> {
+    runtime()?.block_on(async move {
+        let client = a.client.connect().await?;
+        let cleared = client.unblock(&a.job, a.worker.as_deref()).await?;
+        match (cleared.is_empty(), &a.worker) {
+            (true, Some(w)) => println!("{}: worker {w} was not blocklisted", a.job),
+            (true, None) => println!("{}: no worker was blocklisted", a.job),
+            (false, _) => println!("{}: cleared {}", a.job, cleared.join(", ")),
+        }
+        Ok(())
+    })
+}
+
+#[derive(Args, Debug)]
 pub struct JobsArgs {
     #[command(flatten)]
     pub client: ClientArgs,
@@ -469,6 +499,9 @@ fn status_json(s: &pb::JobStatus) -> serde_json::Value {
         "tasks_total": s.tasks_total, "tasks_done": s.tasks_done, "tasks_running": s.tasks_running,
         "tasks_failed": s.tasks_failed, "message": s.message, "output": s.output,
         "work_seconds": s.work_seconds,
+        "blocked_workers": s.blocked_workers.iter().map(|b| serde_json::json!({
+            "worker": b.worker, "failures": b.failures, "reasons": b.reasons,
+        })).collect::<Vec<_>>(),
         "tasks": s.tasks.iter().map(|t| serde_json::json!({
             "key": t.key, "kind": t.kind, "state": t.state, "attempts": t.attempts,
             "last_error": t.last_error, "worker": t.worker, "work_seconds": t.work_seconds,
@@ -492,6 +525,15 @@ fn print_status(s: &pb::JobStatus, tasks: bool) {
             format!(" — {}", s.message)
         }
     );
+    for b in &s.blocked_workers {
+        println!(
+            "  blocklisted: worker {} ({} failure(s) of this job's tasks; `crease unblock {} --worker {}` clears it)",
+            b.worker, b.failures, s.job_id, b.worker
+        );
+        for r in &b.reasons {
+            println!("    {r}");
+        }
+    }
     if tasks {
         for t in &s.tasks {
             println!(

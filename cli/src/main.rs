@@ -55,6 +55,8 @@ enum Command {
     Watch(cluster::JobArgs),
     /// Cancel a job.
     Cancel(cluster::JobArgs),
+    /// Clear a job's worker blocklist (see `status`): its tasks may go to those workers again.
+    Unblock(cluster::UnblockArgs),
     /// List the coordinator's jobs.
     Jobs(cluster::JobsArgs),
     /// Log tail of a job's task attempts (all tasks, or one).
@@ -91,6 +93,7 @@ fn main() {
         Command::Status(a) => cluster::status(a),
         Command::Watch(a) => cluster::watch(a),
         Command::Cancel(a) => cluster::cancel(a),
+        Command::Unblock(a) => cluster::unblock(a),
         Command::Jobs(a) => cluster::jobs(a),
         Command::Logs(a) => logs::logs(a),
         Command::Certs(a) => certs::certs(a),

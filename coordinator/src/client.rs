@@ -54,6 +54,12 @@ pub trait JobClient: Send + Sync {
         job_id: &str,
         task_key: Option<&str>,
     ) -> impl Future<Output = Result<Vec<pb::TaskAttemptLog>, ClientError>> + Send;
+    /// Clears a job's worker blocklist (`worker`: one, or all); returns the workers cleared.
+    fn unblock(
+        &self,
+        job_id: &str,
+        worker: Option<&str>,
+    ) -> impl Future<Output = Result<Vec<String>, ClientError>> + Send;
 }
 
 /// gRPC client of a coordinator.
@@ -168,6 +174,24 @@ impl JobClient for RemoteClient {
             .state)
     }
 
+    async fn unblock(
+        &self,
+        job_id: &str,
+        worker: Option<&str>,
+    ) -> Result<Vec<String>, ClientError> {
+        Ok(self
+            .inner
+            .clone()
+            .unblock_workers(pb::UnblockWorkersRequest {
+                job_id: job_id.to_string(),
+                worker: worker.unwrap_or_default().to_string(),
+            })
+            .await
+            .map_err(|e| self.err(e))?
+            .into_inner()
+            .cleared)
+    }
+
     async fn watch(&self, job_id: &str) -> Result<EventStream, ClientError> {
         let stream = self
             .inner
@@ -226,6 +250,14 @@ impl JobClient for LocalClient {
 
     async fn cancel(&self, job_id: &str) -> Result<String, ClientError> {
         Ok(self.scheduler.cancel(job_id)?.as_str().to_string())
+    }
+
+    async fn unblock(
+        &self,
+        job_id: &str,
+        worker: Option<&str>,
+    ) -> Result<Vec<String>, ClientError> {
+        Ok(self.scheduler.unblock(job_id, worker)?)
     }
 
     async fn watch(&self, job_id: &str) -> Result<EventStream, ClientError> {

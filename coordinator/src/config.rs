@@ -52,6 +52,12 @@ impl Default for CoordinatorConfig {
 }
 
 impl CoordinatorConfig {
+    /// After a restart, how long the tasks that were running wait for their workers to register again and
+    /// adopt them before they are queued again: two worker timeouts (a live worker re-registers within one).
+    pub fn adopt_window(&self) -> Duration {
+        self.worker_timeout * 2
+    }
+
     /// Delay before attempt `attempt + 1` after attempt `attempt` failed.
     pub fn backoff(&self, attempt: u32) -> Duration {
         let factor = 1u32 << attempt.saturating_sub(1).min(16);

@@ -16,6 +16,7 @@
 pub mod client;
 pub mod config;
 pub mod metrics;
+pub mod queue_lock;
 pub mod scheduler;
 pub mod server;
 pub mod state;

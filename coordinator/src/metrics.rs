@@ -32,6 +32,8 @@ pub struct Snapshot {
     pub queue: QueueGauges,
     pub workers_live: i64,
     pub workers_draining: i64,
+    /// Per active job: how many workers it excludes.
+    pub blocklisted: Vec<(String, i64)>,
 }
 
 pub struct CoordinatorMetrics {
@@ -40,6 +42,7 @@ pub struct CoordinatorMetrics {
     tasks_running: Gauge,
     workers: Family<Labels, Gauge>,
     jobs: Family<Labels, Gauge>,
+    blocklisted: Family<Labels, Gauge>,
     task_duration: Family<Labels, Histogram, fn() -> Histogram>,
     retries: Counter,
     failures: Counter,
@@ -52,6 +55,7 @@ impl Default for CoordinatorMetrics {
         let tasks_running = Gauge::default();
         let workers = Family::<Labels, Gauge>::default();
         let jobs = Family::<Labels, Gauge>::default();
+        let blocklisted = Family::<Labels, Gauge>::default();
         let task_duration = Family::<Labels, Histogram, fn() -> Histogram>::new_with_constructor(
             duration_histogram,
         );
@@ -74,6 +78,11 @@ impl Default for CoordinatorMetrics {
         );
         registry.register("crease_jobs", "Jobs by state", jobs.clone());
         registry.register(
+            "crease_job_blocklisted_workers",
+            "Workers an active job gives no more tasks to (--blacklist-after failures there), by job",
+            blocklisted.clone(),
+        );
+        registry.register(
             "crease_task_duration_seconds",
             "Wall time of successful task attempts, dispatch to result, by task kind",
             task_duration.clone(),
@@ -94,6 +103,7 @@ impl Default for CoordinatorMetrics {
             tasks_running,
             workers,
             jobs,
+            blocklisted,
             task_duration,
             retries,
             failures,
@@ -140,6 +150,11 @@ impl CoordinatorMetrics {
                 .map_or(0, |(_, n)| *n);
             self.jobs.get_or_create(&label("state", state)).set(n);
         }
+        // Only jobs still running have a series: an ended job's blocklist no longer means anything.
+        self.blocklisted.clear();
+        for (job, n) in &s.blocklisted {
+            self.blocklisted.get_or_create(&label("job", job)).set(*n);
+        }
         crease_telemetry::render(&self.registry)
     }
 }
@@ -163,6 +178,7 @@ mod tests {
             },
             workers_live: 2,
             workers_draining: 1,
+            blocklisted: vec![("job-00007".into(), 1)],
         });
         for line in [
             "crease_queue_depth 7",
@@ -174,6 +190,7 @@ mod tests {
             "crease_task_duration_seconds_count{kind=\"position\"} 2",
             "crease_task_retries_total 1",
             "crease_task_failures_total 1",
+            "crease_job_blocklisted_workers{job=\"job-00007\"} 1",
         ] {
             assert!(text.lines().any(|l| l == line), "no `{line}` in\n{text}");
         }

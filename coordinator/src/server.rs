@@ -94,6 +94,16 @@ impl Coordinator for CoordinatorService {
         Ok(Response::new(self.scheduler.task_logs(&r.job_id, key)?))
     }
 
+    async fn unblock_workers(
+        &self,
+        req: Request<pb::UnblockWorkersRequest>,
+    ) -> Result<Response<pb::UnblockWorkersResponse>, Status> {
+        let r = req.into_inner();
+        let worker = (!r.worker.is_empty()).then_some(r.worker.as_str());
+        let cleared = self.scheduler.unblock(&r.job_id, worker)?;
+        Ok(Response::new(pb::UnblockWorkersResponse { cleared }))
+    }
+
     async fn register_worker(
         &self,
         req: Request<pb::RegisterWorkerRequest>,
@@ -107,12 +117,21 @@ impl Coordinator for CoordinatorService {
     ) -> Result<Response<pb::HeartbeatResponse>, Status> {
         Ok(Response::new(self.scheduler.heartbeat(&req.into_inner())))
     }
+
+    async fn report_task(
+        &self,
+        req: Request<pb::TaskReport>,
+    ) -> Result<Response<pb::ReportTaskResponse>, Status> {
+        Ok(Response::new(
+            self.scheduler.report_task(req.into_inner()).await?,
+        ))
+    }
 }
 
 /// Workers register and heartbeat with the cluster secret; every other method is a user's.
 fn method_role(method: &str) -> crease_net::Role {
     match method {
-        "RegisterWorker" | "Heartbeat" => crease_net::Role::Worker,
+        "RegisterWorker" | "Heartbeat" | "ReportTask" => crease_net::Role::Worker,
         _ => crease_net::Role::Client,
     }
 }

@@ -3,6 +3,7 @@
 //! [`TaskError`] is the typed failure of one task attempt that the coordinator's retry policy reads as data
 //! (Ballista style: bad data is not retryable, I/O is).
 
+use crate::failure::FailureKind;
 use serde::{Deserialize, Serialize};
 
 /// A job that cannot be accepted or planned. The message always names the field, URI or file at fault.
@@ -59,42 +60,50 @@ impl JobError {
     }
 }
 
-/// Why one task attempt failed, and whether running it again may help.
+/// Why one task attempt failed: a [`FailureKind`] (the retry policy reads it, see
+/// [`FailureKind::policy`]) and a message naming the file, frame, window or block.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, thiserror::Error)]
-#[error("{reason}{}", if *retryable { " (retryable)" } else { "" })]
+#[error("{reason}{}", if self.retryable() { " (retryable)" } else { "" })]
 pub struct TaskError {
-    /// True for transient failures (I/O, storage, a worker told to stop); false when the same input would fail
-    /// the same way again (bad data, non-convergence, a malformed task).
-    pub retryable: bool,
+    #[serde(default)]
+    pub kind: FailureKind,
     /// What went wrong, naming the file, frame, window or block.
     pub reason: String,
+    /// For storage kinds: the path or URI at fault (a full worker cache is told from a full output by it).
+    #[serde(default)]
+    pub location: Option<String>,
 }
 
 /// Reason given by [`TaskError::cancelled`].
 pub const CANCELLED_REASON: &str = "cancelled";
 
 impl TaskError {
-    /// A failure that will repeat on any worker.
-    pub fn fatal(reason: impl Into<String>) -> Self {
+    pub fn new(kind: FailureKind, reason: impl Into<String>) -> Self {
         TaskError {
-            retryable: false,
+            kind,
             reason: reason.into(),
+            location: None,
         }
+    }
+    /// A failure that will repeat on any worker (bad data, a malformed task).
+    pub fn fatal(reason: impl Into<String>) -> Self {
+        TaskError::new(FailureKind::InvalidInput, reason)
     }
     /// A failure that another attempt may not meet.
     pub fn transient(reason: impl Into<String>) -> Self {
-        TaskError {
-            retryable: true,
-            reason: reason.into(),
-        }
+        TaskError::new(FailureKind::Transient, reason)
     }
     /// The task stopped because its progress sink reported cancellation (job cancelled, or the worker is shutting
     /// down and hands the task back). Retryable: the work itself is fine.
     pub fn cancelled() -> Self {
-        TaskError::transient(CANCELLED_REASON)
+        TaskError::new(FailureKind::Cancelled, CANCELLED_REASON)
     }
     pub fn is_cancelled(&self) -> bool {
-        self.reason == CANCELLED_REASON
+        self.kind == FailureKind::Cancelled
+    }
+    /// Whether another attempt may help (the kind's policy).
+    pub fn retryable(&self) -> bool {
+        self.kind.policy().retryable
     }
 
     /// Classifies a crease-core error: I/O may be transient; malformed data, bad parameters and numerical
@@ -110,6 +119,7 @@ impl TaskError {
                 })
             }
             E::Io { .. } => TaskError::transient(format!("{context}: {e}")),
+            E::Numeric { .. } => TaskError::new(FailureKind::Solver, format!("{context}: {e}")),
             _ => TaskError::fatal(format!("{context}: {e}")),
         }
     }
@@ -119,9 +129,19 @@ impl TaskError {
     /// fails at once with "storage full at …" (the worker turns a full local cache back into a retryable
     /// failure, see `execute::run`, since another worker may have room).
     pub fn from_job(e: &JobError) -> Self {
-        match e {
-            JobError::Full { .. } | JobError::Limit { .. } => TaskError::fatal(e.to_string()),
-            _ => TaskError::transient(e.to_string()),
+        let kind = match e {
+            JobError::Full { .. } => FailureKind::StorageFullRemote,
+            JobError::Limit { .. } => FailureKind::TooLarge,
+            JobError::Unreachable { .. } => FailureKind::StorageUnreachable,
+            _ => FailureKind::Transient,
+        };
+        let location = match e {
+            JobError::Full { uri, .. } | JobError::Unreachable { uri, .. } => Some(uri.clone()),
+            _ => None,
+        };
+        TaskError {
+            location,
+            ..TaskError::new(kind, e.to_string())
         }
     }
 }

@@ -92,7 +92,8 @@
 //! at <uri> (endpoint …)" and retryable. Either way `finalize` never runs or fails before its report, so a
 //! half-written output is never marked complete.
 //!
-//! [`TaskError::retryable`] says whether another attempt may help: I/O and storage errors are retryable; bad
+//! [`TaskError::kind`] is a [`FailureKind`]; its policy says whether another attempt may help (and
+//! [`TaskError::retryable`] reads it): I/O and storage errors are retryable; bad
 //! data (a NaN in a frame, a malformed intermediate, anchors that do not fit), bad parameters and numerical
 //! failures are not, and their reason names the file, frame, window or block. A task stopped through
 //! [`Progress::cancelled`](crease_core::progress::Progress::cancelled) returns [`TaskError::cancelled`]
@@ -111,6 +112,7 @@ pub mod detect;
 pub mod error;
 pub mod execute;
 pub mod export_spec;
+pub mod failure;
 pub mod farm;
 pub mod inspect;
 pub mod keys;
@@ -125,6 +127,7 @@ pub mod task;
 pub use confine::StorageRoots;
 pub use error::{JobError, TaskError};
 pub use execute::{execute, ExecContext};
+pub use failure::{FailureKind, Policy};
 pub use inspect::{inspect_input, InputInfo};
 pub use limits::JobLimits;
 pub use plan::{expand, final_outputs, plan};

@@ -174,7 +174,7 @@ async fn nan_in_a_late_frame_fails_exactly_its_position_task_without_retry() {
     let (key, err) = failed[0];
     assert_eq!(key, &keys::position_task(8), "the chunk holding frame 10");
     let err = err.as_ref().unwrap_err();
-    assert!(!err.retryable, "bad data is not retryable: {err:?}");
+    assert!(!err.retryable(), "bad data is not retryable: {err:?}");
     assert!(
         err.reason.contains("frame_0011.obj") && err.reason.contains("frame 10"),
         "{}",
@@ -243,7 +243,7 @@ async fn cancellation_and_malformed_tasks() {
         (TaskSpec::FoldMerge { job: spec.clone() }, "not detected"),
     ] {
         let err = execute(&task, &ctx).await.unwrap_err();
-        assert!(!err.retryable && err.reason.contains(needle), "{err:?}");
+        assert!(!err.retryable() && err.reason.contains(needle), "{err:?}");
     }
     // Finalize refuses to vouch for an output whose frame files are not all there.
     std::fs::remove_file(out.join("frame_0005.obj")).unwrap();
@@ -251,13 +251,13 @@ async fn cancellation_and_malformed_tasks() {
         .await
         .unwrap_err();
     assert!(
-        !err.retryable && err.reason.contains("frame_0005.obj"),
+        !err.retryable() && err.reason.contains("frame_0005.obj"),
         "{err:?}"
     );
     assert!(!out.join("report.json").exists());
     let err = TaskSpec::from_payload("position", b"{\"kind\": \"finalize\"").unwrap_err();
     assert!(
-        !err.retryable && err.reason.contains("malformed"),
+        !err.retryable() && err.reason.contains("malformed"),
         "{err:?}"
     );
     let payload = TaskSpec::Finalize { job: spec.clone() }.to_payload();

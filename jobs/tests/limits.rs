@@ -213,7 +213,7 @@ fn disk_full_inner(disks: &Path) {
                 "{key}: {e}"
             );
             assert!(
-                !e.retryable,
+                !e.retryable(),
                 "{key}: a full output volume is not retryable: {e}"
             );
         }
@@ -252,7 +252,10 @@ fn disk_full_inner(disks: &Path) {
                     && e.reason.contains(&cache.display().to_string()),
                 "{key}: {e}"
             );
-            assert!(e.retryable, "{key}: a full worker cache is retryable: {e}");
+            assert!(
+                e.retryable(),
+                "{key}: a full worker cache is retryable: {e}"
+            );
         }
         let out = Storage::open(&spec.output).unwrap();
         assert!(!out.exists("report.json").await.unwrap());
@@ -301,7 +304,7 @@ async fn an_unreachable_s3_endpoint_fails_at_submit_and_in_tasks_naming_the_url(
     let ctx = ctx(&root.path().join("cache"));
     let first = tasks.iter().find(|t| t.deps.is_empty()).unwrap();
     let e = crease_jobs::execute(&first.spec, &ctx).await.unwrap_err();
-    assert!(e.retryable, "{e}");
+    assert!(e.retryable(), "{e}");
     assert!(
         e.reason
             .contains(&format!("storage unreachable at {remote_out}"))
@@ -416,7 +419,7 @@ async fn a_full_object_store_fails_the_job_and_leaves_no_report() {
                 .contains("storage full at memory://quota-full/job/"),
             "{key}: {e}"
         );
-        assert!(!e.retryable, "{key}: {e}");
+        assert!(!e.retryable(), "{key}: {e}");
     }
     assert!(!run.executed.iter().any(|k| k == "finalize"));
     let out = Storage::open(&spec.output).unwrap();

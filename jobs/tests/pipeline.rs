@@ -217,7 +217,7 @@ async fn a_rerun_writes_the_same_bytes_and_report_is_written_last() {
     let err = crease_jobs::execute(&TaskSpec::Finalize { job: spec.clone() }, &cancelling)
         .await
         .unwrap_err();
-    assert!(err.is_cancelled() && err.retryable, "{err:?}");
+    assert!(err.is_cancelled() && err.retryable(), "{err:?}");
     assert!(
         !out.join("report.json").exists(),
         "no report vouches for a half-written output"

@@ -1,5 +1,6 @@
 //! Talking back to the coordinator: registration (with the protocol version) and heartbeats. A coordinator
-//! that is down is retried with backoff; one that restarted (answers `known: false`) gets a new registration.
+//! that is down is retried with backoff; one that restarted (answers `known: false`) gets a new registration
+//! naming the attempts this worker still runs or holds, and then the held results (`ReportTask`).
 
 use crate::running::Tasks;
 use crate::{WorkerConfig, WorkerError};
@@ -67,8 +68,9 @@ impl Reporter {
                     continue;
                 }
             };
-            // Heartbeats until the coordinator does not know us any more.
+            // Heartbeats until the coordinator does not know us any more; held results go with them.
             loop {
+                self.report_held().await;
                 tokio::time::sleep(interval).await;
                 match self.beat().await {
                     Some(true) | None => {}
@@ -96,6 +98,49 @@ impl Reporter {
     /// Tells the coordinator at once that no new task should come (SIGTERM).
     pub async fn announce_draining(&self) {
         let _ = self.beat().await;
+    }
+
+    /// Hands the held final events to the coordinator; what it cannot take now (unreachable) is held again.
+    async fn report_held(&self) {
+        let held = self.tasks.take_held();
+        if held.is_empty() {
+            return;
+        }
+        let Some((mut client, worker_id)) = self.current.lock().await.clone() else {
+            for (id, ev) in held {
+                self.tasks.hold(id, ev);
+            }
+            return;
+        };
+        for ((job_id, task_key, attempt), event) in held {
+            let report = pb::TaskReport {
+                worker_id: worker_id.clone(),
+                attempt: Some(pb::AttemptRef {
+                    job_id: job_id.clone(),
+                    task_key: task_key.clone(),
+                    attempt,
+                }),
+                event: Some(event.clone()),
+            };
+            match client.report_task(report).await {
+                Ok(r) => info!(
+                    job_id = %job_id,
+                    task = %task_key,
+                    attempt,
+                    accepted = r.get_ref().accepted,
+                    "reported a held attempt to the coordinator ({})",
+                    if r.get_ref().accepted { "accepted" } else { "it had moved on" }
+                ),
+                // A coordinator without ReportTask (older) will never take it.
+                Err(s) if s.code() == tonic::Code::Unimplemented => warn!(
+                    job_id = %job_id,
+                    task = %task_key,
+                    attempt,
+                    "the coordinator cannot take held results (older version); dropping it"
+                ),
+                Err(_) => self.tasks.hold((job_id, task_key, attempt), event),
+            }
+        }
     }
 
     /// One heartbeat: Some(known) when the coordinator answered.
@@ -150,6 +195,16 @@ impl Reporter {
                 capacity: self.capacity,
                 address: self.address.clone(),
                 name: self.name.clone(),
+                attempts: self
+                    .tasks
+                    .attempts()
+                    .into_iter()
+                    .map(|(job_id, task_key, attempt)| pb::AttemptRef {
+                        job_id,
+                        task_key,
+                        attempt,
+                    })
+                    .collect(),
             })
             .await;
         match resp {

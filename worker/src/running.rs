@@ -1,5 +1,9 @@
 //! Running tasks: the table of tasks in flight (so `Cancel` and the drain can stop them), the progress sink
 //! that turns crease-core progress into stream events, and the run of one task.
+//!
+//! A task keeps running when its coordinator goes away (a restart): outputs are deterministic and the work is
+//! as good as any rerun. Its final event, which has no stream to go to any more, is held here until the
+//! reporter has registered again and hands it over with `ReportTask`.
 
 use crate::metrics::WorkerMetrics;
 use crease_core::progress::Progress;
@@ -11,7 +15,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
-use tokio::sync::{mpsc, Notify};
+use tokio::sync::{mpsc, Notify, OwnedSemaphorePermit};
 use tracing::{info, warn, Instrument};
 
 /// Identifies one attempt of one task.
@@ -27,6 +31,8 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 pub struct Tasks {
     cache_dir: PathBuf,
     in_flight: Mutex<HashMap<AttemptId, Arc<AtomicBool>>>,
+    /// Final events of attempts whose stream had closed (the coordinator restarted), not yet reported.
+    held: Mutex<Vec<(AttemptId, pb::TaskEvent)>>,
     draining: AtomicBool,
     idle: Notify,
     pub metrics: Arc<WorkerMetrics>,
@@ -37,6 +43,7 @@ impl Tasks {
         Tasks {
             cache_dir,
             in_flight: Mutex::new(HashMap::new()),
+            held: Mutex::new(Vec::new()),
             draining: AtomicBool::new(false),
             idle: Notify::new(),
             metrics,
@@ -45,6 +52,22 @@ impl Tasks {
 
     pub fn running(&self) -> usize {
         lock(&self.in_flight).len()
+    }
+
+    /// Attempts running here or held: what a new registration tells the coordinator to adopt.
+    pub fn attempts(&self) -> Vec<AttemptId> {
+        let mut ids: Vec<AttemptId> = lock(&self.in_flight).keys().cloned().collect();
+        ids.extend(lock(&self.held).iter().map(|(id, _)| id.clone()));
+        ids
+    }
+
+    /// Takes the held final events (to report them); give back with [`Tasks::hold`] what could not be sent.
+    pub fn take_held(&self) -> Vec<(AttemptId, pb::TaskEvent)> {
+        std::mem::take(&mut *lock(&self.held))
+    }
+
+    pub fn hold(&self, id: AttemptId, event: pb::TaskEvent) {
+        lock(&self.held).push((id, event));
     }
 
     pub fn draining(&self) -> bool {
@@ -90,8 +113,9 @@ impl Tasks {
     }
 
     /// Starts one attempt; its events (progress, then one result or failure with the attempt's log tail) go
-    /// to `tx`. Log events inside the attempt's span are captured into that tail.
-    pub fn start(self: &Arc<Self>, task: pb::Task, tx: Sender) {
+    /// to `tx`, or are held when `tx` has closed. Log events inside the attempt's span are captured into that
+    /// tail. `slot` is the attempt's share of the worker's capacity, freed just before its final event.
+    pub fn start(self: &Arc<Self>, task: pb::Task, tx: Sender, slot: OwnedSemaphorePermit) {
         let id: AttemptId = (task.job_id.clone(), task.task_key.clone(), task.attempt);
         let cancel = Arc::new(AtomicBool::new(false));
         lock(&self.in_flight).insert(id.clone(), Arc::clone(&cancel));
@@ -133,25 +157,38 @@ impl Tasks {
                             job_id = %job_id,
                             task = %key,
                             attempt,
-                            retryable = e.retryable,
+                            kind = %e.kind,
                             "task failed: {}",
                             e.reason
                         );
                     }
                     let ev = pb::task_event::Event::Failure(pb::TaskFailure {
-                        retryable: e.retryable,
+                        retryable: e.retryable(),
                         cancelled,
                         reason: e.reason,
+                        kind: e.kind.as_str().to_string(),
                     });
                     (ev, if cancelled { "cancelled" } else { "failed" })
                 }
             };
             this.metrics.task_finished(&task.kind, outcome, secs);
             drop(capture);
-            let _ = tx.send(Ok(pb::TaskEvent {
+            drop(slot);
+            let last = pb::TaskEvent {
                 event: Some(event),
                 log_tail: tail.lines(),
-            }));
+            };
+            if let Err(unsent) = tx.send(Ok(last)) {
+                if let Ok(last) = unsent.0 {
+                    info!(
+                        job_id = %job_id,
+                        task = %key,
+                        attempt,
+                        "the coordinator stopped listening; holding the attempt's end ({outcome}) until it is back"
+                    );
+                    this.hold(id.clone(), last);
+                }
+            }
             lock(&this.in_flight).remove(&id);
             this.idle.notify_waiters();
         };
@@ -202,7 +239,7 @@ fn test_delay(kind: &str) -> Option<u64> {
 }
 
 /// Progress of one task as stream events, at most ten per second per stage; `cancelled()` is true once the
-/// task was cancelled or the coordinator stopped listening (it restarted or gave up on the attempt).
+/// task was cancelled (a coordinator that stopped listening does not cancel it: see the module docs).
 struct StreamProgress {
     tx: Sender,
     cancel: Arc<AtomicBool>,
@@ -258,6 +295,6 @@ impl Progress for StreamProgress {
     }
 
     fn cancelled(&self) -> bool {
-        self.cancel.load(Ordering::SeqCst) || self.tx.is_closed()
+        self.cancel.load(Ordering::SeqCst)
     }
 }

@@ -9,14 +9,14 @@ use std::pin::Pin;
 use std::sync::Arc;
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tokio_stream::wrappers::UnboundedReceiverStream;
-use tokio_stream::{Stream, StreamExt};
+use tokio_stream::Stream;
 use tonic::{Request, Response, Status};
 
 pub struct WorkerService {
     tasks: Arc<Tasks>,
     capacity: u32,
-    /// One permit per task slot. A permit is released when its task's last event (result or failure) is
-    /// sent, before the coordinator can react to it, so the next Execute never races with the previous
+    /// One permit per task slot. A permit is released just before its task's last event (result or failure)
+    /// is sent, before the coordinator can react to it, so the next Execute never races with the previous
     /// task's bookkeeping.
     slots: Arc<Semaphore>,
 }
@@ -32,16 +32,6 @@ impl WorkerService {
 }
 
 type TaskStream = Pin<Box<dyn Stream<Item = Result<pb::TaskEvent, Status>> + Send>>;
-
-fn is_last(ev: &Result<pb::TaskEvent, Status>) -> bool {
-    matches!(
-        ev,
-        Ok(pb::TaskEvent {
-            event: Some(pb::task_event::Event::Result(_) | pb::task_event::Event::Failure(_)),
-            ..
-        }) | Err(_)
-    )
-}
 
 #[tonic::async_trait]
 impl Worker for WorkerService {
@@ -61,15 +51,10 @@ impl Worker for WorkerService {
                 ))
             })?;
         let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
-        self.tasks.start(req.into_inner(), tx);
-        let mut permit = Some(permit);
-        let stream = UnboundedReceiverStream::new(rx).map(move |ev| {
-            if is_last(&ev) {
-                permit.take();
-            }
-            ev
-        });
-        Ok(Response::new(Box::pin(stream)))
+        // The task holds its slot, not the stream: a task that outlives its stream (the coordinator
+        // restarted) still counts against the capacity until it ends.
+        self.tasks.start(req.into_inner(), tx, permit);
+        Ok(Response::new(Box::pin(UnboundedReceiverStream::new(rx))))
     }
 
     async fn cancel(

@@ -1,9 +1,9 @@
 //! Task dispatch: ready tasks to workers with free capacity (the per-job blocklist permitting), one attempt
 //! followed to its end, and its outcome applied to the queue with the retry policy.
 
-use super::{expand, lock, missing_outputs, Scheduler};
+use super::{expand, lock, missing_outputs, ApiError, Scheduler};
 use crate::state::store::{Claim, Failure, JobState, Outcome, StoreError};
-use crease_jobs::{Storage, TaskOutput};
+use crease_jobs::{FailureKind, Storage, TaskOutput};
 use crease_proto as pb;
 use crease_proto::worker_client::WorkerClient;
 use std::collections::HashSet;
@@ -96,51 +96,38 @@ impl Scheduler {
             kind: claim.kind.clone(),
             payload: claim.payload.clone().into_bytes(),
         };
-        let lost = |reason: String| {
-            Reported::Failed(Failure {
-                retryable: true,
-                counts: true,
-                cancelled: false,
-                reason,
-            })
-        };
+        let lost = |reason: String| Reported::Failed(Failure::new(FailureKind::WorkerLost, reason));
         let started = Instant::now();
         let mut worker_tail = Vec::new();
         let reported = match client.execute(req).await {
             // A worker at its capacity (it finished a task the coordinator has not heard of yet, or another
             // coordinator shares it) stays registered; the task is handed back, not charged.
             Err(status) if status.code() == tonic::Code::ResourceExhausted => {
-                Reported::Failed(Failure {
-                    retryable: true,
-                    counts: false,
-                    cancelled: true,
-                    reason: format!("worker {wid} is at capacity: {}", status.message()),
-                })
+                Reported::Failed(Failure::new(
+                    FailureKind::HandedBack,
+                    format!("worker {wid} is at capacity: {}", status.message()),
+                ))
             }
             // A task bigger than the gRPC message limit (here or on the worker) never fits: fail it clearly
             // instead of handing it back forever.
-            Err(status) if status.code() == tonic::Code::OutOfRange => Reported::Failed(Failure {
-                retryable: false,
-                counts: true,
-                cancelled: false,
-                reason: format!(
+            Err(status) if status.code() == tonic::Code::OutOfRange => Reported::Failed(Failure::new(
+                FailureKind::TooLarge,
+                format!(
                     "task `{}` does not fit the gRPC message limit (--max-message-mib of the coordinator or worker {wid}): {}",
                     claim.key,
                     status.message()
                 ),
-            }),
+            )),
             Err(status) => {
                 // The worker never started the task (unreachable or draining): not the task's fault.
                 self.drop_worker(
                     &wid,
                     &format!("did not take task `{}`: {}", claim.key, status.message()),
                 );
-                Reported::Failed(Failure {
-                    retryable: true,
-                    counts: false,
-                    cancelled: true,
-                    reason: format!("worker {wid} did not take the task: {}", status.message()),
-                })
+                Reported::Failed(Failure::new(
+                    FailureKind::HandedBack,
+                    format!("worker {wid} did not take the task: {}", status.message()),
+                ))
             }
             Ok(resp) => {
                 let mut stream = resp.into_inner();
@@ -164,12 +151,7 @@ impl Scheduler {
                             }
                             pb::task_event::Event::Failure(f) => {
                                 worker_tail = log_tail;
-                                break Reported::Failed(Failure {
-                                    retryable: f.retryable,
-                                    counts: !f.cancelled,
-                                    cancelled: f.cancelled,
-                                    reason: f.reason,
-                                });
+                                break Reported::Failed(Failure::new(kind_of(&f), f.reason));
                             }
                         },
                         Ok(Some(_)) => {}
@@ -258,12 +240,10 @@ impl Scheduler {
                 Err(e) => self.fail(
                     claim,
                     wid,
-                    &Failure {
-                        retryable: false,
-                        counts: true,
-                        cancelled: false,
-                        reason: format!("worker {wid} sent a malformed task output: {e}"),
-                    },
+                    &Failure::new(
+                        FailureKind::Internal,
+                        format!("worker {wid} sent a malformed task output: {e}"),
+                    ),
                 )?,
             },
             Reported::Failed(f) => self.fail(claim, wid, &f)?,
@@ -323,7 +303,7 @@ impl Scheduler {
         let backoff = self.config.backoff(claim.attempt).as_secs_f64();
         let outcome =
             lock(&self.store).fail(&claim.job_id, &claim.key, claim.attempt, wid, f, backoff)?;
-        if f.counts && !matches!(outcome, Outcome::Stale | Outcome::Cancelled) {
+        if f.counts() && !matches!(outcome, Outcome::Stale | Outcome::Cancelled) {
             self.metrics.failure();
         }
         let line = match &outcome {
@@ -341,8 +321,8 @@ impl Scheduler {
                     claim.attempt,
                     f.reason
                 );
-                if f.counts {
-                    format!("failed on {wid}: {}; queued again", f.reason)
+                if f.counts() {
+                    format!("failed on {wid} ({}): {}; queued again", f.kind, f.reason)
                 } else {
                     format!("handed back by {wid}: {}; queued again", f.reason)
                 }
@@ -356,7 +336,7 @@ impl Scheduler {
                     error = %f.reason,
                     "job failed: {message}"
                 );
-                format!("failed on {wid}: {}; the job failed", f.reason)
+                format!("failed on {wid} ({}): {}; the job failed", f.kind, f.reason)
             }
             Outcome::Cancelled => format!("stopped on {wid}: the job ended"),
             Outcome::Stale | Outcome::Done { .. } => return Ok(outcome),
@@ -409,5 +389,96 @@ impl Scheduler {
                 });
             }
         }
+    }
+}
+
+impl Scheduler {
+    /// `ReportTask`: the end of an attempt whose stream broke (the coordinator restarted while it ran). It is
+    /// applied like a streamed one while it is still the task's current attempt; otherwise it is stale (the
+    /// task ran again elsewhere) and dropped.
+    pub async fn report_task(
+        &self,
+        req: pb::TaskReport,
+    ) -> Result<pb::ReportTaskResponse, ApiError> {
+        let a = req
+            .attempt
+            .ok_or_else(|| ApiError::Invalid("ReportTask without an attempt".into()))?;
+        let ev = req.event.unwrap_or_default();
+        let reported = match ev.event {
+            Some(pb::task_event::Event::Result(r)) => Reported::Done(r.output),
+            Some(pb::task_event::Event::Failure(f)) => {
+                Reported::Failed(Failure::new(kind_of(&f), f.reason))
+            }
+            _ => {
+                return Err(ApiError::Invalid(format!(
+                    "ReportTask for task `{}` attempt {} carries no result or failure",
+                    a.task_key, a.attempt
+                )))
+            }
+        };
+        let current = lock(&self.store).current_claim(&a.job_id, &a.task_key, a.attempt)?;
+        let Some((claim, owner, started)) = current else {
+            let msg = format!(
+                "attempt {} reported by {} after it was given up: ignored",
+                a.attempt, req.worker_id
+            );
+            lock(&self.store).note(&a.job_id, "stale_report", &a.task_key, &msg)?;
+            return Ok(pb::ReportTaskResponse { accepted: false });
+        };
+        lock(&self.orphans).remove(&(a.job_id.clone(), a.task_key.clone(), a.attempt));
+        if let Some(w) = lock(&self.workers).get_mut(&owner) {
+            w.running = w.running.saturating_sub(1);
+        }
+        if !ev.log_tail.is_empty() {
+            let lines: Vec<String> = ev
+                .log_tail
+                .iter()
+                .map(|l| format!("{owner}: {l}"))
+                .collect();
+            lock(&self.store).append_task_log(&claim.job_id, &claim.key, claim.attempt, &lines)?;
+        }
+        let line = format!("reported by {} after a coordinator restart", req.worker_id);
+        self.task_log(&claim, &line);
+        let wall = (crate::state::store::now() - started).max(0.0);
+        self.report(&claim, &owner, reported, wall).await?;
+        self.wake.notify_one();
+        Ok(pb::ReportTaskResponse { accepted: true })
+    }
+}
+
+/// The kind a worker reported; a worker older than the `kind` field (or one naming a kind this coordinator
+/// does not know) is read by its flags, as before kinds existed.
+fn kind_of(f: &pb::TaskFailure) -> FailureKind {
+    FailureKind::parse(&f.kind).unwrap_or(if f.cancelled {
+        FailureKind::Cancelled
+    } else if f.retryable {
+        FailureKind::Transient
+    } else {
+        FailureKind::InvalidInput
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_workers_kind_is_read_and_an_older_worker_is_read_by_its_flags() {
+        let f = |kind: &str, retryable, cancelled| pb::TaskFailure {
+            kind: kind.into(),
+            retryable,
+            cancelled,
+            reason: String::new(),
+        };
+        assert_eq!(
+            kind_of(&f("solver-failure", true, false)),
+            FailureKind::Solver
+        );
+        assert_eq!(kind_of(&f("", false, false)), FailureKind::InvalidInput);
+        assert_eq!(kind_of(&f("", true, false)), FailureKind::Transient);
+        assert_eq!(
+            kind_of(&f("from-the-future", true, true)),
+            FailureKind::Cancelled
+        );
     }
 }

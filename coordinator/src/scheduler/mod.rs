@@ -17,6 +17,7 @@ use crate::state::store::{Claim, JobRow, JobState, NewJob, NewTask, Store, Store
 use crate::state::workers::Workers;
 use crease_jobs::{InputInfo, JobSpec, Storage, TaskOutput};
 use crease_proto as pb;
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 use tokio::sync::{broadcast, mpsc, Notify};
@@ -38,6 +39,9 @@ impl From<StoreError> for ApiError {
     fn from(e: StoreError) -> Self {
         match e {
             StoreError::NoSuchJob(id) => ApiError::NotFound(format!("job {id} not found")),
+            e @ (StoreError::TokenReused { .. } | StoreError::OutputBusy { .. }) => {
+                ApiError::Invalid(format!("rejected: {e}"))
+            }
             e => ApiError::Internal(e.to_string()),
         }
     }
@@ -54,6 +58,10 @@ pub struct Scheduler {
     no_workers_since: Mutex<Option<Instant>>,
     next_worker: Mutex<u32>,
     metrics: CoordinatorMetrics,
+    /// Attempts that were running when this coordinator started (job, key, attempt) and the worker id they
+    /// ran under; their workers adopt them by registering again, until `adopt_until`.
+    orphans: Mutex<HashMap<(String, String, u32), String>>,
+    adopt_until: Instant,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -73,13 +81,21 @@ impl Scheduler {
             Some(p) => Store::open(p)?,
             None => Store::in_memory()?,
         };
-        let requeued = store.recover()?;
-        if requeued > 0 {
+        let running = store.recover()?;
+        let window = config.adopt_window();
+        if !running.is_empty() {
             info!(
-                requeued,
-                "coordinator: recovered the queue, {requeued} task(s) that were running are queued again"
+                running = running.len(),
+                "coordinator: recovered the queue; {} task(s) were running: their workers may report them within {}, then they are queued again",
+                running.len(),
+                fmt_secs(window)
             );
         }
+        let adopt_until = Instant::now() + window;
+        let orphans = running
+            .into_iter()
+            .map(|(job, key, attempt, worker)| ((job, key, attempt), worker))
+            .collect();
         let next = store.worker_count()?;
         let (events, _) = broadcast::channel(4096);
         Ok(Arc::new(Scheduler {
@@ -91,6 +107,8 @@ impl Scheduler {
             no_workers_since: Mutex::new(Some(Instant::now())),
             next_worker: Mutex::new(next),
             metrics: CoordinatorMetrics::default(),
+            orphans: Mutex::new(orphans),
+            adopt_until,
         }))
     }
 
@@ -117,21 +135,38 @@ impl Scheduler {
 
     fn tick(self: &Arc<Self>) -> Result<(), StoreError> {
         self.expire_workers()?;
+        self.expire_orphans()?;
         self.grace()?;
         self.dispatch()
     }
 
-    /// Validates, inspects and plans a job, then queues it. A client token that names an earlier job returns
-    /// that job instead (idempotent submit).
+    /// Validates, inspects and plans a job, then queues it. A client token that names an earlier job with the
+    /// same spec returns that job instead (idempotent submit); with another spec it is refused, naming the job.
+    /// So is a job whose output a live job is writing.
     pub async fn submit(&self, text: &str, format: &str) -> Result<(String, bool), ApiError> {
         let spec = match format {
             "json" => JobSpec::from_json_str(text),
             _ => JobSpec::from_toml_str(text),
         }
         .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
-        if let Some(token) = &spec.client_token {
-            if let Some(id) = lock(&self.store).job_by_token(token)? {
-                return Ok((id, false));
+        let spec_json =
+            serde_json::to_string(&spec).map_err(|e| ApiError::Internal(e.to_string()))?;
+        // Before admission touches the output (it removes a stale report): a resubmit gets its job back, and a
+        // live job's output is not anyone else's.
+        {
+            let store = lock(&self.store);
+            if let Some(token) = &spec.client_token {
+                if let Some(id) = store.job_by_token(token, &spec_json)? {
+                    return Ok((id, false));
+                }
+            }
+            if let Some((job, state)) = store.live_job_writing(&spec.output)? {
+                return Err(StoreError::OutputBusy {
+                    output: spec.output.clone(),
+                    job,
+                    state: state.as_str().to_string(),
+                }
+                .into());
             }
         }
         let info =
@@ -158,8 +193,7 @@ impl Scheduler {
         };
         let job = NewJob {
             name,
-            spec_json: serde_json::to_string(&spec)
-                .map_err(|e| ApiError::Internal(e.to_string()))?,
+            spec_json,
             info_json: serde_json::to_string(&info)
                 .map_err(|e| ApiError::Internal(e.to_string()))?,
             output: spec.output.clone(),
@@ -181,14 +215,30 @@ impl Scheduler {
     pub fn status(&self, job_id: &str, with_tasks: bool) -> Result<pb::JobStatus, ApiError> {
         let store = lock(&self.store);
         let job = store.job(job_id)?;
-        status_of(&store, &job, with_tasks)
+        status_of(&store, &job, with_tasks, self.config.blacklist_after)
     }
 
     /// All jobs, newest first.
     pub fn list(&self) -> Result<Vec<pb::JobStatus>, ApiError> {
         let store = lock(&self.store);
         let jobs = store.list_jobs()?;
-        jobs.iter().map(|j| status_of(&store, j, false)).collect()
+        jobs.iter()
+            .map(|j| status_of(&store, j, false, self.config.blacklist_after))
+            .collect()
+    }
+
+    /// Clears a job's worker blocklist (one worker, or all); returns the workers cleared.
+    pub fn unblock(&self, job_id: &str, worker: Option<&str>) -> Result<Vec<String>, ApiError> {
+        let mut store = lock(&self.store);
+        store.job(job_id)?;
+        let cleared = store.unblock(job_id, worker)?;
+        drop(store);
+        if !cleared.is_empty() {
+            info!(job_id = %job_id, "blocklist of job {job_id} cleared for {}", cleared.join(", "));
+            self.emit(job_id, "blocklist_cleared", "", &cleared.join(", "), 0, 0);
+            self.wake.notify_one();
+        }
+        Ok(cleared)
     }
 
     /// Cancels a job: queued tasks are dropped and workers are told to stop its running tasks.
@@ -293,6 +343,7 @@ impl Scheduler {
                 started_unix: a.started,
                 finished_unix: a.finished,
                 lines: a.lines,
+                kind: a.kind,
             })
             .collect();
         Ok(pb::GetTaskLogsResponse { attempts })
@@ -311,8 +362,12 @@ impl Scheduler {
             let w = lock(&self.workers);
             (w.live() as i64, w.ids().len() as i64)
         };
+        let blocklisted = lock(&self.store)
+            .blocklist_sizes(self.config.blacklist_after)
+            .unwrap_or_default();
         self.metrics.render(&Snapshot {
             queue,
+            blocklisted,
             workers_live: live,
             workers_draining: total - live,
         })
@@ -368,7 +423,21 @@ async fn missing_outputs(job: &JobRow) -> Result<Vec<String>, String> {
     Ok(missing)
 }
 
-fn status_of(store: &Store, job: &JobRow, with_tasks: bool) -> Result<pb::JobStatus, ApiError> {
+fn status_of(
+    store: &Store,
+    job: &JobRow,
+    with_tasks: bool,
+    blacklist_after: u32,
+) -> Result<pb::JobStatus, ApiError> {
+    let blocked_workers = store
+        .blocklist(&job.id, blacklist_after)?
+        .into_iter()
+        .map(|b| pb::BlockedWorker {
+            worker: b.worker,
+            failures: b.failures,
+            reasons: b.reasons,
+        })
+        .collect();
     let c = store.counts(&job.id)?;
     let tasks = if with_tasks {
         store
@@ -403,5 +472,6 @@ fn status_of(store: &Store, job: &JobRow, with_tasks: bool) -> Result<pb::JobSta
         finished_unix: job.finished,
         tasks,
         work_seconds: c.work_seconds,
+        blocked_workers,
     })
 }

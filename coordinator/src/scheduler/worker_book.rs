@@ -4,6 +4,7 @@
 use super::{fmt_secs, lock, ApiError, Scheduler};
 use crate::state::store::{Claim, Failure, JobState, Outcome, StoreError};
 use crate::state::workers::WorkerEntry;
+use crease_jobs::FailureKind;
 use crease_proto as pb;
 use crease_proto::worker_client::WorkerClient;
 use std::time::{Duration, Instant};
@@ -62,6 +63,7 @@ impl Scheduler {
             req.address,
             req.capacity
         );
+        self.adopt(&id, &req.attempts);
         self.wake.notify_one();
         Ok(pb::RegisterWorkerResponse {
             worker_id: id,
@@ -116,20 +118,80 @@ impl Scheduler {
                     attempt,
                     expands: false,
                 };
-                let f = Failure {
-                    retryable: true,
-                    counts: true,
-                    cancelled: false,
-                    reason: format!(
+                let f = Failure::new(
+                    FailureKind::WorkerLost,
+                    format!(
                         "worker {w} was lost (no heartbeat for {})",
                         fmt_secs(self.config.worker_timeout)
                     ),
-                };
+                );
                 if let Outcome::JobFailed { message } = self.fail(&claim, &w, &f)? {
                     self.emit(&job, "job_failed", &key, &message, 0, 0);
                 }
             }
         }
+        Ok(())
+    }
+
+    /// The attempts a (re-)registering worker names that were running when this coordinator started become
+    /// that worker's again, keeping their attempt numbers: nothing is run twice.
+    fn adopt(&self, wid: &str, attempts: &[pb::AttemptRef]) {
+        for a in attempts {
+            let key = (a.job_id.clone(), a.task_key.clone(), a.attempt);
+            if lock(&self.orphans).remove(&key).is_none() {
+                continue;
+            }
+            match lock(&self.store).adopt(&a.job_id, &a.task_key, a.attempt, wid) {
+                Ok(true) => {
+                    if let Some(w) = lock(&self.workers).get_mut(wid) {
+                        w.running += 1;
+                    }
+                    info!(
+                        job_id = %a.job_id,
+                        task = %a.task_key,
+                        attempt = a.attempt,
+                        worker = %wid,
+                        "coordinator: worker {wid} still has attempt {} of task `{}`: adopted",
+                        a.attempt,
+                        a.task_key
+                    );
+                }
+                Ok(false) => {}
+                Err(e) => {
+                    warn!(job_id = %a.job_id, task = %a.task_key, error = %e, "cannot adopt: {e}")
+                }
+            }
+        }
+    }
+
+    /// Once the adoption window after a restart is over, the attempts no worker adopted are queued again
+    /// (not charged to anyone: the coordinator, not the task, went away).
+    pub(super) fn expire_orphans(&self) -> Result<(), StoreError> {
+        if Instant::now() < self.adopt_until || lock(&self.orphans).is_empty() {
+            return Ok(());
+        }
+        let left: Vec<_> = lock(&self.orphans).drain().collect();
+        for ((job, key, attempt), worker) in left {
+            let claim = Claim {
+                job_id: job.clone(),
+                key: key.clone(),
+                kind: String::new(),
+                payload: String::new(),
+                attempt,
+                expands: false,
+            };
+            let f = Failure::new(
+                FailureKind::CoordinatorRestart,
+                format!(
+                    "the coordinator restarted and no worker reported attempt {attempt} within {}",
+                    fmt_secs(self.config.adopt_window())
+                ),
+            );
+            if let Outcome::JobFailed { message } = self.fail(&claim, &worker, &f)? {
+                self.emit(&job, "job_failed", &key, &message, 0, 0);
+            }
+        }
+        self.wake.notify_one();
         Ok(())
     }
 

@@ -294,10 +294,13 @@ fn upload_dir(env: &TaskEnv, dir: &Path) -> Result<(), TaskError> {
 /// storage when it is.
 fn staging_err(path: &Path, e: std::io::Error) -> TaskError {
     if crate::storage_errors::is_full_io(&e) {
-        TaskError::transient(format!(
-            "storage full at {} (worker staging): {e}",
-            path.display()
-        ))
+        TaskError {
+            location: Some(path.display().to_string()),
+            ..TaskError::new(
+                crate::failure::FailureKind::StorageFullLocal,
+                format!("storage full at {} (worker staging): {e}", path.display()),
+            )
+        }
     } else {
         TaskError::transient(format!("staging {}: {e}", path.display()))
     }

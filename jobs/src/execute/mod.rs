@@ -18,6 +18,7 @@ mod position;
 mod weights;
 
 use crate::error::TaskError;
+use crate::failure::FailureKind;
 use crate::task::{TaskOutput, TaskSpec};
 use crease_core::progress::Progress;
 use env::TaskEnv;
@@ -61,9 +62,12 @@ fn run(
 /// Full storage fails a job at once, except the worker's own disk (cache, staging): another worker may have
 /// room, so that failure is retryable (and the coordinator moves the task elsewhere).
 fn local_full_is_retryable(mut e: TaskError, ctx: &ExecContext) -> TaskError {
-    let cache = ctx.cache_dir.display().to_string();
-    if !e.retryable && e.reason.contains("storage full at ") && e.reason.contains(&cache) {
-        e.retryable = true;
+    let in_cache = e
+        .location
+        .as_deref()
+        .is_some_and(|at| std::path::Path::new(at).starts_with(&ctx.cache_dir));
+    if e.kind == FailureKind::StorageFullRemote && in_cache {
+        e.kind = FailureKind::StorageFullLocal;
     }
     e
 }

@@ -48,7 +48,7 @@ impl Store {
     /// Every attempt of a job's tasks (or of one task), in task then attempt order, with its log lines.
     pub fn task_logs(&self, job_id: &str, key: Option<&str>) -> Result<Vec<AttemptLog>> {
         let mut stmt = self.conn.prepare_cached(
-            "SELECT a.task_key, a.attempt, a.worker, a.outcome, a.error, a.started, a.finished
+            "SELECT a.task_key, a.attempt, a.worker, a.outcome, a.error, a.started, a.finished, a.kind
              FROM attempts a JOIN tasks t ON t.job_id = a.job_id AND t.key = a.task_key
              WHERE a.job_id = ?1 AND (?2 IS NULL OR a.task_key = ?2)
              ORDER BY t.seq, a.attempt",
@@ -63,6 +63,7 @@ impl Store {
                     error: r.get(4)?,
                     started: r.get(5)?,
                     finished: r.get(6)?,
+                    kind: r.get(7)?,
                     lines: Vec::new(),
                 })
             })?

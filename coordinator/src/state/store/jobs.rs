@@ -8,24 +8,64 @@ use rusqlite::{params, Connection, OptionalExtension, Transaction};
 
 impl Store {
     /// The job submitted earlier with `token`, if any (idempotent submit).
-    pub fn job_by_token(&self, token: &str) -> Result<Option<String>> {
-        Ok(self
+    /// Same token and same spec: that job. Same token, another spec: an error naming that job (a token
+    /// identifies one submission; reusing it for another job is a client bug, not a resubmit).
+    pub fn job_by_token(&self, token: &str, spec_json: &str) -> Result<Option<String>> {
+        let row: Option<(String, String, String)> = self
             .conn
             .query_row(
-                "SELECT id FROM jobs WHERE client_token = ?1",
+                "SELECT id, spec_hash, spec FROM jobs WHERE client_token = ?1",
                 params![token],
-                |r| r.get(0),
+                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
             )
-            .optional()?)
+            .optional()?;
+        let Some((id, hash, spec)) = row else {
+            return Ok(None);
+        };
+        // Jobs queued before the hash existed (an upgraded queue file) are compared by their stored spec.
+        let hash = if hash.is_empty() {
+            spec_hash(&spec)
+        } else {
+            hash
+        };
+        if hash != spec_hash(spec_json) {
+            return Err(StoreError::TokenReused {
+                token: token.to_string(),
+                job: id,
+            });
+        }
+        Ok(Some(id))
+    }
+
+    /// A job not yet ended that writes to `output` (trailing slashes aside), if any.
+    pub fn live_job_writing(&self, output: &str) -> Result<Option<(String, JobState)>> {
+        let row: Option<(String, String)> = self
+            .conn
+            .query_row(
+                "SELECT id, state FROM jobs
+                 WHERE rtrim(output, '/') = ?1 AND state IN ('queued', 'running', 'waiting')
+                 ORDER BY seq LIMIT 1",
+                params![output.trim_end_matches('/')],
+                |r| Ok((r.get(0)?, r.get(1)?)),
+            )
+            .optional()?;
+        Ok(row.map(|(id, state)| (id, JobState::parse(&state))))
     }
 
     /// Inserts a job and its initial tasks in one transaction; returns (job id, created). With a client token
     /// that already names a job, nothing is inserted and that job's id is returned.
     pub fn insert_job(&mut self, job: &NewJob) -> Result<(String, bool)> {
         if let Some(token) = &job.client_token {
-            if let Some(id) = self.job_by_token(token)? {
+            if let Some(id) = self.job_by_token(token, &job.spec_json)? {
                 return Ok((id, false));
             }
+        }
+        if let Some((other, state)) = self.live_job_writing(&job.output)? {
+            return Err(StoreError::OutputBusy {
+                output: job.output.clone(),
+                job: other,
+                state: state.as_str().to_string(),
+            });
         }
         let tx = self.conn.transaction()?;
         let seq: i64 = tx.query_row("SELECT COALESCE(MAX(seq), 0) + 1 FROM jobs", [], |r| {

@@ -5,6 +5,7 @@
 //! (`blocked`/`queued` → `running` → `done` | `queued` again (retry) | `failed` | `cancelled`) is unit-tested
 //! without gRPC. Every transition that must survive a crash happens in one transaction.
 
+mod blocklist;
 mod events;
 mod jobs;
 mod schema;
@@ -13,9 +14,11 @@ mod tasks;
 mod tests;
 mod worker_rows;
 
+pub use blocklist::Blocked;
 pub use schema::SCHEMA_VERSION;
 
-use rusqlite::{params, Connection};
+use crease_jobs::FailureKind;
+use rusqlite::Connection;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -180,15 +183,29 @@ pub enum Outcome {
     Cancelled,
 }
 
-/// A task failure as the store sees it (typed: the retry policy reads fields, not strings).
+/// A task failure as the store sees it: its kind decides the retry policy (see
+/// [`crease_jobs::FailureKind::policy`]); the reason is for people.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Failure {
-    pub retryable: bool,
-    /// Counts towards the task's attempt limit and the job's failure limit. A coordinator restart does not.
-    pub counts: bool,
-    /// A cancellation (job cancelled or worker draining).
-    pub cancelled: bool,
+    pub kind: FailureKind,
     pub reason: String,
+}
+
+impl Failure {
+    pub fn new(kind: FailureKind, reason: impl Into<String>) -> Self {
+        Failure {
+            kind,
+            reason: reason.into(),
+        }
+    }
+    /// Another attempt may succeed.
+    pub fn retryable(&self) -> bool {
+        self.kind.policy().retryable
+    }
+    /// Counts towards the task's attempt limit, the job's failure limit and the worker's blocklist.
+    pub fn counts(&self) -> bool {
+        self.kind.policy().counts
+    }
 }
 
 /// A persisted event.
@@ -209,6 +226,8 @@ pub struct AttemptLog {
     pub attempt: u32,
     pub worker: String,
     pub outcome: String,
+    /// The failure kind of a failed or handed-back attempt (a [`FailureKind`] name), else empty.
+    pub kind: String,
     pub error: String,
     pub started: f64,
     pub finished: f64,
@@ -232,6 +251,20 @@ pub enum StoreError {
     Sql(#[from] rusqlite::Error),
     #[error("job {0} not found")]
     NoSuchJob(String),
+    #[error(
+        "client_token `{token}` already names job {job}, submitted with another spec; a token stands for one \
+         submission: give this job a new token (or resubmit {job}'s spec unchanged to get {job} back)"
+    )]
+    TokenReused { token: String, job: String },
+    #[error(
+        "output {output} is being written by job {job} ({state}); wait for it to end, cancel it \
+         (`crease cancel {job}`), or choose another output"
+    )]
+    OutputBusy {
+        output: String,
+        job: String,
+        state: String,
+    },
     #[error(
         "queue file {what} has schema version {found}, newer than this crease knows ({known}); run the crease \
          that wrote it, or start with another --db"
@@ -283,25 +316,15 @@ impl Store {
         Ok(Store { conn })
     }
 
-    /// Restart recovery: tasks that were running when the coordinator stopped go back to the queue (their
-    /// attempt is closed as `coordinator-restart` and does not count as a failure), and every worker must
-    /// register again. Returns the number of re-queued tasks.
-    pub fn recover(&mut self) -> Result<usize> {
-        let tx = self.conn.transaction()?;
-        let t = now();
-        tx.execute(
-            "UPDATE attempts SET outcome = 'coordinator-restart', finished = ?1 WHERE outcome = 'running'",
-            params![t],
-        )?;
-        let n = tx.execute(
-            "UPDATE tasks SET state = 'queued', worker = '' WHERE state = 'running'",
-            [],
-        )?;
-        tx.execute(
+    /// Restart recovery: every worker must register again. Tasks that were running when the coordinator
+    /// stopped stay running under their attempt number: their workers keep running them and, registering
+    /// again, adopt them ([`Store::adopt`]); the scheduler queues again those nobody adopts in time (a failure
+    /// of kind `coordinator-restart`, which does not count). Returns those attempts (job, key, attempt, worker).
+    pub fn recover(&mut self) -> Result<Vec<(String, String, u32, String)>> {
+        self.conn.execute(
             "UPDATE workers SET state = 'lost' WHERE state != 'lost'",
             [],
         )?;
-        tx.commit()?;
-        Ok(n)
+        self.running_tasks(None)
     }
 }

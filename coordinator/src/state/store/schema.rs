@@ -101,6 +101,8 @@ const MIGRATIONS: &[&str] = &[
     BASELINE,
     // 2: the canonical spec hash beside the client token, so a reused token with another spec is refused.
     "ALTER TABLE jobs ADD COLUMN spec_hash TEXT NOT NULL DEFAULT '';",
+    // 3: the typed failure kind of each closed attempt (crease_jobs::FailureKind), which the retry policy read.
+    "ALTER TABLE attempts ADD COLUMN kind TEXT NOT NULL DEFAULT '';",
 ];
 
 /// The schema version this build writes.

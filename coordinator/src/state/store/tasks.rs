@@ -3,6 +3,7 @@
 use super::events::event;
 use super::jobs::{fail_job_tx, job_row};
 use super::{now, Claim, Failure, NewTask, Outcome, Result, Store, TaskRow, TaskState};
+use crease_jobs::FailureKind;
 use rusqlite::{params, OptionalExtension, Transaction};
 
 impl Store {
@@ -107,7 +108,7 @@ impl Store {
              WHERE job_id = ?1 AND key = ?2",
             params![job_id, key, output_json, work_seconds],
         )?;
-        close_attempt(&tx, job_id, key, attempt, "done", "")?;
+        close_attempt(&tx, job_id, key, attempt, "done", None)?;
         insert_tasks(&tx, job_id, more)?;
         event(
             &tx,
@@ -151,22 +152,22 @@ impl Store {
                 "UPDATE tasks SET state = 'cancelled' WHERE job_id = ?1 AND key = ?2",
                 params![job_id, key],
             )?;
-            close_attempt(&tx, job_id, key, attempt, "cancelled", &failure.reason)?;
+            close_attempt(&tx, job_id, key, attempt, "cancelled", Some(failure))?;
             tx.commit()?;
             return Ok(Outcome::Cancelled);
         }
-        let outcome_name = if failure.cancelled {
-            "handed-back"
-        } else {
-            "failed"
+        let outcome_name = match failure.kind {
+            FailureKind::CoordinatorRestart => "coordinator-restart",
+            _ if !failure.counts() => "handed-back",
+            _ => "failed",
         };
-        close_attempt(&tx, job_id, key, attempt, outcome_name, &failure.reason)?;
+        close_attempt(&tx, job_id, key, attempt, outcome_name, Some(failure))?;
         tx.execute(
             "UPDATE tasks SET last_error = ?3 WHERE job_id = ?1 AND key = ?2",
             params![job_id, key, failure.reason],
         )?;
         let mut failures = job.failures;
-        if failure.counts {
+        if failure.counts() {
             failures += 1;
             tx.execute(
                 "UPDATE jobs SET failures = ?2 WHERE id = ?1",
@@ -184,14 +185,15 @@ impl Store {
             params![job_id, key],
             |r| r.get(0),
         )?;
-        let fatal = failure.counts && !failure.retryable;
-        let out_of_attempts = failure.counts && counted >= job.max_task_attempts;
-        let over_job_limit = failure.counts && failures >= job.max_failures;
+        let counts = failure.counts();
+        let fatal = counts && !failure.retryable();
+        let out_of_attempts = counts && counted >= job.max_task_attempts;
+        let over_job_limit = counts && failures >= job.max_failures;
         let outcome = if fatal || out_of_attempts || over_job_limit {
             let why = if fatal {
                 format!(
-                    "task `{key}` failed (not retryable) on attempt {attempt}: {}",
-                    failure.reason
+                    "task `{key}` failed ({}, not retryable) on attempt {attempt}: {}",
+                    failure.kind, failure.reason
                 )
             } else if out_of_attempts {
                 format!(
@@ -226,6 +228,79 @@ impl Store {
         };
         tx.commit()?;
         Ok(outcome)
+    }
+
+    /// Makes a running attempt `worker`'s (a worker that registered again after a coordinator restart and still
+    /// runs it, or holds its result). False when the attempt is no longer the task's current one.
+    pub fn adopt(&mut self, job_id: &str, key: &str, attempt: u32, worker: &str) -> Result<bool> {
+        let tx = self.conn.transaction()?;
+        if !is_current(&tx, job_id, key, attempt)? {
+            return Ok(false);
+        }
+        tx.execute(
+            "UPDATE tasks SET worker = ?3 WHERE job_id = ?1 AND key = ?2",
+            params![job_id, key, worker],
+        )?;
+        tx.execute(
+            "UPDATE attempts SET worker = ?4 WHERE job_id = ?1 AND task_key = ?2 AND attempt = ?3",
+            params![job_id, key, attempt, worker],
+        )?;
+        event(
+            &tx,
+            job_id,
+            "task_adopted",
+            key,
+            &format!("attempt {attempt} adopted by {worker} after a coordinator restart"),
+        )?;
+        tx.commit()?;
+        Ok(true)
+    }
+
+    /// The claim of a task's current running attempt `attempt` (for a result reported outside its stream),
+    /// with the worker it runs on and when it started; `None` when that attempt is not current any more.
+    pub fn current_claim(
+        &self,
+        job_id: &str,
+        key: &str,
+        attempt: u32,
+    ) -> Result<Option<(Claim, String, f64)>> {
+        let row: Option<(String, String, bool, u32, String, String, f64)> = self
+            .conn
+            .query_row(
+                "SELECT t.kind, t.payload, t.expands, t.attempts, t.state, t.worker,
+                        COALESCE((SELECT a.started FROM attempts a WHERE a.job_id = t.job_id
+                                  AND a.task_key = t.key AND a.attempt = t.attempts), 0)
+                 FROM tasks t WHERE t.job_id = ?1 AND t.key = ?2",
+                params![job_id, key],
+                |r| {
+                    Ok((
+                        r.get(0)?,
+                        r.get(1)?,
+                        r.get(2)?,
+                        r.get(3)?,
+                        r.get(4)?,
+                        r.get(5)?,
+                        r.get(6)?,
+                    ))
+                },
+            )
+            .optional()?;
+        Ok(match row {
+            Some((kind, payload, expands, current, state, worker, started))
+                if state == "running" && current == attempt =>
+            {
+                let claim = Claim {
+                    job_id: job_id.to_string(),
+                    key: key.to_string(),
+                    kind,
+                    payload,
+                    attempt,
+                    expands,
+                };
+                Some((claim, worker, started))
+            }
+            _ => None,
+        })
     }
 
     /// Running tasks (job, key, attempt, worker), for cancel and lost-worker handling.
@@ -363,12 +438,13 @@ pub(super) fn close_attempt(
     key: &str,
     attempt: u32,
     outcome: &str,
-    error: &str,
+    failure: Option<&Failure>,
 ) -> Result<()> {
+    let (kind, error) = failure.map_or(("", ""), |f| (f.kind.as_str(), f.reason.as_str()));
     tx.execute(
-        "UPDATE attempts SET outcome = ?4, error = ?5, finished = ?6
+        "UPDATE attempts SET outcome = ?4, error = ?5, finished = ?6, kind = ?7
          WHERE job_id = ?1 AND task_key = ?2 AND attempt = ?3",
-        params![job_id, key, attempt, outcome, error, now()],
+        params![job_id, key, attempt, outcome, error, now(), kind],
     )?;
     Ok(())
 }

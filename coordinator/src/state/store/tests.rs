@@ -2,6 +2,10 @@
 //! idempotent submit.
 
 use super::*;
+use crease_jobs::FailureKind;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+static NEXT_OUTPUT: AtomicUsize = AtomicUsize::new(0);
 use rusqlite::Connection;
 use std::path::Path;
 
@@ -20,7 +24,8 @@ fn job(priority: i32, tasks: Vec<NewTask>) -> NewJob {
         name: "j".into(),
         spec_json: "{}".into(),
         info_json: "{}".into(),
-        output: "/tmp/x".into(),
+        // Each job its own output: two live jobs may not share one.
+        output: format!("/tmp/x{}", NEXT_OUTPUT.fetch_add(1, Ordering::Relaxed)),
         priority,
         client_token: None,
         max_task_attempts: 3,
@@ -30,12 +35,12 @@ fn job(priority: i32, tasks: Vec<NewTask>) -> NewJob {
 }
 
 fn err(retryable: bool) -> Failure {
-    Failure {
-        retryable,
-        counts: true,
-        cancelled: false,
-        reason: "boom".into(),
-    }
+    let kind = if retryable {
+        FailureKind::Transient
+    } else {
+        FailureKind::InvalidInput
+    };
+    Failure::new(kind, "boom")
 }
 
 fn keys(store: &Store) -> Vec<String> {
@@ -126,12 +131,7 @@ fn non_retryable_failures_fail_at_once_and_hand_backs_do_not_count() {
     // Hand-backs (drain) and restarts do not use up attempts.
     for attempt in 1..=5 {
         s.claim(&a, "x", "w1").unwrap().unwrap();
-        let handed_back = Failure {
-            retryable: true,
-            counts: false,
-            cancelled: true,
-            reason: "cancelled".into(),
-        };
+        let handed_back = Failure::new(FailureKind::Cancelled, "cancelled");
         assert_eq!(
             s.fail(&a, "x", attempt, "w1", &handed_back, 0.0).unwrap(),
             Outcome::Retry { attempt }
@@ -172,12 +172,7 @@ fn cancel_drops_queued_tasks_and_closes_running_ones_on_report() {
     assert_eq!(s.cancel_job(&a).unwrap(), JobState::Cancelled);
     assert!(s.ready_tasks(10).unwrap().is_empty());
     assert_eq!(s.running_tasks(Some(&a)).unwrap().len(), 1);
-    let stopped = Failure {
-        retryable: true,
-        counts: false,
-        cancelled: true,
-        reason: "cancelled".into(),
-    };
+    let stopped = Failure::new(FailureKind::Cancelled, "cancelled");
     assert_eq!(
         s.fail(&a, "x", 1, "w1", &stopped, 0.0).unwrap(),
         Outcome::Cancelled
@@ -187,7 +182,7 @@ fn cancel_drops_queued_tasks_and_closes_running_ones_on_report() {
 }
 
 #[test]
-fn restart_recovery_requeues_running_tasks_and_keeps_done_ones() {
+fn restart_recovery_keeps_running_attempts_for_adoption_and_keeps_done_ones() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("q.sqlite");
     let a = {
@@ -201,15 +196,47 @@ fn restart_recovery_requeues_running_tasks_and_keeps_done_ones() {
         a
     };
     let mut s = Store::open(&path).unwrap();
-    assert_eq!(s.recover().unwrap(), 1);
+    let orphans = s.recover().unwrap();
+    assert_eq!(
+        orphans,
+        vec![(a.clone(), "y".to_string(), 1, "w1".to_string())]
+    );
     let tasks = s.tasks(&a).unwrap();
     assert_eq!(tasks[0].state, TaskState::Done);
     assert_eq!(tasks[0].attempts, 1);
-    assert_eq!(tasks[1].state, TaskState::Queued);
-    // The interrupted attempt does not count against the task.
-    let cl = s.claim(&a, "y", "w2").unwrap().unwrap();
+    // Still running under attempt 1: its worker (registered again as w2) adopts it and reports it.
+    assert_eq!(tasks[1].state, TaskState::Running);
+    assert!(s.adopt(&a, "y", 1, "w2").unwrap());
+    let (claim, worker, _) = s.current_claim(&a, "y", 1).unwrap().unwrap();
+    assert_eq!((claim.attempt, worker.as_str()), (1, "w2"));
+    assert_eq!(
+        s.complete(&a, "y", 1, "{}", 0.1, &[]).unwrap(),
+        Outcome::Done { job_done: true }
+    );
+    assert!(s.current_claim(&a, "y", 1).unwrap().is_none());
+}
+
+#[test]
+fn an_attempt_nobody_adopts_is_queued_again_uncharged_and_its_late_report_is_stale() {
+    let mut s = Store::in_memory().unwrap();
+    let (a, _) = s.insert_job(&job(0, vec![task("y", &[])])).unwrap();
+    s.claim(&a, "y", "w1").unwrap().unwrap();
+    assert_eq!(s.recover().unwrap().len(), 1);
+    let restart = Failure::new(FailureKind::CoordinatorRestart, "nobody reported it");
+    assert_eq!(
+        s.fail(&a, "y", 1, "w1", &restart, 0.0).unwrap(),
+        Outcome::Retry { attempt: 1 }
+    );
+    let cl = s.claim(&a, "y", "w3").unwrap().unwrap();
     assert_eq!(cl.attempt, 2);
     assert_eq!(s.job(&a).unwrap().failures, 0);
+    // Attempt 1 turns up late: attempt 2 belongs to w3 now, so it is not adopted and its result is stale.
+    assert!(!s.adopt(&a, "y", 1, "w2").unwrap());
+    assert!(s.current_claim(&a, "y", 1).unwrap().is_none());
+    assert_eq!(
+        s.complete(&a, "y", 1, "{}", 0.1, &[]).unwrap(),
+        Outcome::Stale
+    );
 }
 
 #[test]
@@ -355,4 +382,135 @@ fn job_with_token(token: &str, spec_json: &str) -> NewJob {
         spec_json: spec_json.into(),
         ..job(0, vec![task("x", &[])])
     }
+}
+
+#[test]
+fn the_retry_policy_follows_the_failure_kind_not_the_message() {
+    let mut s = Store::in_memory().unwrap();
+    // A message that reads like a transient error does not make a full output volume retryable ...
+    let (a, _) = s.insert_job(&job(0, vec![task("x", &[])])).unwrap();
+    s.claim(&a, "x", "w1").unwrap().unwrap();
+    let full = Failure::new(
+        FailureKind::StorageFullRemote,
+        "retryable? timed out, cancelled",
+    );
+    match s.fail(&a, "x", 1, "w1", &full, 0.0).unwrap() {
+        Outcome::JobFailed { message } => {
+            assert!(message.contains("storage-full-remote"), "{message}")
+        }
+        o => panic!("{o:?}"),
+    }
+    // ... and one that reads like a fatal one does not stop a full worker cache from moving elsewhere.
+    let (b, _) = s.insert_job(&job(0, vec![task("x", &[])])).unwrap();
+    s.claim(&b, "x", "w1").unwrap().unwrap();
+    let local = Failure::new(FailureKind::StorageFullLocal, "not retryable: bad data");
+    assert_eq!(
+        s.fail(&b, "x", 1, "w1", &local, 0.0).unwrap(),
+        Outcome::Retry { attempt: 1 }
+    );
+    assert_eq!(
+        s.worker_failures(&b, "w1").unwrap(),
+        1,
+        "a full cache counts"
+    );
+    // A worker that did not take the task, and a coordinator restart, are not charged to anyone.
+    for (attempt, kind) in [
+        (2, FailureKind::HandedBack),
+        (3, FailureKind::CoordinatorRestart),
+    ] {
+        s.claim(&b, "x", "w2").unwrap().unwrap();
+        let f = Failure::new(kind, "the worker was busy");
+        assert_eq!(
+            s.fail(&b, "x", attempt, "w2", &f, 0.0).unwrap(),
+            Outcome::Retry { attempt }
+        );
+    }
+    assert_eq!(s.worker_failures(&b, "w2").unwrap(), 0);
+    assert_eq!(s.job(&b).unwrap().failures, 1);
+    // Each closed attempt keeps its kind (`crease logs`).
+    let kinds: Vec<(String, String)> = s
+        .task_logs(&b, None)
+        .unwrap()
+        .into_iter()
+        .map(|l| (l.outcome, l.kind))
+        .collect();
+    let pair = |o: &str, k: &str| (o.to_string(), k.to_string());
+    assert_eq!(
+        kinds,
+        vec![
+            pair("failed", "storage-full-local"),
+            pair("handed-back", "handed-back"),
+            pair("coordinator-restart", "coordinator-restart"),
+        ]
+    );
+}
+
+#[test]
+fn a_reused_token_with_another_spec_and_a_busy_output_are_refused_naming_the_job() {
+    let mut s = Store::in_memory().unwrap();
+    let (a, _) = s.insert_job(&job_with_token("tok", "{\"x\":1}")).unwrap();
+    // The same spec again: the same job.
+    let (again, created) = s.insert_job(&job_with_token("tok", "{\"x\":1}")).unwrap();
+    assert_eq!((again.as_str(), created), (a.as_str(), false));
+    // Another spec under the token: refused, naming the job.
+    let e = s
+        .insert_job(&job_with_token("tok", "{\"x\":2}"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(&a) && e.contains("`tok`"), "{e}");
+    // Another job writing to the live job's output (with a trailing slash): refused, naming it.
+    let output = s.job(&a).unwrap().output;
+    let busy = NewJob {
+        output: format!("{output}/"),
+        ..job(0, vec![task("x", &[])])
+    };
+    let e = s.insert_job(&busy).unwrap_err().to_string();
+    assert!(e.contains(&a) && e.contains(&output), "{e}");
+    // Once that job has ended, its output is free again.
+    s.cancel_job(&a).unwrap();
+    s.insert_job(&busy).unwrap();
+}
+
+#[test]
+fn the_blocklist_names_each_excluded_worker_with_its_failures_and_can_be_cleared() {
+    let mut s = Store::in_memory().unwrap();
+    let (a, _) = s
+        .insert_job(&job(0, vec![task("x", &[]), task("y", &[])]))
+        .unwrap();
+    let boom = |why: &str| Failure::new(FailureKind::Transient, why);
+    // w1 fails twice (x, then y), w2 once, and a hand-back by w2 is not held against it.
+    s.claim(&a, "x", "w1").unwrap().unwrap();
+    s.fail(&a, "x", 1, "w1", &boom("disk hiccup"), 0.0).unwrap();
+    s.claim(&a, "y", "w1").unwrap().unwrap();
+    s.fail(&a, "y", 1, "w1", &boom("frame 3 unreadable"), 0.0)
+        .unwrap();
+    s.claim(&a, "x", "w2").unwrap().unwrap();
+    s.fail(&a, "x", 2, "w2", &boom("flaky"), 0.0).unwrap();
+    s.claim(&a, "y", "w2").unwrap().unwrap();
+    let back = Failure::new(FailureKind::HandedBack, "at capacity");
+    s.fail(&a, "y", 2, "w2", &back, 0.0).unwrap();
+
+    let b = s.blocklist(&a, 2).unwrap();
+    assert_eq!(b.len(), 1, "{b:?}");
+    assert_eq!((b[0].worker.as_str(), b[0].failures), ("w1", 2));
+    assert_eq!(b[0].reasons.len(), 2, "{b:?}");
+    assert!(
+        b[0].reasons
+            .iter()
+            .any(|r| r.contains("task `y` attempt 1 (transient): frame 3 unreadable")),
+        "{b:?}"
+    );
+    assert_eq!(s.blocklist(&a, 1).unwrap().len(), 2);
+    assert_eq!(s.blocklist_sizes(2).unwrap(), vec![(a.clone(), 1)]);
+
+    assert_eq!(s.unblock(&a, Some("w9")).unwrap(), Vec::<String>::new());
+    assert_eq!(s.unblock(&a, Some("w1")).unwrap(), vec!["w1"]);
+    assert!(s.blocklist(&a, 2).unwrap().is_empty());
+    assert_eq!(
+        s.worker_failures(&a, "w1").unwrap(),
+        0,
+        "w1 gets the job's tasks again"
+    );
+    assert_eq!(s.unblock(&a, None).unwrap(), vec!["w2"]);
+    assert!(s.blocklist(&a, 1).unwrap().is_empty());
 }

@@ -10,6 +10,7 @@ use crease_core::folds::AnchorSet;
 use crease_core::fsutil;
 use crease_core::mesh::io::{open_sequence, write_obj_sequence};
 use crease_core::mesh::FrameSource;
+use crease_core::spacetime::stretch::StretchRotation;
 use crease_core::spacetime::{deform, Coefficients, DeformParams, Pinning, WeightMode};
 use crease_core::synth::{self, DemoSpec};
 use serde_json::json;
@@ -51,6 +52,10 @@ pub struct DeformArgs {
     /// Stretch-reduction passes.
     #[arg(long, default_value_t = 2)]
     pub stretch_passes: usize,
+    /// Rotation of each stretch pass: `polar` (closest to the triangle's deformation) or `normal` (the paper's
+    /// original-to-new normal).
+    #[arg(long, default_value = "polar")]
+    pub stretch_rotation: StretchRotation,
     /// Shape screen cutoff wavelength in mean edge lengths: longer displacements keep the captured shape,
     /// shorter ones (folds) are free. `off` (or 0): the unscreened system, with --pinning.
     #[arg(long, default_value = "10", value_parser = parse_shape_cutoff)]
@@ -97,6 +102,7 @@ impl DeformArgs {
             mode: self.mode,
             anchor_block: self.anchor_block,
             stretch_passes: self.stretch_passes,
+            stretch_rotation: self.stretch_rotation,
             shape_cutoff: self.shape_cutoff,
             pinning: self.pinning,
         }

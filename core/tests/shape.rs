@@ -3,7 +3,7 @@
 //! the stretch detector finds in it.
 
 use crease_core::folds::stretch::{StretchDetector, StretchParams};
-use crease_core::folds::{AnchorSet, FoldDetector};
+use crease_core::folds::{Anchor, AnchorSet, FoldDetector, FrameAnchors};
 use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::{geometry, MemorySink, Sequence};
 use crease_core::progress::NoProgress;
@@ -66,17 +66,56 @@ fn hanging_sheet_keeps_its_width_and_does_not_drift() {
         );
     }
     let s = shape.stats();
-    // Folds were added (the output is not the input), but the garment's low-frequency shape stayed: drift well
-    // under the displacement, and at most a fraction of an edge on average.
-    assert!(s.displacement_max > 0.5, "no folds were added: {s:?}");
+    // Folds were added (the output is not the input), but the garment's low-frequency shape stayed: at most a
+    // fraction of an edge of drift on average.
     assert!(
-        s.drift_mean < 0.1 && s.drift_mean < 0.5 * s.displacement_mean,
-        "{s:?}"
+        s.displacement_max > 0.3 && moved > 0.0,
+        "no folds were added: {s:?}"
     );
+    assert!(s.drift_mean < 0.1, "{s:?}");
     assert!(s.extent_change <= 0.01, "{s:?}");
-    assert!(moved > 0.0);
+
+    // The same folds through the unscreened system (the positioning before the screen) lose the width: the
+    // check above is one the old behaviour fails.
+    let old = DeformParams {
+        shape_cutoff: 0.0,
+        ..DeformParams::default()
+    };
+    let out = run(&seq, &anchors, &old);
+    let worst = out
+        .iter()
+        .zip(&seq.frames)
+        .map(|(o, c)| (width(o) - width(c)).abs() / width(c))
+        .fold(0.0, f64::max);
+    assert!(
+        worst > 0.01,
+        "unscreened width change only {:.2}%",
+        100.0 * worst
+    );
 }
 
+/// The detected anchors, turned by `q` (anchor axes are world vectors).
+fn rotated(anchors: &AnchorSet, n_tri: usize, q: &[[f64; 3]; 3]) -> AnchorSet {
+    let frames = (0..anchors.n_frames())
+        .map(|t| FrameAnchors {
+            frame: t,
+            anchors: anchors
+                .frame(t)
+                .iter()
+                .map(|a| Anchor {
+                    axis: vec3::mat_vec(q, a.axis),
+                    ..*a
+                })
+                .collect(),
+            control_lines: Vec::new(),
+        })
+        .collect();
+    AnchorSet::from_frame_anchors(frames, n_tri, None).unwrap()
+}
+
+/// Moving the capture rigidly moves the result rigidly: the shape screen pulls towards the input wherever it
+/// is, and nothing in the positioning depends on world axes. (The same anchors, turned with the garment: the
+/// stretch detector's own invariance belongs to the detector's tests.)
 #[test]
 fn rigid_motion_of_the_input_moves_the_output_rigidly() {
     let seq = drape();
@@ -96,25 +135,19 @@ fn rigid_motion_of_the_input_moves_the_output_rigidly() {
     .unwrap();
     let params = DeformParams::default();
     let a = anchors_of(&seq);
-    let b = anchors_of(&moved);
-    assert_eq!(
-        (0..seq.frames.len())
-            .map(|t| a.frame(t).len())
-            .collect::<Vec<_>>(),
-        (0..seq.frames.len())
-            .map(|t| b.frame(t).len())
-            .collect::<Vec<_>>(),
-        "the detector found different folds after a rigid motion"
-    );
+    let b = rotated(&a, seq.topology.n_triangles(), &q);
     let out = run(&seq, &a, &params);
     let out_moved = run(&moved, &b, &params);
     let mut worst = 0.0f64;
-    for (o, m) in out.iter().zip(&out_moved) {
-        for (p, pm) in o.iter().zip(m) {
+    let mut folded = 0.0f64;
+    for ((o, m), c) in out.iter().zip(&out_moved).zip(&seq.frames) {
+        for ((p, pm), pc) in o.iter().zip(m).zip(c) {
             let expect = vec3::add(vec3::mat_vec(&q, *p), shift);
             worst = worst.max(vec3::norm(vec3::sub(expect, *pm)));
+            folded = folded.max(vec3::norm(vec3::sub(*p, *pc)));
         }
     }
+    assert!(folded > 1e-3, "no folds to move: {folded} m");
     // The sheet is 1 m wide with 2 cm edges: agreement to a micrometre is round-off, not geometry.
     assert!(
         worst < 1e-6,

@@ -127,7 +127,14 @@ pub fn deform(
                 if progress.cancelled() {
                     return Err(Error::Cancelled);
                 }
-                let r = position_frame(&system, source, t, &phi, params.stretch_passes);
+                let r = position_frame(
+                    &system,
+                    source,
+                    t,
+                    &phi,
+                    params.stretch_passes,
+                    params.stretch_rotation,
+                );
                 progress.advance("position", 1);
                 r
             })

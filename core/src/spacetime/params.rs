@@ -2,6 +2,7 @@
 
 use super::operator::Coefficients;
 use super::position::Pinning;
+use super::stretch::StretchRotation;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -59,6 +60,8 @@ pub struct DeformParams {
     pub anchor_block: usize,
     /// Stretch-reduction passes after the first positioning.
     pub stretch_passes: usize,
+    /// Which rotation each stretch pass gives a triangle (see [`super::stretch`]).
+    pub stretch_rotation: StretchRotation,
     /// Cutoff wavelength ℓ_c of the positioning's shape screen, in mean edge lengths (see
     /// [`super::position`]): displacements much longer than this are held to the captured shape, shorter ones
     /// (folds) are free. 0 turns the screen off (the paper's unscreened system, with `pinning`).
@@ -79,6 +82,7 @@ impl Default for DeformParams {
             mode: WeightMode::Fused,
             anchor_block: 256,
             stretch_passes: 2,
+            stretch_rotation: StretchRotation::Polar,
             shape_cutoff: DEFAULT_SHAPE_CUTOFF,
             pinning: Pinning::Centroid,
         }

@@ -319,6 +319,10 @@ impl FramePositioner<'_> {
     pub fn rest_areas(&self) -> &[f64] {
         &self.areas
     }
+    /// The original frame's positions.
+    pub fn rest(&self) -> &[V3] {
+        self.rest
+    }
 
     /// Positions whose deformation gradients best match `rotations` (one per triangle) in the least-squares
     /// sense of the module documentation.

@@ -163,6 +163,7 @@ pub fn position_frame(
     t: usize,
     phi: &[V3],
     passes: usize,
+    rotation: super::stretch::StretchRotation,
 ) -> Result<PositionedFrame> {
     let clock = Instant::now();
     let rest = source.read_frame(t)?;
@@ -200,7 +201,7 @@ pub fn position_frame(
     let mut pass_times = Vec::with_capacity(passes);
     for _ in 0..passes {
         let clock = Instant::now();
-        out = super::stretch::pass(&fp, &out);
+        out = super::stretch::pass(&fp, &out, rotation);
         pass_times.push(clock.elapsed().as_secs_f64());
         measure(&out, &mut metrics);
     }

@@ -84,8 +84,15 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                 if env.ctx.progress.cancelled() {
                     return Err(TaskError::cancelled());
                 }
-                let r = stages::position_frame(&system, source, t, phi, passes)
-                    .map_err(|e| TaskError::from_core(&label, e));
+                let r = stages::position_frame(
+                    &system,
+                    source,
+                    t,
+                    phi,
+                    passes,
+                    env.params.stretch_rotation,
+                )
+                .map_err(|e| TaskError::from_core(&label, e));
                 env.progress().advance("position", 1);
                 r
             })

@@ -24,13 +24,18 @@ use std::collections::{HashMap, VecDeque};
 /// Orthonormal frame (e1, e2, n) of every triangle of one frame.
 type Frames = Vec<[V3; 3]>;
 
+/// Frames anchored to the edge between the triangle's two lowest vertex indices, so that the transport from
+/// frame to frame does not depend on the corner order (winding) of the triangle list.
 fn triangle_frames(topo: &Topology, p: &[V3]) -> Frames {
     topo.triangles()
         .iter()
         .map(|t| {
             let q = t.map(|v| p[v as usize]);
-            let (e1, e2, n) = super::stretch::tensor::local_frame(q);
-            [e1, e2, n]
+            let n = vec3::normalize(vec3::cross(vec3::sub(q[1], q[0]), vec3::sub(q[2], q[0])));
+            let mut s = *t;
+            s.sort_unstable();
+            let e1 = vec3::normalize(vec3::sub(p[s[1] as usize], p[s[0] as usize]));
+            [e1, vec3::cross(n, e1), n]
         })
         .collect()
 }

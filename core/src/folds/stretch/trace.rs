@@ -136,6 +136,13 @@ pub fn fold_angle(change: f64, width: f64, params: &StretchParams) -> f64 {
     (1.0 / (1.0 + lost / width)).acos().min(max_angle)
 }
 
+/// Queue order of a seed of shrinkage `s`: rounded to 1e-9, so that seeds equal up to rounding noise (a
+/// symmetric garment, the same mesh with another winding or vertex order) are taken by triangle index rather
+/// than by the noise.
+fn seed_priority(s: f64) -> u64 {
+    ((s - 1.0).max(0.0) * 1e9).round() as u64
+}
+
 /// +1 when the fold's ridge is on the side of the traced axis triangles' normals, −1 when on the other side.
 /// `bulge` sums, along the axis, the height of the axis point above the chord between the two control lines,
 /// measured along the axis triangle's normal: the fold the capture flattened still shows there. A flat
@@ -170,7 +177,13 @@ impl FoldTracer {
             .iter()
             .enumerate()
             .filter(|(_, &s)| s >= seed_min && s.is_finite())
-            .map(|(t, &s)| (self.prev_seed[t], s.to_bits(), std::cmp::Reverse(t as u32)))
+            .map(|(t, &s)| {
+                (
+                    self.prev_seed[t],
+                    seed_priority(s),
+                    std::cmp::Reverse(t as u32),
+                )
+            })
             .collect();
         let centroid = crate::folds::video::views::centroid(f.p);
         let mut consumed = vec![false; n_tri];
@@ -513,21 +526,36 @@ impl FoldTracer {
         let outward = vec3::dot(vec3::sub(f.geom.centroids[s], centroid), f.geom.normals[s]);
         let sigma = ridge_sign(bulge, f.h, outward);
         let mut samples = Vec::new();
-        for (k, side) in [-1.0f64, 1.0].into_iter().enumerate() {
-            for &(idx, t, bary, point, tan3) in &raw[k] {
+        for side in &raw {
+            for &(idx, t, bary, point, tan3) in side {
                 let Some(tan3) = tan3 else { continue };
-                let ta = axis[idx / density].1;
+                let (i, j) = (idx / density, idx % density);
+                // The axis point beside this sample, and the sample's offset from it.
+                let Some((a0, _)) = axis3[i] else { continue };
+                let beside = match (j, axis3.get(i + 1).copied().flatten()) {
+                    (0, _) => a0,
+                    (_, Some((a1, _))) => {
+                        let w = j as f64 / density as f64;
+                        vec3::add(vec3::scale(a0, 1.0 - w), vec3::scale(a1, w))
+                    }
+                    _ => continue,
+                };
+                let offset = vec3::sub(point, beside);
+                let ta = axis[i].1;
                 let angle = fold_angle(f.shrink[ta], width / f.h, params);
-                if angle <= 0.0 {
+                // A ridge towards `up` tilts the normal at each control line away from the axis: rotating `up`
+                // about `k` by θ > 0 moves it towards `k × up`, which must point along the offset, so
+                // `k ∥ up × offset`. Built from the geometry only — neither the tracing order nor the winding.
+                let up = vec3::scale(f.geom.normals[t], sigma);
+                let sense = vec3::dot(tan3, vec3::cross(up, offset));
+                if angle <= 0.0 || sense == 0.0 || !sense.is_finite() {
                     continue;
                 }
-                // side −1 (the line on the −normal side of the axis in the plane) rotates about +tangent for a
-                // ridge on the +normal side; σ turns it to the ridge's side.
                 samples.push(LineSample {
                     triangle: t as u32,
                     bary,
                     point,
-                    axis: vec3::scale(tan3, -side * sigma),
+                    axis: vec3::scale(tan3, sense.signum()),
                     angle,
                 });
             }

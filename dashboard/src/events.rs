@@ -124,3 +124,44 @@ pub async fn stream(
     });
     Sse::new(ReceiverStream::new(out).map(Ok)).keep_alive(KeepAlive::default())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crease_coordinator::{CoordinatorConfig, Scheduler};
+
+    #[tokio::test]
+    async fn only_rows_that_changed_since_last_sent_are_pushed_again() {
+        let dir = tempfile::tempdir().unwrap();
+        let fixture =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../cli/tests/fixtures/sleeve");
+        let spec = format!(
+            "input = {:?}\noutput = {:?}\n",
+            fixture.display().to_string(),
+            dir.path().join("out").display().to_string()
+        );
+        let scheduler = Scheduler::open(CoordinatorConfig::default()).unwrap();
+        let (id, _) = scheduler.submit(&spec, "toml").await.unwrap();
+        let s = AppState {
+            scheduler: std::sync::Arc::clone(&scheduler),
+            tokens: Default::default(),
+            https: false,
+        };
+        let mut sent = Sent::new();
+        // Nothing sent yet: the job is new to this stream.
+        assert_eq!(changed_jobs(&s, &mut sent).len(), 1);
+        assert_eq!(sent[&id][0], "queued");
+        // Nothing changed: nothing is pushed.
+        assert!(changed_jobs(&s, &mut sent).is_empty());
+        // A change the stream did not see as an event is pushed on the next tick, once.
+        scheduler.cancel(&id).unwrap();
+        assert_eq!(changed_jobs(&s, &mut sent).len(), 1);
+        assert_eq!(sent[&id][0], "cancelled");
+        assert!(changed_jobs(&s, &mut sent).is_empty());
+        // A full snapshot resets what was sent to exactly the listed jobs.
+        sent.insert("job-gone".into(), Value::Null);
+        let _ = jobs_event(&s, &mut sent);
+        assert_eq!(sent.len(), 1);
+        assert!(changed_jobs(&s, &mut sent).is_empty());
+    }
+}

@@ -1,13 +1,14 @@
 //! `crease export` writes files the DCCs and engines read: GLB that Khronos' glTF-Validator passes, USD that
 //! Pixar's USD opens with the OBJ's points, and MDD/PC2 point caches that read back frame for frame.
 
-mod support;
 mod tools;
 
 use crease_core::mesh::io::{open_sequence, read_pc2_header, read_pc2_sample_from};
+use crease_e2e::{fixture, stderr};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use support::{fixture, stderr, BIN};
+
+const BIN: &str = env!("CARGO_BIN_EXE_crease");
 
 fn export(input: &Path, format: &str, out: &Path) -> std::process::Output {
     Command::new(BIN)

@@ -1,13 +1,14 @@
 //! Farms run crease's task graph: `crease export-job` writes an OpenJD template that `openjd check` accepts and
 //! `openjd run` executes end to end through `crease task run`, with outputs byte-identical to `crease run`.
 
-mod support;
 mod tools;
 
 use crease_core::mesh::io::{open_sequence, read_pc2_header, read_pc2_sample_from};
+use crease_e2e::*;
 use std::path::Path;
 use std::process::Command;
-use support::*;
+
+const BIN: &str = env!("CARGO_BIN_EXE_crease");
 
 fn crease(args: &[&str]) -> std::process::Output {
     Command::new(BIN).args(args).output().unwrap()

@@ -48,8 +48,8 @@ impl FarmRunError {
     /// Whether the farm should retry: storage or I/O trouble, never a bad job, key or input data.
     pub fn retryable(&self) -> bool {
         match self {
-            FarmRunError::Job(e) => TaskError::from_job(e).retryable,
-            FarmRunError::Task { error, .. } => error.retryable,
+            FarmRunError::Job(e) => TaskError::from_job(e).retryable(),
+            FarmRunError::Task { error, .. } => error.retryable(),
         }
     }
 }

@@ -1,17 +1,16 @@
 //! The dashboard in a real browser: headless Chromium (Debian's package) driven by Playwright for Python
-//! (tests/browser/dashboard.py) against a real coordinator and worker on 127.0.0.1 with client tokens on.
+//! (tests/tests/browser/dashboard.py) against a real coordinator and worker on 127.0.0.1 with client tokens on.
 //! The script signs in, submits a job and watches its progress bar move to done without polling, opens the
 //! job and sees preview.png load, cancels a second job and sees its state change, and saves screenshots to
 //! target/test-artifacts/dashboard/. Chromium and Playwright come from scripts/setup-tools; without them this
 //! test fails and says so.
 
 mod dashboard_support;
-mod support;
 
+use crease_e2e::*;
 use dashboard_support::*;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use support::*;
 
 fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -56,9 +55,14 @@ fn a_browser_watches_a_job_finish_sees_its_preview_and_cancels_another() {
     let artifacts = workspace().join("target/test-artifacts/dashboard");
     let _ = std::fs::remove_dir_all(&artifacts);
     let out = Command::new(python)
-        .arg(workspace().join("cli/tests/browser/dashboard.py"))
+        .arg(workspace().join("tests/tests/browser/dashboard.py"))
         .args(["--url", &format!("http://127.0.0.1:{port}")])
-        .args(["--coordinator", &c.url(), "--crease", BIN])
+        .args([
+            "--coordinator",
+            &c.url(),
+            "--crease",
+            bin().to_str().expect("utf-8 binary path"),
+        ])
         .args(["--token-file", d.join("client-tokens").to_str().unwrap()])
         .args(["--worker-token", WORKER_TOKEN])
         .args(["--job", job1.to_str().unwrap()])

@@ -4,11 +4,10 @@
 //! login cookie, and HTTPS with the coordinator's own certificate.
 
 mod dashboard_support;
-mod support;
 
+use crease_e2e::*;
 use dashboard_support::*;
 use std::process::Command;
-use support::*;
 
 fn assert_json_error(r: &Resp, status: u16) {
     assert_eq!(r.status, status, "{}\n{}", r.head, r.text());
@@ -267,7 +266,7 @@ fn with_tls_the_dashboard_is_https_only_and_its_cookie_is_secure() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let certs = d.join("certs");
-    let o = Command::new(BIN)
+    let o = Command::new(bin())
         .args(["certs", "--out", certs.to_str().unwrap()])
         .output()
         .unwrap();

@@ -3,7 +3,7 @@
 //! and body exactly as sent.
 #![allow(dead_code)]
 
-use crate::support::*;
+use crease_e2e::*;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};

@@ -49,8 +49,8 @@ pub struct DeformArgs {
     /// Anchor columns per block in per-anchor mode.
     #[arg(long, default_value_t = 256)]
     pub anchor_block: usize,
-    /// Stretch-reduction passes.
-    #[arg(long, default_value_t = 2)]
+    /// Stretch-reduction passes (each reuses the frame's factor).
+    #[arg(long, default_value_t = 5)]
     pub stretch_passes: usize,
     /// Rotation of each stretch pass: `polar` (closest to the triangle's deformation) or `normal` (the paper's
     /// original-to-new normal).

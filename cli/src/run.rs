@@ -50,7 +50,7 @@ pub struct DeformArgs {
     #[arg(long, default_value_t = 256)]
     pub anchor_block: usize,
     /// Stretch-reduction passes (each reuses the frame's factor).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 2)]
     pub stretch_passes: usize,
     /// Rotation of each stretch pass: `polar` (closest to the triangle's deformation) or `normal` (the paper's
     /// original-to-new normal).

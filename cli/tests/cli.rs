@@ -88,11 +88,10 @@ fn demo_runs_end_to_end() {
     }
     // Stretch passes do their job and the folds actually moved vertices.
     let stretch = report["report"]["stretch"].as_array().unwrap();
-    // After positioning and after each of the default five passes.
-    assert_eq!(stretch.len(), 6);
+    assert_eq!(stretch.len(), 3);
     let max0 = stretch[0]["max"].as_f64().unwrap();
-    let max5 = stretch[5]["max"].as_f64().unwrap();
-    assert!(max5 < max0, "{max0} -> {max5}");
+    let max2 = stretch[2]["max"].as_f64().unwrap();
+    assert!(max2 < max0, "{max0} -> {max2}");
     // The shape figures are in the summary, and the folds did not move the garment as a whole.
     let shape = &report["summary"]["shape_kept"];
     assert!(shape["displacement_max"].as_f64().unwrap() > 0.0, "{shape}");

@@ -28,7 +28,7 @@
 //! window = 10
 //! shift = 7
 //! cg_tolerance = 1e-3
-//! stretch_passes = 5
+//! stretch_passes = 2
 //!
 //! [partition]
 //! anchor_block = 256                       # anchor columns per weight task (per-anchor mode)

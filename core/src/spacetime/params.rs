@@ -81,7 +81,7 @@ impl Default for DeformParams {
             cg_max_iterations: 2000,
             mode: WeightMode::Fused,
             anchor_block: 256,
-            stretch_passes: 5,
+            stretch_passes: 2,
             stretch_rotation: StretchRotation::Polar,
             shape_cutoff: DEFAULT_SHAPE_CUTOFF,
             pinning: Pinning::Centroid,

@@ -228,7 +228,7 @@ pub fn extent_change(captured: &[V3], out: &[V3]) -> f64 {
     let ext_c = vec3::sub(hi_c, lo_c);
     let ext_o = vec3::sub(hi_o, lo_o);
     let largest = ext_c[0].max(ext_c[1]).max(ext_c[2]);
-    if !(largest > 0.0) {
+    if largest.is_nan() || largest <= 0.0 {
         return 0.0;
     }
     (0..3)

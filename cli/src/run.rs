@@ -49,7 +49,7 @@ pub struct DeformArgs {
     /// Anchor columns per block in per-anchor mode.
     #[arg(long, default_value_t = 256)]
     pub anchor_block: usize,
-    /// Stretch-reduction passes.
+    /// Stretch-reduction passes (each reuses the frame's factor).
     #[arg(long, default_value_t = 2)]
     pub stretch_passes: usize,
     /// Rotation of each stretch pass: `polar` (closest to the triangle's deformation) or `normal` (the paper's

@@ -90,6 +90,10 @@ fn demo_runs_end_to_end() {
     let max0 = stretch[0]["max"].as_f64().unwrap();
     let max2 = stretch[2]["max"].as_f64().unwrap();
     assert!(max2 < max0, "{max0} -> {max2}");
+    // The shape figures are in the summary, and the folds did not move the garment as a whole.
+    let shape = &report["summary"]["shape_kept"];
+    assert!(shape["displacement_max"].as_f64().unwrap() > 0.0, "{shape}");
+    assert!(shape["drift_mean"].as_f64().unwrap() < shape["displacement_mean"].as_f64().unwrap());
     let a = obj_vertices(&out.join("input/frame_0006.obj"));
     let b = obj_vertices(&out.join("output/frame_0006.obj"));
     let moved = a

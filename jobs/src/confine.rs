@@ -490,6 +490,7 @@ mod tests {
         for n in [0usize, 1, 9999, 1 << 20, usize::MAX] {
             for key in [
                 crate::keys::fold_chunk(n),
+                crate::keys::fold_chunk_timing(n),
                 crate::keys::block_partial(n, n),
                 crate::keys::block_stats(n, n),
                 crate::keys::window_field(n, n),

@@ -41,6 +41,10 @@ pub const FINALIZE_TASK: &str = "finalize";
 pub fn fold_chunk(first_frame: usize) -> String {
     format!("{WORK_DIR}/folds/f{first_frame:06}.json")
 }
+/// Seconds the detection of the chunk starting at `first_frame` took (sidecar; differs between runs).
+pub fn fold_chunk_timing(first_frame: usize) -> String {
+    format!("{WORK_DIR}/folds/f{first_frame:06}.timings.json")
+}
 /// Partial blend of one anchor block: (n, 4) f64 rows `node, x, y, z`.
 pub fn block_partial(window: usize, block: usize) -> String {
     format!("{WORK_DIR}/weights/w{window:04}/b{block:05}.npy")

@@ -50,6 +50,7 @@ pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>
         )));
     }
     env.check_cancelled()?;
+    let clock = std::time::Instant::now();
     let (found, artifacts) = d
         .detect_with_artifacts(opened.source.as_ref(), frames.clone(), env.progress())
         .map_err(|e| TaskError::from_core(&label, e))?;
@@ -60,9 +61,15 @@ pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>
             "{label}: the detector returned frames {got:?}, expected {expected:?}"
         )));
     }
+    let seconds = clock.elapsed().as_secs_f64();
     let key = keys::fold_chunk(frames.start);
     env.put_json(&key, &found)?;
-    let mut written = vec![key];
+    let timing = keys::fold_chunk_timing(frames.start);
+    env.put_json(
+        &timing,
+        &json!({ "seconds": seconds, "frames": frames.len() }),
+    )?;
+    let mut written = vec![key, timing];
     // Overlays go straight to their final keys: they depend on this chunk's frames only, and a rerun rewrites
     // the same bytes.
     for a in artifacts {
@@ -79,9 +86,30 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let n = opened.source.n_frames();
     let n_tri = opened.source.topology().n_triangles();
     let mut frames: Vec<FrameAnchors> = Vec::with_capacity(n);
+    // Per frame, for report.json: anchors, control lines and detection seconds (a chunk's time spread evenly
+    // over its frames: a whole-sequence detector has one chunk, so that is its mean per frame).
+    let mut per_frame: Vec<Value> = Vec::with_capacity(n);
     for r in chunks(env, n) {
         env.check_cancelled()?;
         let chunk: Vec<FrameAnchors> = env.get_json(&keys::fold_chunk(r.start))?;
+        let timing: Value = env.get_json(&keys::fold_chunk_timing(r.start))?;
+        let seconds = timing
+            .get("seconds")
+            .and_then(Value::as_f64)
+            .ok_or_else(|| {
+                TaskError::fatal(format!(
+                    "{}: no `seconds`",
+                    env.out.describe(&keys::fold_chunk_timing(r.start))
+                ))
+            })?;
+        for f in &chunk {
+            per_frame.push(json!({
+                "frame": f.frame,
+                "anchors": f.anchors.len(),
+                "control_lines": f.control_lines.len(),
+                "detection_seconds": seconds / r.len().max(1) as f64,
+            }));
+        }
         frames.extend(chunk);
     }
     let frames = d
@@ -105,7 +133,8 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
     env.put(keys::CONTROL_LINES, back.control_lines_obj())?;
     // What finalize puts into report.json as `fold_detection`.
-    let mut summary = json!({ "source": d.name(), "anchors": back.total() });
+    let mut summary =
+        json!({ "source": d.name(), "anchors": back.total(), "per_frame": per_frame });
     let extra = d
         .summary(opened.source.as_ref())
         .map_err(|e| TaskError::from_core("fold merge: detection summary", e))?;

@@ -3,42 +3,6 @@
 //! count it per job, and `crease unblock` clears it.
 
 use crease_e2e::*;
-use std::io::{Read, Write};
-use std::net::TcpStream;
-use std::time::Duration;
-
-/// `GET /metrics` on `addr`.
-fn scrape(addr: &str) -> String {
-    let mut s = TcpStream::connect(addr).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    write!(
-        s,
-        "GET /metrics HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
-    )
-    .unwrap();
-    let mut buf = String::new();
-    s.read_to_string(&mut buf).unwrap();
-    buf
-}
-
-/// The `host:port` the coordinator logged its metrics on.
-fn metrics_addr(log: &std::path::Path) -> String {
-    let mut addr = String::new();
-    wait_until("the metrics address", || {
-        let text = std::fs::read_to_string(log).unwrap_or_default();
-        match text.split("metrics listening on ").nth(1) {
-            Some(rest) => {
-                addr = rest
-                    .chars()
-                    .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == ':')
-                    .collect();
-                true
-            }
-            None => false,
-        }
-    });
-    addr
-}
 
 #[test]
 fn status_and_metrics_show_a_blocklisted_worker_with_its_failures_and_unblock_clears_it() {
@@ -102,7 +66,8 @@ fn status_and_metrics_show_a_blocklisted_worker_with_its_failures_and_unblock_cl
         "{text}"
     );
     // The metric counts it for this job.
-    let m = scrape(&maddr);
+    let (code, m) = get(&maddr, "/metrics");
+    assert_eq!(code, 200);
     let series = format!("crease_job_blocklisted_workers{{job=\"{id}\"}} 1");
     assert!(m.lines().any(|l| l == series), "no `{series}` in\n{m}");
 

@@ -5,8 +5,11 @@
 //! overwrites identically; each attempt has a number and a report for an attempt already given up on is
 //! ignored; a task is retried with exponential backoff up to the job's `max_task_attempts`; a job fails after
 //! `max_task_failures_per_job` failed attempts; a worker that failed a job `blacklist_after` times gets no more
-//! of its tasks while another worker can take them; after a restart the tasks that were running are queued
-//! again; with no live worker a job reports `waiting` and fails after the grace period.
+//! of its tasks while another worker can take them (`status` shows it, `crease unblock` clears it); after a
+//! restart the attempts that were running are adopted by their workers when these register again (they kept
+//! running and hold their results), and only those nobody reports within two worker timeouts are queued again;
+//! with no live worker a job reports `waiting` and fails after the grace period. One coordinator per queue
+//! file ([`queue_lock`]).
 
 //!
 //! Logs are `tracing` events with `job_id`, `task`, `attempt` and `worker` fields; the process that embeds the

@@ -7,10 +7,12 @@
 
 pub mod binary;
 pub mod cluster;
+pub mod http;
 pub mod outputs;
 pub mod process;
 
 pub use binary::bin;
 pub use cluster::Coordinator;
+pub use http::{get, http_get, metrics_addr};
 pub use outputs::*;
 pub use process::*;

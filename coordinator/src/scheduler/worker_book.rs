@@ -110,14 +110,7 @@ impl Scheduler {
             );
             let running = lock(&self.store).running_tasks(None)?;
             for (job, key, attempt, w) in running.into_iter().filter(|r| r.3 == wid) {
-                let claim = Claim {
-                    job_id: job.clone(),
-                    key: key.clone(),
-                    kind: String::new(),
-                    payload: String::new(),
-                    attempt,
-                    expands: false,
-                };
+                let claim = Claim::of_attempt(&job, &key, attempt);
                 let f = Failure::new(
                     FailureKind::WorkerLost,
                     format!(
@@ -172,14 +165,7 @@ impl Scheduler {
         }
         let left: Vec<_> = lock(&self.orphans).drain().collect();
         for ((job, key, attempt), worker) in left {
-            let claim = Claim {
-                job_id: job.clone(),
-                key: key.clone(),
-                kind: String::new(),
-                payload: String::new(),
-                attempt,
-                expands: false,
-            };
+            let claim = Claim::of_attempt(&job, &key, attempt);
             let f = Failure::new(
                 FailureKind::CoordinatorRestart,
                 format!(

@@ -2,7 +2,7 @@
 //! into `.tools/venv`), one per test binary, on a free 127.0.0.1 port. The process environment gets the
 //! standard `AWS_*` variables pointing at it, so the code under test (and every process a test starts)
 //! configures itself exactly as it would against a real endpoint. Shared by `jobs/tests/s3.rs` and
-//! `cli/tests/storage.rs` (included there by path).
+//! `tests/tests/storage.rs` (the end-to-end crate, included there by path).
 //!
 //! The server dies with the test binary: it runs under a small shell watchdog that kills it once the test
 //! process is gone (a `static` is never dropped, so a `Drop` impl alone would leave it running).

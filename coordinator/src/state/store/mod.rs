@@ -168,6 +168,20 @@ pub struct Claim {
     pub expands: bool,
 }
 
+impl Claim {
+    /// An attempt known only by its identity (a lost worker's or an orphaned one): enough to fail it.
+    pub fn of_attempt(job_id: &str, key: &str, attempt: u32) -> Self {
+        Claim {
+            job_id: job_id.to_string(),
+            key: key.to_string(),
+            kind: String::new(),
+            payload: String::new(),
+            attempt,
+            expands: false,
+        }
+    }
+}
+
 /// What became of a reported attempt.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Outcome {

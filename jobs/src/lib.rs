@@ -68,6 +68,7 @@
 //! | `<input file names>` | position (OBJ/PLY frames), finalize (OBJ + PC2) | the output sequence in the input's layout |
 //! | `anchors.json` | fold-merge | detected anchors (detection jobs only) |
 //! | `preview.png`, `stretch.png` | finalize | before/after preview, stretch per frame and pass |
+//! | `export/<job name>.glb`, `.usda`, `.mdd`, `.pc2` | finalize | the `[export]` formats ([`export_spec`]) |
 //! | `report.json` | finalize, **last** | `"complete": true`, parameters, per-window stats, stretch, timings |
 //! | `.crease-work/weights/wWWWW/bBBBBB.npy` | weight-block | partial blend, (n, 4) f64 rows `node, x, y, z` |
 //! | `.crease-work/fields/wWWWW/fFFFFFF.npy` | weight-window / reduce | window field at one frame, (triangles, 3) f64 |

@@ -167,11 +167,14 @@ pub fn export(
         ));
     }
     let stage = format!("export {format}");
+    let n = source.n_frames();
+    // GLB keeps the base frame between its passes; USD reads every frame twice.
     let reads = match format {
-        ExportFormat::Glb | ExportFormat::Usd => 2,
-        ExportFormat::Mdd | ExportFormat::Pc2 => 1,
+        ExportFormat::Glb => 2 * n - 1,
+        ExportFormat::Usd => 2 * n,
+        ExportFormat::Mdd | ExportFormat::Pc2 => n,
     };
-    progress.begin(&stage, (reads * source.n_frames()) as u64);
+    progress.begin(&stage, reads as u64);
     let frames = FrameReader {
         source,
         progress,

@@ -5,6 +5,8 @@
 //! range `Index` over its tasks, so a template stays small for any shot length (OpenJD's string lists are
 //! capped at 1,024 values, integer ranges are not). Step dependencies are the stage dependencies of the
 //! graph. Job parameters `JobFile` and `CreaseExe` say where the job file and the binary are on the workers.
+//! `JobFile` is a STRING, not a PATH: OpenJD wants PATH defaults relative to the template, while crease jobs
+//! name absolute paths on storage every node mounts at the same place.
 
 use super::command::FarmCommand;
 use super::graph::FarmGraph;
@@ -57,11 +59,9 @@ pub fn openjd_template(name: &str, graph: &FarmGraph, cmd: &FarmCommand) -> Stri
         "parameterDefinitions": [
             {
                 "name": "JobFile",
-                "type": "PATH",
-                "objectType": "FILE",
-                "dataFlow": "IN",
+                "type": "STRING",
                 "default": cmd.job_file,
-                "description": "The crease job file (job.toml) as the workers see it",
+                "description": "The crease job file (job.toml), absolute, as the workers see it",
             },
             {
                 "name": "CreaseExe",

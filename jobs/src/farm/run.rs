@@ -48,6 +48,8 @@ impl FarmRunError {
     /// Whether the farm should retry: storage or I/O trouble, never a bad job, key or input data.
     pub fn retryable(&self) -> bool {
         match self {
+            // A key that is not in the graph or a bad job file fails the same way on every attempt.
+            FarmRunError::Job(JobError::Plan(_) | JobError::Spec { .. }) => false,
             FarmRunError::Job(e) => TaskError::from_job(e).retryable(),
             FarmRunError::Task { error, .. } => error.retryable(),
         }

@@ -50,7 +50,7 @@ pub struct StretchArgs {
     #[arg(long = "stretch-patch-radius", default_value_t = StretchParams::default().patch_radius, allow_hyphen_values = true)]
     pub patch_radius: f64,
     /// Anchor angle (radians) per unit of shrinkage |v| − 1; 0 = the angle that gives back the length the
-    /// capture lost (default).
+    /// capture lost.
     #[arg(long = "stretch-angle-gain", default_value_t = StretchParams::default().angle_gain, allow_hyphen_values = true)]
     pub angle_gain: f64,
     /// Cap of the anchor angle, degrees.

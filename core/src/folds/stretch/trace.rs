@@ -102,6 +102,10 @@ struct Patch {
 /// An axis in the patch's plane: points with the triangle each lies in.
 type Axis = Vec<([f64; 2], usize)>;
 
+/// A control-line sample before its anchor is decided: (axis index · density + sub-step, triangle,
+/// barycentrics, 3D point, unit 3D fold tangent).
+type RawSample = (usize, usize, [f64; 3], V3, Option<V3>);
+
 fn tri_pts(topo: &Topology, p: &[V3], t: usize) -> [V3; 3] {
     topo.triangles()[t].map(|v| p[v as usize])
 }
@@ -119,14 +123,14 @@ fn point3(f: &FrameField, t: usize, bary: [f64; 3]) -> V3 {
 }
 
 /// Anchor angle (radians) of a fold of width `width` (in mean edge lengths) where the integrated shrinkage is
-/// `change`. With `angle_gain` > 0, the linear law `gain · (|v| − 1)`. Otherwise (default) from the material:
+/// `change`. With `angle_gain` > 0 (default), the linear law `gain · (|v| − 1)`. With 0, from the material:
 /// the region of influence, 2·α·|v| edge lengths across, was `|v|` times longer in its least-compressed state
 /// (the phase's reference, §4.3), so it lost `2α|v|(|v| − 1)`; two anchors rotating ±θ on a strip of width `w`
 /// lengthen it by `w (1/cos θ − 1)`, which gives the length back when `1/cos θ = 1 + lost / w`. Capped at
 /// `max_angle`.
 pub fn fold_angle(change: f64, width: f64, params: &StretchParams) -> f64 {
     let max_angle = params.max_angle_deg.to_radians();
-    if !(change > 1.0) || !(width > 0.0) {
+    if change.is_nan() || change <= 1.0 || width.is_nan() || width <= 0.0 {
         return 0.0;
     }
     if params.angle_gain > 0.0 {
@@ -452,7 +456,7 @@ impl FoldTracer {
         let width = params.fold_width * f.h / f.shrink[s];
         let density = self.density;
         // Per side: (axis index, sample on the mesh, unit 3D tangent).
-        let mut raw: [Vec<(usize, usize, [f64; 3], V3, Option<V3>)>; 2] = [Vec::new(), Vec::new()];
+        let mut raw: [Vec<RawSample>; 2] = [Vec::new(), Vec::new()];
         let mut lines: Vec<Vec<V3>> = Vec::new();
         for (k, side) in [-1.0f64, 1.0].into_iter().enumerate() {
             let mut line: Vec<V3> = Vec::new();
@@ -627,7 +631,10 @@ mod tests {
     /// The material angle gives back exactly the length the region of influence lost, until the cap.
     #[test]
     fn fold_angle_recovers_the_lost_length() {
-        let p = StretchParams::default();
+        let p = StretchParams {
+            angle_gain: 0.0,
+            ..Default::default()
+        };
         for change in [1.02, 1.05, 1.1] {
             let w = p.fold_width / change;
             let theta = fold_angle(change, w, &p);

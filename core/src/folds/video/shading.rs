@@ -55,7 +55,7 @@ pub fn normal_image(
     let mut hit: Vec<Option<(u32, [f64; 3])>> = vec![None; w * h];
     for (ti, tri) in topo.triangles().iter().enumerate() {
         let q = tri.map(|v| cam[v as usize]);
-        if q.iter().any(|c| !(c[2] > 1e-9)) {
+        if q.iter().any(|c| c[2].is_nan() || c[2] <= 1e-9) {
             continue;
         }
         let uv = q.map(|c| {
@@ -66,7 +66,7 @@ pub fn normal_image(
         });
         let det = (uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1])
             - (uv[2][0] - uv[0][0]) * (uv[1][1] - uv[0][1]);
-        if !(det.abs() > 1e-12) {
+        if det.is_nan() || det.abs() <= 1e-12 {
             continue;
         }
         let lo = |k: usize| uv.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min);
@@ -126,6 +126,7 @@ pub fn normal_image(
         .collect()
 }
 
+#[allow(clippy::needless_range_loop)]
 /// Solves the symmetric positive (semi)definite system `a x = b` by Cholesky, with a tiny ridge.
 fn solve(mut a: [[f64; N_SH]; N_SH], b: [f64; N_SH]) -> Option<[f64; N_SH]> {
     let scale = (0..N_SH).map(|i| a[i][i]).fold(0.0, f64::max).max(1e-300);
@@ -137,7 +138,7 @@ fn solve(mut a: [[f64; N_SH]; N_SH], b: [f64; N_SH]) -> Option<[f64; N_SH]> {
         for j in 0..=i {
             let s: f64 = a[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
             if i == j {
-                if !(s > 0.0) {
+                if s.is_nan() || s <= 0.0 {
                     return None;
                 }
                 l[i][i] = s.sqrt();
@@ -157,6 +158,7 @@ fn solve(mut a: [[f64; N_SH]; N_SH], b: [f64; N_SH]) -> Option<[f64; N_SH]> {
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
+#[allow(clippy::needless_range_loop)] // Matrix code reads best with indices.
 /// Robust least-squares lighting: SH coefficients such that `sh_basis(n) · c ≈ g` over the samples `(n, g)`.
 pub fn fit_lighting(samples: &[(V3, f32)]) -> Option<[f64; N_SH]> {
     if samples.len() < 4 * N_SH {

@@ -15,6 +15,7 @@
 
 pub mod client;
 pub mod config;
+pub mod live;
 pub mod metrics;
 pub mod scheduler;
 pub mod server;

@@ -56,6 +56,7 @@ pub struct Scheduler {
     no_workers_since: Mutex<Option<Instant>>,
     next_worker: Mutex<u32>,
     metrics: CoordinatorMetrics,
+    live: crate::live::LiveProgress,
 }
 
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -93,6 +94,7 @@ impl Scheduler {
             no_workers_since: Mutex::new(Some(Instant::now())),
             next_worker: Mutex::new(next),
             metrics: CoordinatorMetrics::default(),
+            live: Default::default(),
         }))
     }
 
@@ -144,10 +146,11 @@ impl Scheduler {
                 .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         let defs = crease_jobs::plan(&spec, &info)
             .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
-        // A report left by an earlier run must not vouch for this job while it runs.
+        // A report left by an earlier run must not vouch for this job while it runs, and files only an earlier
+        // run wrote must not stand beside this one's result (crease_jobs::stale).
         let out =
             Storage::open(&spec.output).map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
-        out.delete(crease_jobs::keys::REPORT)
+        crease_jobs::stale::claim_output(&out, &spec, &info)
             .await
             .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         let name = if spec.name.is_empty() {
@@ -185,14 +188,36 @@ impl Scheduler {
     pub fn status(&self, job_id: &str, with_tasks: bool) -> Result<pb::JobStatus, ApiError> {
         let store = lock(&self.store);
         let job = store.job(job_id)?;
-        status_of(&store, &job, with_tasks)
+        self.status_with_running(&store, &job, with_tasks)
+    }
+
+    /// [`status_of`] plus the running tasks' workers and latest progress ([`crate::live`]).
+    fn status_with_running(
+        &self,
+        store: &Store,
+        job: &JobRow,
+        with_tasks: bool,
+    ) -> Result<pb::JobStatus, ApiError> {
+        let mut status = status_of(store, job, with_tasks)?;
+        if status.tasks_running > 0 {
+            if !with_tasks {
+                status.tasks = status_of(store, job, true)?.tasks;
+            }
+            self.live.fill(&mut status);
+            if !with_tasks {
+                status.tasks.clear();
+            }
+        }
+        Ok(status)
     }
 
     /// All jobs, newest first.
     pub fn list(&self) -> Result<Vec<pb::JobStatus>, ApiError> {
         let store = lock(&self.store);
         let jobs = store.list_jobs()?;
-        jobs.iter().map(|j| status_of(&store, j, false)).collect()
+        jobs.iter()
+            .map(|j| self.status_with_running(&store, j, false))
+            .collect()
     }
 
     /// Cancels a job: queued tasks are dropped and workers are told to stop its running tasks.
@@ -891,7 +916,7 @@ impl Scheduler {
     }
 
     fn emit(&self, job_id: &str, kind: &str, key: &str, message: &str, done: u64, total: u64) {
-        let _ = self.events.send(pb::JobEvent {
+        let ev = pb::JobEvent {
             job_id: job_id.to_string(),
             kind: kind.to_string(),
             task_key: key.to_string(),
@@ -899,7 +924,9 @@ impl Scheduler {
             done,
             total,
             status: None,
-        });
+        };
+        self.live.observe(&ev);
+        let _ = self.events.send(ev);
     }
 }
 
@@ -975,5 +1002,6 @@ fn status_of(store: &Store, job: &JobRow, with_tasks: bool) -> Result<pb::JobSta
         finished_unix: job.finished,
         tasks,
         work_seconds: c.work_seconds,
+        running: Vec::new(),
     })
 }

@@ -1,13 +1,17 @@
 //! `crease`: puts fine, temporally coherent folds back into captured garment mesh sequences.
 
+mod arg_errors;
 mod bench;
 mod bench_cluster;
 mod bench_soak;
 mod certs;
 mod cluster;
+mod error_text;
 mod eval;
 mod folds_stretch;
 mod folds_video;
+#[cfg(test)]
+mod help_tree;
 mod limits_args;
 mod local;
 mod logging;
@@ -15,8 +19,11 @@ mod logs;
 mod progress;
 mod run;
 mod security_args;
+mod threads;
+mod urls;
+mod watch;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(
@@ -25,9 +32,6 @@ use clap::{Parser, Subcommand};
     about = "Space-time wrinkling of captured garment sequences (Popa et al. 2009)"
 )]
 struct Cli {
-    /// Worker threads for the numerics (default: all cores).
-    #[arg(long, global = true)]
-    threads: Option<usize>,
     #[command(subcommand)]
     command: Command,
 }
@@ -50,8 +54,9 @@ enum Command {
     Submit(cluster::SubmitArgs),
     /// Status of one job (or all jobs).
     Status(cluster::StatusArgs),
-    /// Follow a job's progress until it ends.
-    Watch(cluster::JobArgs),
+    /// Follow a job's progress until it ends, riding out coordinator restarts; the exit status says how it ended.
+    #[command(after_help = watch::EXIT_CODES)]
+    Watch(watch::WatchArgs),
     /// Cancel a job.
     Cancel(cluster::JobArgs),
     /// List the coordinator's jobs.
@@ -62,11 +67,32 @@ enum Command {
     Certs(certs::CertsArgs),
 }
 
+fn lossy(args: &[std::ffi::OsString]) -> Vec<String> {
+    args.iter()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect()
+}
+
 fn main() {
-    let cli = Cli::parse();
-    if let Some(n) = cli.threads {
+    let args_os: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let matches = match threads::add_to(Cli::command()).try_get_matches_from(&args_os) {
+        Ok(m) => m,
+        Err(e) => match arg_errors::negative_value(&e, &lossy(&args_os)) {
+            Some(msg) => {
+                eprintln!("error: {msg}");
+                std::process::exit(2);
+            }
+            None => e.exit(),
+        },
+    };
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let threads = threads::requested(&matches).unwrap_or_else(|e| {
+        eprintln!("error: {e:#}");
+        std::process::exit(2);
+    });
+    if let Some(n) = threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
+            .num_threads(n)
             .build_global()
         {
             eprintln!("error: cannot set up {n} threads: {e}");
@@ -82,14 +108,15 @@ fn main() {
         Command::Worker(a) => cluster::worker(a),
         Command::Submit(a) => cluster::submit(a),
         Command::Status(a) => cluster::status(a),
-        Command::Watch(a) => cluster::watch(a),
+        Command::Watch(a) => watch::watch(a),
         Command::Cancel(a) => cluster::cancel(a),
         Command::Jobs(a) => cluster::jobs(a),
         Command::Logs(a) => logs::logs(a),
         Command::Certs(a) => certs::certs(a),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
-        std::process::exit(1);
+        eprintln!("error: {}", error_text::one_line(&e));
+        let code = e.downcast_ref::<watch::Ended>().map_or(1, |end| end.code);
+        std::process::exit(code);
     }
 }

@@ -10,7 +10,6 @@ use crate::bench::BenchArgs;
 use crate::local::LocalCluster;
 use anyhow::{bail, Context, Result};
 use crease_coordinator::JobClient;
-use crease_core::mesh::io::write_obj_sequence;
 use serde_json::json;
 use std::time::Instant;
 
@@ -26,16 +25,7 @@ pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
         dir.display()
     );
     let (seq, anchors) = crate::bench::case_input(triangles, a.frames, a.anchors)?;
-    std::fs::create_dir_all(&input).with_context(|| format!("creating {}", input.display()))?;
-    write_obj_sequence(
-        &input,
-        &seq.topology,
-        seq.frames
-            .iter()
-            .enumerate()
-            .map(|(t, f)| (format!("frame_{:04}.obj", t + 1), f.as_slice())),
-    )?;
-    anchors.write(&anchors_path)?;
+    crease_core::synth::write_demo(&dir, &seq, &anchors)?;
     drop(seq);
     let threads = rayon::current_num_threads();
     println!(

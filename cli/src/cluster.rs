@@ -7,7 +7,6 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use crease_coordinator::{CoordinatorConfig, JobClient, RemoteClient, Scheduler};
 use crease_proto as pb;
-use futures::StreamExt;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -165,14 +164,14 @@ pub fn coordinator(a: CoordinatorArgs) -> Result<()> {
 
 #[derive(Args, Debug)]
 pub struct WorkerArgs {
-    /// Coordinator URL.
-    #[arg(long, env = "CREASE_COORDINATOR", default_value = DEFAULT_COORDINATOR)]
+    /// Coordinator URL (http:// or https://).
+    #[arg(long, env = "CREASE_COORDINATOR", default_value = DEFAULT_COORDINATOR, value_parser = crate::urls::parse)]
     pub coordinator: String,
     /// Address of this worker's gRPC server (port 0 = any free port).
     #[arg(long, default_value = "127.0.0.1:0")]
     pub listen: SocketAddr,
     /// URL the coordinator reaches this worker at (default: http://<bound address>).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::urls::parse)]
     pub advertise: Option<String>,
     /// Name shown in logs (default: worker-<pid>).
     #[arg(long)]
@@ -231,8 +230,8 @@ pub fn worker(a: WorkerArgs) -> Result<()> {
 
 #[derive(Args, Debug)]
 pub struct ClientArgs {
-    /// Coordinator URL.
-    #[arg(long, env = "CREASE_COORDINATOR", default_value = DEFAULT_COORDINATOR)]
+    /// Coordinator URL (http:// or https://).
+    #[arg(long, env = "CREASE_COORDINATOR", default_value = DEFAULT_COORDINATOR, value_parser = crate::urls::parse)]
     pub coordinator: String,
     #[command(flatten)]
     pub security: crate::security_args::ClientSecurityArgs,
@@ -269,9 +268,11 @@ pub struct SubmitArgs {
     /// Client token for idempotent submission (without a job file).
     #[arg(long)]
     pub client_token: Option<String>,
-    /// Follow the job until it ends (exit status 1 if it fails or is cancelled).
+    /// Follow the job until it ends, as `crease watch` does (same exit status: see `crease watch --help`).
     #[arg(long)]
     pub watch: bool,
+    #[command(flatten)]
+    pub reconnect: crate::watch::ReconnectArgs,
 }
 
 /// Absolute form of a plain path (URIs with a scheme are left alone), so the coordinator and workers do not
@@ -315,7 +316,14 @@ pub fn submit(a: SubmitArgs) -> Result<()> {
     };
     runtime()?.block_on(async move {
         let client = a.client.connect().await?;
-        let (id, created) = client.submit(text, format).await?;
+        let (id, created) = match &a.job {
+            // The coordinator sees only the text: name the file it came from.
+            Some(path) => client
+                .submit(text, format)
+                .await
+                .with_context(|| format!("job spec {}", path.display()))?,
+            None => client.submit(text, format).await?,
+        };
         if created {
             eprintln!("submitted {id}");
         } else {
@@ -324,8 +332,9 @@ pub fn submit(a: SubmitArgs) -> Result<()> {
         println!("{id}");
         if a.watch {
             let progress = CliProgress::new(false);
-            let status = follow(&client, &id, Some(&progress)).await?;
-            finish_status(&status)?;
+            let status =
+                crate::watch::follow_remote(&a.client, &a.reconnect, &id, &progress).await?;
+            crate::watch::finish(&status)?;
         }
         Ok(())
     })
@@ -365,18 +374,10 @@ pub fn status(a: StatusArgs) -> Result<()> {
 
 #[derive(Args, Debug)]
 pub struct JobArgs {
+    /// Job id, as `crease submit` printed it (`crease jobs` lists them).
     pub job: String,
     #[command(flatten)]
     pub client: ClientArgs,
-}
-
-pub fn watch(a: JobArgs) -> Result<()> {
-    runtime()?.block_on(async move {
-        let client = a.client.connect().await?;
-        let progress = CliProgress::new(false);
-        let status = follow(&client, &a.job, Some(&progress)).await?;
-        finish_status(&status)
-    })
 }
 
 pub fn cancel(a: JobArgs) -> Result<()> {
@@ -417,6 +418,7 @@ pub fn unblock(a: UnblockArgs) -> Result<()> {
 pub struct JobsArgs {
     #[command(flatten)]
     pub client: ClientArgs,
+    /// Machine-readable output (a JSON array of job statuses).
     #[arg(long)]
     pub json: bool,
 }
@@ -428,70 +430,7 @@ pub fn jobs(a: JobsArgs) -> Result<()> {
     })
 }
 
-/// Follows a job's event stream with a task progress bar (or log lines) until it ends; returns its final
-/// status.
-pub async fn follow(
-    client: &impl JobClient,
-    job_id: &str,
-    progress: Option<&CliProgress>,
-) -> Result<pb::JobStatus> {
-    use crease_core::progress::Progress;
-    let quiet = CliProgress::new(true);
-    let shown = progress.is_some();
-    let progress = progress.unwrap_or(&quiet);
-    let mut stream = client.watch(job_id).await?;
-    let mut total = 0u64;
-    let mut last: Option<pb::JobStatus> = None;
-    while let Some(ev) = stream.next().await {
-        let ev = ev?;
-        match ev.kind.as_str() {
-            "snapshot" | "task_done" => {
-                if !shown {
-                } else if ev.total != total && ev.total > 0 {
-                    if total > 0 {
-                        progress.end("tasks");
-                    }
-                    total = ev.total;
-                    progress.begin("tasks", total);
-                    progress.advance("tasks", ev.done);
-                } else if ev.kind == "task_done" {
-                    progress.advance("tasks", 1);
-                }
-                if let Some(s) = ev.status {
-                    last = Some(s);
-                }
-            }
-            "task_retry" => {
-                progress.println(&format!("{job_id}: task `{}`: {}", ev.task_key, ev.message))
-            }
-            "job_waiting" | "job_failed" | "job_cancelled" if shown => {
-                progress.println(&format!("{job_id}: {}", ev.message))
-            }
-            _ => {}
-        }
-    }
-    if shown && total > 0 {
-        progress.end("tasks");
-    }
-    match last {
-        Some(s) => Ok(s),
-        None => Ok(client.status(job_id, false).await?),
-    }
-}
-
-/// Ok for a done job; an error carrying the job's reason otherwise.
-pub fn finish_status(s: &pb::JobStatus) -> Result<()> {
-    match s.state.as_str() {
-        "done" => {
-            eprintln!(
-                "{} done: {} tasks, {:.2}s of work",
-                s.job_id, s.tasks_total, s.work_seconds
-            );
-            Ok(())
-        }
-        state => bail!("job {} {state}: {}", s.job_id, s.message),
-    }
-}
+pub use crate::watch::follow;
 
 fn status_json(s: &pb::JobStatus) -> serde_json::Value {
     serde_json::json!({
@@ -505,6 +444,9 @@ fn status_json(s: &pb::JobStatus) -> serde_json::Value {
         "tasks": s.tasks.iter().map(|t| serde_json::json!({
             "key": t.key, "kind": t.kind, "state": t.state, "attempts": t.attempts,
             "last_error": t.last_error, "worker": t.worker, "work_seconds": t.work_seconds,
+        })).collect::<Vec<_>>(),
+        "running": s.running.iter().map(|r| serde_json::json!({
+            "key": r.key, "kind": r.kind, "worker": r.worker, "stage": r.stage, "done": r.done, "total": r.total,
         })).collect::<Vec<_>>(),
     })
 }
@@ -533,6 +475,20 @@ fn print_status(s: &pb::JobStatus, tasks: bool) {
         for r in &b.reasons {
             println!("    {r}");
         }
+    }
+    for r in &s.running {
+        let progress = if r.total > 0 {
+            format!(
+                ": {} {}/{} ({:.0}%)",
+                r.stage,
+                r.done,
+                r.total,
+                100.0 * r.done as f64 / r.total as f64
+            )
+        } else {
+            String::new()
+        };
+        println!("  running {} on {}{progress}", r.key, r.worker);
     }
     if tasks {
         for t in &s.tasks {

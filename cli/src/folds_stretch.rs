@@ -10,7 +10,7 @@ use clap::Args;
 use crease_core::folds::stretch::StretchParams;
 use crease_core::Error;
 
-/// Parameters of `--folds stretch` (defaults: see README, "Folds from the geometry").
+/// Parameters of `--folds stretch` (defaults: see docs/folds.md, "Folds from the geometry alone").
 #[derive(Args, Clone, Debug)]
 pub struct StretchArgs {
     /// θ0 (degrees, in (0, 90)): largest direction change within one phase (eq. 4.2).

@@ -8,10 +8,10 @@ use crease_core::folds::video::VideoParams;
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
-/// Flags of `--folds video`. Tuning flags default to the paper's values (see README, "Folds from video").
+/// Flags of `--folds video`. Tuning flags default to the paper's values (see docs/folds.md, "Folds from the capture video").
 #[derive(Args, Debug, Clone, Default)]
 pub struct VideoArgs {
-    /// Camera calibration (JSON, OpenCV convention; see README).
+    /// Camera calibration (JSON, OpenCV convention; see docs/folds.md).
     #[arg(long)]
     pub cameras: Option<PathBuf>,
     /// Directory holding `<camera>/frame_NNNN.png` (default: the `image_pattern` of the cameras file, relative
@@ -37,9 +37,10 @@ pub struct VideoArgs {
     /// Image resolutions as fractions of the full image [default: 1].
     #[arg(long, value_delimiter = ',')]
     pub scales: Vec<f64>,
-    /// Canny low / high gradient thresholds (0-255 grey) [default: 12, 30].
+    /// Canny low gradient threshold (0-255 grey) [default: 12].
     #[arg(long)]
     pub canny_low: Option<f64>,
+    /// Canny high gradient threshold (0-255 grey) [default: 30].
     #[arg(long)]
     pub canny_high: Option<f64>,
     /// Maximum angle between paired edges, degrees [default: 45].
@@ -69,9 +70,10 @@ pub struct VideoArgs {
     /// Drop pairs whose edges run on the garment's border triangles (cuffs, collars, hems).
     #[arg(long)]
     pub skip_border: bool,
-    /// Anchor angle of the narrowest / widest pairs of a frame, degrees [default: 60, 30].
+    /// Anchor angle of the narrowest pair of a frame, degrees [default: 60].
     #[arg(long)]
     pub narrow_angle: Option<f64>,
+    /// Anchor angle of the widest pair of a frame, degrees [default: 30].
     #[arg(long)]
     pub wide_angle: Option<f64>,
     /// Pair widths (mean edge lengths of frame 0) that get the narrow / wide angle [default: 1.5, 6].
@@ -134,7 +136,7 @@ impl VideoArgs {
         abs: &dyn Fn(&Path) -> Result<String>,
     ) -> Result<serde_json::Value> {
         let Some(cameras) = &self.cameras else {
-            bail!("--folds video needs --cameras (the calibration JSON, see README)")
+            bail!("--folds video needs --cameras (the calibration JSON, see docs/folds.md)")
         };
         if self.front_vertex.is_some() != self.back_vertex.is_some() {
             bail!("give both --front-vertex and --back-vertex, or neither for the automatic choice")

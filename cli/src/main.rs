@@ -1,14 +1,18 @@
 //! `crease`: puts fine, temporally coherent folds back into captured garment mesh sequences.
 
+mod arg_errors;
 mod bench;
 mod bench_cluster;
 mod certs;
 mod cluster;
+mod error_text;
 mod eval;
 mod export;
 mod farm;
 mod folds_stretch;
 mod folds_video;
+#[cfg(test)]
+mod help_tree;
 mod limits_args;
 mod local;
 mod logging;
@@ -16,8 +20,11 @@ mod logs;
 mod progress;
 mod run;
 mod security_args;
+mod threads;
+mod urls;
+mod watch;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(
@@ -26,9 +33,6 @@ use clap::{Parser, Subcommand};
     about = "Space-time wrinkling of captured garment sequences (Popa et al. 2009)"
 )]
 struct Cli {
-    /// Worker threads for the numerics (default: all cores).
-    #[arg(long, global = true)]
-    threads: Option<usize>,
     #[command(subcommand)]
     command: Command,
 }
@@ -51,8 +55,9 @@ enum Command {
     Submit(cluster::SubmitArgs),
     /// Status of one job (or all jobs).
     Status(cluster::StatusArgs),
-    /// Follow a job's progress until it ends.
-    Watch(cluster::JobArgs),
+    /// Follow a job's progress until it ends, riding out coordinator restarts; the exit status says how it ended.
+    #[command(after_help = watch::EXIT_CODES)]
+    Watch(watch::WatchArgs),
     /// Cancel a job.
     Cancel(cluster::JobArgs),
     /// Clear a job's worker blocklist (see `status`): its tasks may go to those workers again.
@@ -71,11 +76,32 @@ enum Command {
     Export(export::ExportArgs),
 }
 
+fn lossy(args: &[std::ffi::OsString]) -> Vec<String> {
+    args.iter()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect()
+}
+
 fn main() {
-    let cli = Cli::parse();
-    if let Some(n) = cli.threads {
+    let args_os: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let matches = match threads::add_to(Cli::command()).try_get_matches_from(&args_os) {
+        Ok(m) => m,
+        Err(e) => match arg_errors::negative_value(&e, &lossy(&args_os)) {
+            Some(msg) => {
+                eprintln!("error: {msg}");
+                std::process::exit(2);
+            }
+            None => e.exit(),
+        },
+    };
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let threads = threads::requested(&matches).unwrap_or_else(|e| {
+        eprintln!("error: {e:#}");
+        std::process::exit(2);
+    });
+    if let Some(n) = threads {
         if let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
+            .num_threads(n)
             .build_global()
         {
             eprintln!("error: cannot set up {n} threads: {e}");
@@ -91,7 +117,7 @@ fn main() {
         Command::Worker(a) => cluster::worker(a),
         Command::Submit(a) => cluster::submit(a),
         Command::Status(a) => cluster::status(a),
-        Command::Watch(a) => cluster::watch(a),
+        Command::Watch(a) => watch::watch(a),
         Command::Cancel(a) => cluster::cancel(a),
         Command::Unblock(a) => cluster::unblock(a),
         Command::Jobs(a) => cluster::jobs(a),
@@ -102,7 +128,8 @@ fn main() {
         Command::Export(a) => export::export_cmd(a),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
-        std::process::exit(1);
+        eprintln!("error: {}", error_text::one_line(&e));
+        let code = e.downcast_ref::<watch::Ended>().map_or(1, |end| end.code);
+        std::process::exit(code);
     }
 }

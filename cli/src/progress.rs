@@ -39,6 +39,24 @@ impl CliProgress {
         }
     }
 
+    /// Closes a stage that will not complete (a failed or cancelled job): the bar stops where it was and the
+    /// log line says why, never "done".
+    pub fn abandon(&self, stage: &str, why: &str) {
+        let Ok(mut s) = self.state.lock() else { return };
+        if let Some(st) = s.remove(stage) {
+            match st.bar {
+                Some(b) => b.abandon_with_message(why.to_string()),
+                None if !self.quiet => eprintln!(
+                    "[{stage}] {why} at {}/{} after {:.2}s",
+                    st.done,
+                    st.total,
+                    st.started.elapsed().as_secs_f64()
+                ),
+                None => {}
+            }
+        }
+    }
+
     fn print_always(&self, msg: &str) {
         match &self.bars {
             Some(m) => {

@@ -125,7 +125,7 @@ pub struct RunArgs {
     /// Input sequence: a directory of numbered OBJ or PLY frames, or OBJ + PC2. Omit to run the built-in demo.
     #[arg(long)]
     pub input: Option<PathBuf>,
-    /// Anchors file (JSON, see README). Required with --input unless --folds detects them.
+    /// Anchors file (JSON, see docs/formats.md). Required with --input unless --folds detects them.
     #[arg(long)]
     pub anchors: Option<PathBuf>,
     /// Where the folds come from: `anchors` (the --anchors file; the default), `stretch` (estimated from the
@@ -148,9 +148,10 @@ pub struct RunArgs {
     /// Preview tile size in pixels.
     #[arg(long, default_value_t = 384)]
     pub preview_size: u32,
-    /// Demo size when no --input is given.
+    /// Demo size in triangles when no --input is given.
     #[arg(long, default_value_t = 40_000)]
     pub demo_triangles: usize,
+    /// Demo length in frames when no --input is given.
     #[arg(long, default_value_t = 36)]
     pub demo_frames: usize,
     /// No progress bars or log lines.
@@ -169,8 +170,10 @@ pub struct DemoArgs {
     /// Directory to write `input/` (numbered OBJ frames) and `anchors.json` into.
     #[arg(long)]
     pub out: PathBuf,
+    /// Triangles of the demo garment (approximately).
     #[arg(long, default_value_t = 40_000)]
     pub triangles: usize,
+    /// Frames of the demo sequence (at least 2).
     #[arg(long, default_value_t = 36)]
     pub frames: usize,
     /// Also write a synthetic capture video: the ground-truth folded sequence (`gt/`, the input deformed with
@@ -180,9 +183,10 @@ pub struct DemoArgs {
     /// Cameras on the ring (with --with-video).
     #[arg(long, default_value_t = 4)]
     pub video_cameras: usize,
-    /// Image size (with --with-video).
+    /// Image width in pixels (with --with-video).
     #[arg(long, default_value_t = 480)]
     pub video_width: u32,
+    /// Image height in pixels (with --with-video).
     #[arg(long, default_value_t = 640)]
     pub video_height: u32,
 }
@@ -201,19 +205,7 @@ fn write_demo(out: &Path, triangles: usize, frames: usize) -> Result<(PathBuf, P
         ..Default::default()
     };
     let (seq, anchors) = synth::demo(&spec)?;
-    let input = out.join("input");
-    fsutil::create_dir_all(&input)?;
-    let width = frames.to_string().len().max(4);
-    write_obj_sequence(
-        &input,
-        &seq.topology,
-        seq.frames
-            .iter()
-            .enumerate()
-            .map(|(t, f)| (format!("frame_{:0width$}.obj", t + 1), f.as_slice())),
-    )?;
-    let anchors_path = out.join("anchors.json");
-    anchors.write(&anchors_path)?;
+    let (input, anchors_path) = synth::write_demo(out, &seq, &anchors)?;
     eprintln!(
         "demo: {} frames, {} vertices, {} triangles, {} anchors -> {}",
         frames,
@@ -323,7 +315,7 @@ pub fn run(a: RunArgs) -> Result<()> {
             a.out.clone().unwrap_or_else(|| PathBuf::from("crease-out")),
         ),
         (Some(_), None) => {
-            bail!("--anchors is required with --input unless --folds stretch or --folds video (see README: anchors file format)")
+            bail!("--anchors is required with --input unless --folds stretch or --folds video (see docs/formats.md: anchors file)")
         }
         (Some(i), Some(an)) => (
             i.clone(),
@@ -387,7 +379,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         }
         (Folds::Video, _, _) => a.video.fold_spec(n, &abs)?,
         (_, Some(p), _) => json!({ "kind": "anchors", "uri": abs(p)? }),
-        (_, None, _) => bail!("--anchors is required with --input unless --folds stretch or --folds video (see README: anchors file format)"),
+        (_, None, _) => bail!("--anchors is required with --input unless --folds stretch or --folds video (see docs/formats.md: anchors file)"),
     };
     match &anchors {
         Some(set) => progress.println(&format!(

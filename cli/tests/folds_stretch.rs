@@ -90,21 +90,12 @@ fn stretch_folds_on_the_captured_sleeve_fixture() {
 
 #[test]
 fn subdivided_output_keeps_the_original_vertices_first() {
-    use crease_core::mesh::io::write_obj_sequence;
     let env: Vec<f64> = (0..6).map(|t| t as f64 / 5.0).collect();
     let seq = crease_core::synth::compressed_sheet(10, 10, 0.1, 0.3, (0.3, 0.7), 0.12, 0.0, &env)
         .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("in");
-    write_obj_sequence(
-        &input,
-        &seq.topology,
-        seq.frames
-            .iter()
-            .enumerate()
-            .map(|(t, f)| (format!("frame_{:04}.obj", t + 1), f.as_slice())),
-    )
-    .unwrap();
+    crease_core::synth::write_frames(&input, &seq).unwrap();
     let out = dir.path().join("out");
     let o = crease(&[
         "run",

@@ -18,6 +18,7 @@
 
 pub mod client;
 pub mod config;
+pub mod live;
 pub mod metrics;
 pub mod queue_lock;
 pub mod scheduler;

@@ -523,3 +523,31 @@ pub fn compressed_tube(
         .collect();
     Sequence::new(topo, frames)
 }
+
+/// Writes `seq` as numbered OBJ frames `frame_0001.obj`, … (frame numbers from 1, zero-padded to at least four
+/// digits) into `dir`: the layout every demo, test fixture and benchmark input uses.
+pub fn write_frames(dir: &std::path::Path, seq: &Sequence) -> Result<Vec<std::path::PathBuf>> {
+    let width = seq.frames.len().to_string().len().max(4);
+    crate::mesh::io::write_obj_sequence(
+        dir,
+        &seq.topology,
+        seq.frames
+            .iter()
+            .enumerate()
+            .map(|(t, f)| (format!("frame_{:0width$}.obj", t + 1), f.as_slice())),
+    )
+}
+
+/// Writes a demo (or any generated) sequence and its anchors as `crease run` reads them: `root/input/`
+/// (see [`write_frames`]) and `root/anchors.json`. Returns (input directory, anchors file).
+pub fn write_demo(
+    root: &std::path::Path,
+    seq: &Sequence,
+    anchors: &AnchorSet,
+) -> Result<(std::path::PathBuf, std::path::PathBuf)> {
+    let input = root.join("input");
+    write_frames(&input, seq)?;
+    let anchors_path = root.join("anchors.json");
+    anchors.write(&anchors_path)?;
+    Ok((input, anchors_path))
+}

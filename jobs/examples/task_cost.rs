@@ -5,7 +5,7 @@
 //! `cargo run --release -p crease-jobs --example task_cost -- [triangles] [frames] [fold_scale]`
 
 use crease_core::folds::AnchorSet;
-use crease_core::mesh::io::{open_sequence, write_obj_sequence};
+use crease_core::mesh::io::open_sequence;
 use crease_core::progress::NoProgress;
 use crease_core::spacetime::weights::WindowProblem;
 use crease_core::spacetime::windows::Window;
@@ -29,19 +29,8 @@ async fn main() {
         ..Default::default()
     })
     .unwrap();
-    let input = root.path().join("input");
-    std::fs::create_dir_all(&input).unwrap();
-    write_obj_sequence(
-        &input,
-        &seq.topology,
-        seq.frames
-            .iter()
-            .enumerate()
-            .map(|(t, f)| (format!("frame_{:04}.obj", t + 1), f.as_slice())),
-    )
-    .unwrap();
-    let anchors_path = root.path().join("anchors.json");
-    anchors.write(&anchors_path).unwrap();
+    let (input, anchors_path) =
+        crease_core::synth::write_demo(root.path(), &seq, &anchors).unwrap();
     println!(
         "{} triangles, {frames} frames, {:.0} anchors/frame",
         seq.topology.n_triangles(),

@@ -121,6 +121,7 @@ pub mod limits;
 pub mod plan;
 pub mod s3;
 pub mod spec;
+pub mod stale;
 pub mod storage;
 pub mod storage_errors;
 pub mod task;

@@ -87,12 +87,12 @@ pub enum FoldSpec {
     /// Folds from the capture video (Popa et al. 2009 §4): per-frame detection tasks in chunks of
     /// `partition.fold_frames_per_chunk` frames, each drawing the overlays of its `overlay_frames`.
     Video {
-        /// Camera calibration (JSON, see README).
+        /// Camera calibration (JSON, see docs/folds.md).
         cameras: String,
         /// Directory holding the images; default: the cameras file's `image_pattern`, relative to that file.
         #[serde(default)]
         images: Option<String>,
-        /// Detector parameters; each defaults to the paper's value (README, "Folds from video").
+        /// Detector parameters; each defaults to the paper's value (docs/folds.md, "Folds from the capture video").
         #[serde(default)]
         params: VideoParams,
         /// Tracked front / back vertex for view selection; both or neither (automatic from frame 0).
@@ -181,12 +181,11 @@ impl JobSpec {
     /// Parses a TOML job file and validates it.
     pub fn from_toml_str(text: &str) -> Result<Self, JobError> {
         let spec: JobSpec = toml::from_str(text).map_err(|e| {
-            let field = e
-                .span()
-                .and_then(|span| toml_field_at(text, span.start))
+            let field = missing_field(e.message())
+                .or_else(|| e.span().and_then(|span| toml_field_at(text, span.start)))
                 .filter(|f| !f.is_empty())
-                .unwrap_or_else(|| "job.toml".to_string());
-            JobError::spec(field, e.to_string())
+                .unwrap_or_else(|| "job spec (TOML)".to_string());
+            JobError::spec(field, e.message().trim().to_string())
         })?;
         spec.validate()?;
         Ok(spec)
@@ -195,7 +194,8 @@ impl JobSpec {
     /// Parses a JSON job spec and validates it.
     pub fn from_json_str(text: &str) -> Result<Self, JobError> {
         let spec: JobSpec = serde_json::from_str(text).map_err(|e| {
-            let field = json_key_before(text, e.line(), e.column())
+            let field = missing_field(&e.to_string())
+                .or_else(|| json_key_before(text, e.line(), e.column()))
                 .filter(|f| !f.is_empty())
                 .unwrap_or_else(|| "job (JSON)".to_string());
             JobError::spec(field, e.to_string())
@@ -261,11 +261,7 @@ impl JobSpec {
         }
         self.deform.validate().map_err(|e| match e {
             crease_core::Error::Param { name, msg } => {
-                let field = match name.as_str() {
-                    "c_s" | "c_t" | "c_i" | "c_a" => format!("deform.coefficients.{name}"),
-                    _ => format!("deform.{name}"),
-                };
-                JobError::spec(field, msg)
+                JobError::spec(format!("deform.{name}"), msg)
             }
             e => JobError::spec("deform", e.to_string()),
         })?;
@@ -346,6 +342,13 @@ impl JobSpec {
     }
 }
 
+/// The field a serde "missing field `output`" error is about: the missing field itself, not the key the
+/// parser happened to stop at.
+fn missing_field(message: &str) -> Option<String> {
+    let rest = &message[message.find("missing field `")? + "missing field `".len()..];
+    Some(rest[..rest.find('`')?].to_string())
+}
+
 /// The dotted name (`partition.anchor_block`) of the key on the line holding byte `offset` of a TOML text, so
 /// that parse errors name the field even when the message only quotes the value.
 fn toml_field_at(text: &str, offset: usize) -> Option<String> {
@@ -394,7 +397,7 @@ mod fuzz_regressions {
     fn parse_errors_never_name_an_empty_field() {
         let toml_err = JobSpec::from_toml_str("input = \"a\"\n[]\nframes\n").unwrap_err();
         let json_err = JobSpec::from_json_str("{\"input\": \"\": \"t\"}").unwrap_err();
-        for (e, want) in [(toml_err, "job.toml"), (json_err, "job (JSON)")] {
+        for (e, want) in [(toml_err, "job spec (TOML)"), (json_err, "job (JSON)")] {
             match e {
                 JobError::Spec { field, .. } => assert_eq!(field, want),
                 other => panic!("{other}"),

@@ -100,6 +100,18 @@ fn fifty_jobs_from_concurrent_clients_survive_random_worker_kills_over_tls_with_
     let kills = s["kills"].as_u64().unwrap();
     assert!((1..=6).contains(&kills), "kills: {kills}\n{log}");
     assert_eq!(s["kill_log"].as_array().unwrap().len() as u64, kills);
+    // A SIGKILLed worker loses the task it was running, and that task must run again. All 50 jobs are queued
+    // within the first seconds of the kill window, so the workers are busy when the kills land: kills without
+    // a single retry would mean the kills (or the retry accounting) did nothing.
+    let retried = s["tasks_retried"].as_u64().unwrap();
+    assert!(
+        retried >= 1,
+        "{kills} kills but no task attempt retried\n{table}"
+    );
+    assert!(
+        m["task_retries_total"].as_u64().unwrap() >= 1,
+        "{kills} kills but the coordinator counted no retry: {m}"
+    );
     println!(
         "jobs/min {:.1}, latency p50 {:.2}s p95 {:.2}s, {kills} kills, {} task attempts retried",
         s["jobs_per_minute"].as_f64().unwrap(),

@@ -58,6 +58,7 @@ pub struct Scheduler {
     no_workers_since: Mutex<Option<Instant>>,
     next_worker: Mutex<u32>,
     metrics: CoordinatorMetrics,
+    live: crate::live::LiveProgress,
     /// Attempts that were running when this coordinator started (job, key, attempt) and the worker id they
     /// ran under; their workers adopt them by registering again, until `adopt_until`.
     orphans: Mutex<HashMap<(String, String, u32), String>>,
@@ -107,6 +108,7 @@ impl Scheduler {
             no_workers_since: Mutex::new(Some(Instant::now())),
             next_worker: Mutex::new(next),
             metrics: CoordinatorMetrics::default(),
+            live: Default::default(),
             orphans: Mutex::new(orphans),
             adopt_until,
         }))
@@ -175,10 +177,11 @@ impl Scheduler {
                 .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         let defs = crease_jobs::plan(&spec, &info)
             .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
-        // A report left by an earlier run must not vouch for this job while it runs.
+        // A report left by an earlier run must not vouch for this job while it runs, and files only an earlier
+        // run wrote must not stand beside this one's result (crease_jobs::stale).
         let out =
             Storage::open(&spec.output).map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
-        out.delete(crease_jobs::keys::REPORT)
+        crease_jobs::stale::claim_output(&out, &spec, &info)
             .await
             .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         let name = if spec.name.is_empty() {
@@ -215,7 +218,27 @@ impl Scheduler {
     pub fn status(&self, job_id: &str, with_tasks: bool) -> Result<pb::JobStatus, ApiError> {
         let store = lock(&self.store);
         let job = store.job(job_id)?;
-        status_of(&store, &job, with_tasks, self.config.blacklist_after)
+        self.status_with_running(&store, &job, with_tasks)
+    }
+
+    /// [`status_of`] plus the running tasks' workers and latest progress ([`crate::live`]).
+    fn status_with_running(
+        &self,
+        store: &Store,
+        job: &JobRow,
+        with_tasks: bool,
+    ) -> Result<pb::JobStatus, ApiError> {
+        let mut status = status_of(store, job, with_tasks, self.config.blacklist_after)?;
+        if status.tasks_running > 0 {
+            if !with_tasks {
+                status.tasks = status_of(store, job, true, self.config.blacklist_after)?.tasks;
+            }
+            self.live.fill(&mut status);
+            if !with_tasks {
+                status.tasks.clear();
+            }
+        }
+        Ok(status)
     }
 
     /// All jobs, newest first.
@@ -223,7 +246,7 @@ impl Scheduler {
         let store = lock(&self.store);
         let jobs = store.list_jobs()?;
         jobs.iter()
-            .map(|j| status_of(&store, j, false, self.config.blacklist_after))
+            .map(|j| self.status_with_running(&store, j, false))
             .collect()
     }
 
@@ -374,7 +397,7 @@ impl Scheduler {
     }
 
     fn emit(&self, job_id: &str, kind: &str, key: &str, message: &str, done: u64, total: u64) {
-        let _ = self.events.send(pb::JobEvent {
+        let ev = pb::JobEvent {
             job_id: job_id.to_string(),
             kind: kind.to_string(),
             task_key: key.to_string(),
@@ -382,7 +405,9 @@ impl Scheduler {
             done,
             total,
             status: None,
-        });
+        };
+        self.live.observe(&ev);
+        let _ = self.events.send(ev);
     }
 }
 
@@ -473,5 +498,6 @@ fn status_of(
         tasks,
         work_seconds: c.work_seconds,
         blocked_workers,
+        running: Vec::new(),
     })
 }

@@ -47,23 +47,25 @@ pub fn vertex_normals(topo: &Topology, p: &[V3]) -> Vec<V3> {
     n.into_iter().map(vec3::normalize).collect()
 }
 
-/// Checks one frame's positions against the topology: vertex count, finite coordinates, non-degenerate
-/// triangles. Errors name the vertex or triangle index; callers attach the file and frame with [`Error::at`].
-pub fn validate_frame(topo: &Topology, p: &[V3]) -> Result<()> {
+/// The first thing wrong with a frame's positions, by 0-based index, so that a reader can name it the way its
+/// file numbers vertices and faces (OBJ counts from 1).
+#[derive(Debug, Clone, PartialEq)]
+pub enum FrameProblem {
+    NonFinite { vertex: usize, at: V3 },
+    Degenerate { triangle: usize, vertices: [u32; 3] },
+}
+
+/// Finds the first non-finite vertex or degenerate triangle of a frame with the topology's vertex count.
+/// (A frame with another vertex count is the caller's to refuse first; it is not looked at.)
+pub fn find_problem(topo: &Topology, p: &[V3]) -> Option<FrameProblem> {
     if p.len() != topo.n_vertices() {
-        return Err(Error::mesh(format!(
-            "has {} vertices, expected {} (the vertex count must be the same in every frame)",
-            p.len(),
-            topo.n_vertices()
-        )));
+        return None;
     }
-    for (i, v) in p.iter().enumerate() {
-        if !vec3::is_finite(*v) {
-            return Err(Error::mesh(format!(
-                "vertex {i} has a non-finite coordinate ({}, {}, {})",
-                v[0], v[1], v[2]
-            )));
-        }
+    if let Some(vertex) = p.iter().position(|v| !vec3::is_finite(*v)) {
+        return Some(FrameProblem::NonFinite {
+            vertex,
+            at: p[vertex],
+        });
     }
     for (t, &tri) in topo.triangles().iter().enumerate() {
         let [a, b, c] = tri.map(|i| p[i as usize]);
@@ -75,13 +77,36 @@ pub fn validate_frame(topo: &Topology, p: &[V3]) -> Result<()> {
         // Written so that NaN areas also count as degenerate.
         if twice_area.partial_cmp(&(DEGENERATE_EPS * longest)) != Some(std::cmp::Ordering::Greater)
         {
-            return Err(Error::mesh(format!(
-                "triangle {t} (vertices {} {} {}) is degenerate (zero area)",
-                tri[0], tri[1], tri[2]
-            )));
+            return Some(FrameProblem::Degenerate {
+                triangle: t,
+                vertices: tri,
+            });
         }
     }
-    Ok(())
+    None
+}
+
+/// Checks one frame's positions against the topology: vertex count, finite coordinates, non-degenerate
+/// triangles. Errors name the vertex or triangle index; callers attach the file and frame with [`Error::at`].
+pub fn validate_frame(topo: &Topology, p: &[V3]) -> Result<()> {
+    if p.len() != topo.n_vertices() {
+        return Err(Error::mesh(format!(
+            "has {} vertices, expected {} (the vertex count must be the same in every frame)",
+            p.len(),
+            topo.n_vertices()
+        )));
+    }
+    match find_problem(topo, p) {
+        None => Ok(()),
+        Some(FrameProblem::NonFinite { vertex, at }) => Err(Error::mesh(format!(
+            "vertex {vertex} has a non-finite coordinate ({}, {}, {})",
+            at[0], at[1], at[2]
+        ))),
+        Some(FrameProblem::Degenerate { triangle, vertices }) => Err(Error::mesh(format!(
+            "triangle {triangle} (vertices {} {} {}) is degenerate (zero area)",
+            vertices[0], vertices[1], vertices[2]
+        ))),
+    }
 }
 
 /// Axis-aligned bounding box of a point set.

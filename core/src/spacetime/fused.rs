@@ -123,7 +123,7 @@ pub fn solve3(
     Err(Error::numeric(
         "weights (fused CG)",
         format!(
-            "did not reach relative residual {tol:e} in {max_iter} iterations (at {:.3e}); raise --cg-max-iterations",
+            "did not reach relative residual {tol:e} in {max_iter} iterations (at {:.3e}); raise --cg-max-iter (cg_max_iter in a job spec) or --cg-tol",
             stats.relative_residual
         ),
     ))

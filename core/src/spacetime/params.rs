@@ -44,8 +44,11 @@ impl std::fmt::Display for WeightMode {
 pub const DEFAULT_SHAPE_CUTOFF: f64 = 10.0;
 
 /// Everything the deformation needs besides the sequence and the anchors.
+///
+/// Read from a job spec's `[deform]` table through [`DeformFields`], which also accepts each `crease run`
+/// flag's own name (`c_s`, `cg_tol`, `cg_max_iter`), so a flag and its spec field are spelled the same.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
+#[serde(try_from = "DeformFields")]
 pub struct DeformParams {
     pub coefficients: Coefficients,
     /// Frames per time window.
@@ -86,6 +89,70 @@ impl Default for DeformParams {
             shape_cutoff: DEFAULT_SHAPE_CUTOFF,
             pinning: Pinning::Centroid,
         }
+    }
+}
+
+/// The `[deform]` table as written: every field optional (paper defaults), each under the name of its
+/// `crease run` flag (`--c-s` → `c_s`, `--cg-max-iter` → `cg_max_iter`) or its longer struct name
+/// (`coefficients.c_s`, `cg_max_iterations`).
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct DeformFields {
+    coefficients: Option<CoefficientFields>,
+    c_s: Option<f64>,
+    c_t: Option<f64>,
+    c_i: Option<f64>,
+    c_a: Option<f64>,
+    window: Option<usize>,
+    shift: Option<usize>,
+    #[serde(alias = "cg_tol")]
+    cg_tolerance: Option<f64>,
+    #[serde(alias = "cg_max_iter")]
+    cg_max_iterations: Option<usize>,
+    mode: Option<WeightMode>,
+    anchor_block: Option<usize>,
+    stretch_passes: Option<usize>,
+    pinning: Option<Pinning>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct CoefficientFields {
+    c_s: Option<f64>,
+    c_t: Option<f64>,
+    c_i: Option<f64>,
+    c_a: Option<f64>,
+}
+
+impl TryFrom<DeformFields> for DeformParams {
+    type Error = String;
+    fn try_from(f: DeformFields) -> std::result::Result<Self, String> {
+        let d = DeformParams::default();
+        let nested = f.coefficients.unwrap_or_default();
+        let both =
+            |name: &str, flat: Option<f64>, inner: Option<f64>, default: f64| match (flat, inner) {
+                (Some(_), Some(_)) => Err(format!(
+                    "`{name}` is given twice (as `{name}` and `coefficients.{name}`): keep one"
+                )),
+                (v, w) => Ok(v.or(w).unwrap_or(default)),
+            };
+        let c = &d.coefficients;
+        Ok(DeformParams {
+            coefficients: Coefficients {
+                c_s: both("c_s", f.c_s, nested.c_s, c.c_s)?,
+                c_t: both("c_t", f.c_t, nested.c_t, c.c_t)?,
+                c_i: both("c_i", f.c_i, nested.c_i, c.c_i)?,
+                c_a: both("c_a", f.c_a, nested.c_a, c.c_a)?,
+            },
+            window: f.window.unwrap_or(d.window),
+            shift: f.shift.unwrap_or(d.shift),
+            cg_tolerance: f.cg_tolerance.unwrap_or(d.cg_tolerance),
+            cg_max_iterations: f.cg_max_iterations.unwrap_or(d.cg_max_iterations),
+            mode: f.mode.unwrap_or(d.mode),
+            anchor_block: f.anchor_block.unwrap_or(d.anchor_block),
+            stretch_passes: f.stretch_passes.unwrap_or(d.stretch_passes),
+            pinning: f.pinning.unwrap_or(d.pinning),
+        })
     }
 }
 

@@ -201,7 +201,9 @@ impl LocalCg {
         }
         Err(Error::numeric(
             "weights (per-anchor CG)",
-            format!("anchor node {node}: no convergence to {tol:e} in {max_iter} iterations"),
+            format!(
+                "anchor node {node}: no convergence to {tol:e} in {max_iter} iterations; raise --cg-max-iter (cg_max_iter in a job spec) or --cg-tol"
+            ),
         ))
     }
 }

@@ -221,6 +221,14 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         },
         "report": report,
     });
+    // Every key this run owns (crease_jobs::stale): the next run on this output removes those it does not write.
+    let mut manifest = env.block_on(crate::stale::owned_now(&env.out));
+    if manifest.is_empty() {
+        manifest = written.clone();
+        manifest.push(keys::REPORT.into());
+    }
+    let mut doc = doc;
+    doc["manifest"] = json!(manifest);
     let text = serde_json::to_string_pretty(&doc)
         .map_err(|e| TaskError::fatal(format!("finalize: report: {e}")))?;
     env.put(keys::REPORT, text)?;

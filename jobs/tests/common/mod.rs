@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use crease_core::folds::AnchorSet;
-use crease_core::mesh::io::{create_sink, open_sequence, write_obj_sequence};
+use crease_core::mesh::io::{create_sink, open_sequence};
 use crease_core::progress::{NoProgress, Progress};
 use crease_core::spacetime::{deform, DeformParams, DeformReport};
 use crease_core::synth::{self, DemoSpec};
@@ -24,20 +24,7 @@ pub fn fixture(root: &Path, triangles: usize, frames: usize) -> (PathBuf, PathBu
         ..Default::default()
     })
     .unwrap();
-    let input = root.join("input");
-    std::fs::create_dir_all(&input).unwrap();
-    write_obj_sequence(
-        &input,
-        &seq.topology,
-        seq.frames
-            .iter()
-            .enumerate()
-            .map(|(t, f)| (format!("frame_{:04}.obj", t + 1), f.as_slice())),
-    )
-    .unwrap();
-    let anchors_path = root.join("anchors.json");
-    anchors.write(&anchors_path).unwrap();
-    (input, anchors_path)
+    synth::write_demo(root, &seq, &anchors).unwrap()
 }
 
 /// `crease run`'s computation: deform() from the input through the layout's sink into `out`.

@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 pub struct StretchParams {
     /// θ0 of eq. 4.2, degrees: the largest change of the dominant direction between consecutive steps that
     /// still counts as the same phase. Must lie in (0, 90).
+    #[serde(alias = "theta0")]
     pub theta0_deg: f64,
     /// A step whose absolute change |v| (eq. 4.1) is below `1 + isometry` is isometric: it neither starts nor
     /// breaks a phase (folds holding their shape for a frame or two, §4.3).
@@ -32,6 +33,7 @@ pub struct StretchParams {
     /// Tracing stops where the shrinkage falls below this fraction of the seed's (`|v| − 1` scale).
     pub fade: f64,
     /// Tracing stops where the fold direction turns by more than this many degrees between triangles.
+    #[serde(alias = "max_turn")]
     pub max_turn_deg: f64,
     /// Fold width at |v| = 1, in mean edge lengths; the width is `fold_width / |v|` (inversely proportional
     /// to the absolute change, §4.4).
@@ -47,6 +49,7 @@ pub struct StretchParams {
     /// way capped by `max_angle_deg`.
     pub angle_gain: f64,
     /// Cap of the anchor rotation, degrees (Popa et al. use 30°–60°).
+    #[serde(alias = "max_angle")]
     pub max_angle_deg: f64,
     /// Frames on each side over which anchors are matched and their angles averaged (`crate::folds::temporal`),
     /// on top of the seed memory; 0 leaves each frame's anchors as traced.

@@ -11,6 +11,7 @@ use crate::error::{Error, Result};
 pub struct VideoParams {
     /// Canny Gaussian radii (σ, in pixels of each resolution level). Table 1 lists 3–4 radii per garment, from
     /// 0.5 to 4.
+    #[serde(alias = "canny_radii")]
     pub radii: Vec<f64>,
     /// Image resolutions as fractions of the full image (§4 "Multi-Resolution Processing").
     pub scales: Vec<f64>,
@@ -33,6 +34,7 @@ pub struct VideoParams {
     /// Largest gap between the ends of two edges that may be merged (§4 "Merging").
     pub merge_gap: f64,
     /// Largest angle between paired edges, degrees (45° in all the paper's examples).
+    #[serde(alias = "max_angle")]
     pub max_angle_deg: f64,
     /// Largest distance between paired edges at any point (Table 1 "Maximal distance").
     pub max_distance: f64,
@@ -55,7 +57,9 @@ pub struct VideoParams {
     pub skip_border: bool,
     /// Anchor rotation for narrow and wide pairs, degrees (§5.1: 60° down to 30°, inversely proportional to the
     /// width).
+    #[serde(alias = "narrow_angle")]
     pub narrow_angle_deg: f64,
+    #[serde(alias = "wide_angle")]
     pub wide_angle_deg: f64,
     /// Pair widths (on the surface, in mean edge lengths of the sequence's first frame) that get
     /// `narrow_angle_deg` and `wide_angle_deg`. One absolute scale for the whole sequence, so a fold of constant

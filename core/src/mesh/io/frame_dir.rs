@@ -3,7 +3,7 @@
 
 use super::faces::{describe_face, explain_triangle_numbers, Polygons};
 use super::numbering::file_name;
-use super::{obj, ply};
+use super::{obj, obj_blame, ply};
 use crate::error::{Error, Result};
 use crate::fsutil;
 use crate::mesh::{geometry, Frame, FrameSink, FrameSource, Topology};
@@ -69,6 +69,9 @@ impl FrameReference {
     /// errors.
     pub fn from_first_frame(format: FrameFormat, path: &Path, bytes: &[u8]) -> Result<Self> {
         let (positions, faces0) = parse_mesh(format, path, bytes)?;
+        if format == FrameFormat::Obj {
+            obj_blame::check_faces(path, &faces0, bytes)?;
+        }
         let topology = Topology::new(positions.len(), faces0.triangulate()).map_err(|e| {
             explain_triangle_numbers(
                 e.at(Some(path.to_path_buf()), Some(0)),
@@ -102,6 +105,15 @@ impl FrameReference {
         }
         if let Some(e) = self.different_faces(t, path, bytes, &faces) {
             return Err(e);
+        }
+        if self.format == FrameFormat::Obj {
+            if let Some(p) = geometry::find_problem(&self.topology, &positions) {
+                return Err(at(Error::mesh(obj_blame::describe(
+                    &p,
+                    &self.faces0,
+                    bytes,
+                ))));
+            }
         }
         geometry::validate_frame(&self.topology, &positions)
             .map_err(|e| explain_triangle_numbers(at(e), self.faces0.has_polygons()))?;

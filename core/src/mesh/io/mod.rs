@@ -12,6 +12,7 @@ mod frame_dir;
 mod layout;
 mod numbering;
 mod obj;
+mod obj_blame;
 mod obj_frames;
 mod pc2;
 mod ply;

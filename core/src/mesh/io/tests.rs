@@ -142,7 +142,7 @@ const ERROR_CASES: &[(&str, Setup, &[&str])] = &[
             put(d, "f2.obj", QUAD.replace("v 1 1 0", "v 1 nan 0"));
             d.to_path_buf()
         },
-        &["f2.obj", "(frame 1)", "vertex 2", "non-finite"],
+        &["f2.obj", "(frame 1)", "vertex 3 (line 3)", "non-finite"],
     ),
     (
         "inf coordinate",
@@ -150,7 +150,7 @@ const ERROR_CASES: &[(&str, Setup, &[&str])] = &[
             put(d, "f1.obj", QUAD.replace("v 1 0 0", "v 1 0 -inf"));
             d.to_path_buf()
         },
-        &["f1.obj", "(frame 0)", "vertex 1", "non-finite"],
+        &["f1.obj", "(frame 0)", "vertex 2 (line 2)", "non-finite"],
     ),
     (
         "out-of-range index (OBJ)",
@@ -234,7 +234,7 @@ const ERROR_CASES: &[(&str, Setup, &[&str])] = &[
         &[
             "f1.obj",
             "(frame 0)",
-            "triangle 1 (vertices 0 2 1)",
+            "face 2 (line 6) (`f 1 3 2`)",
             "degenerate",
         ],
     ),
@@ -251,8 +251,8 @@ const ERROR_CASES: &[(&str, Setup, &[&str])] = &[
         &[
             "f1.obj",
             "(frame 0)",
-            "triangle 1 (vertices 0 2 3)",
-            "fan of n-2 triangles",
+            "face 1 (line 5) (`f 1 2 3 4`)",
+            "fan triangle of vertices 1 3 4",
         ],
     ),
     (
@@ -261,7 +261,11 @@ const ERROR_CASES: &[(&str, Setup, &[&str])] = &[
             put(d, "f1.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 3 3\n");
             d.to_path_buf()
         },
-        &["f1.obj", "(frame 0)", "triangle 1 repeats a vertex"],
+        &[
+            "f1.obj",
+            "(frame 0)",
+            "face 2 (line 5) (`f 1 3 3`) repeats a vertex",
+        ],
     ),
     (
         "non-manifold edge",
@@ -276,8 +280,8 @@ const ERROR_CASES: &[(&str, Setup, &[&str])] = &[
         &[
             "f1.obj",
             "(frame 0)",
-            "non-manifold edge (0, 1)",
-            "triangles (0, 1, 2)",
+            "non-manifold edge between vertices 1 and 2",
+            "3 faces: 1 (line 6), 2 (line 7), 3 (line 8)",
         ],
     ),
     (

@@ -18,7 +18,6 @@
 
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use crease_core::mesh::io::write_obj_sequence;
 use crease_core::synth::{self, DemoSpec};
 use crease_e2e::{try_free_port, try_output_files, Proc};
 use serde_json::json;
@@ -573,8 +572,6 @@ fn prepare_cases(exe: &Path, dir: &Path) -> Result<Vec<Case>> {
     let mut cases = Vec::new();
     for (k, def) in CASES.iter().enumerate() {
         let root = dir.join("cases").join(def.name);
-        let input = root.join("input");
-        crease_core::fsutil::create_dir_all(&input)?;
         let spec = DemoSpec {
             triangles: def.triangles,
             frames: def.frames,
@@ -585,16 +582,7 @@ fn prepare_cases(exe: &Path, dir: &Path) -> Result<Vec<Case>> {
             Some(n) => synth::random_anchors(&seq.topology, &seq.frames, n, 100 + k as u64)?,
             None => demo_anchors,
         };
-        write_obj_sequence(
-            &input,
-            &seq.topology,
-            seq.frames
-                .iter()
-                .enumerate()
-                .map(|(t, f)| (format!("frame_{:04}.obj", t + 1), f.as_slice())),
-        )?;
-        let anchors_path = root.join("anchors.json");
-        anchors.write(&anchors_path)?;
+        let (input, anchors_path) = synth::write_demo(&root, &seq, &anchors)?;
         let reference = root.join("reference");
         let t = Instant::now();
         let o = Command::new(exe)

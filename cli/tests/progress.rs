@@ -1,0 +1,88 @@
+//! Progress a user can see: fold detection, one task over the whole sequence, reports its frames (not a task
+//! bar standing at 0/N), and `crease status` shows a running task's worker and its latest progress.
+
+mod support;
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+use support::*;
+
+fn demo(dir: &std::path::Path, triangles: &str, frames: &str) -> String {
+    let root = dir.join("demo");
+    let o = Command::new(BIN)
+        .args(["demo", "--out", root.to_str().unwrap()])
+        .args(["--triangles", triangles, "--frames", frames])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    root.join("input").display().to_string()
+}
+
+#[test]
+fn fold_detection_reports_its_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = demo(dir.path(), "2000", "6");
+    let out = dir.path().join("out");
+    // stderr is a file here, so progress comes as plain log lines.
+    let o = Command::new(BIN)
+        .args(["run", "--input", &input, "--folds", "stretch"])
+        .args(["--out", out.to_str().unwrap(), "--preview-size", "64"])
+        .output()
+        .unwrap();
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    // Two passes over the six frames.
+    assert!(err.contains("[folds/f000000] started: 12 steps"), "{err}");
+    assert!(err.contains("[folds/f000000] 12/12"), "{err}");
+    assert!(err.contains("[folds/f000000] done"), "{err}");
+}
+
+#[test]
+fn status_shows_the_running_task_its_worker_and_progress() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let input = demo(d, "30000", "16");
+    let c = Coordinator::start(d, &[]);
+    let _w = c.worker("w-progress", &[]);
+    let job = d.join("job.toml");
+    std::fs::write(
+        &job,
+        format!(
+            "input = \"{input}\"\noutput = \"{}\"\n[folds]\nkind = \"stretch\"\n[preview]\nsize = 64\n",
+            d.join("out").display()
+        ),
+    )
+    .unwrap();
+    let id = c.submit(&job);
+    let start = Instant::now();
+    let seen = loop {
+        let s = c.status(&id);
+        let running = s["running"].as_array().cloned().unwrap_or_default();
+        if let Some(r) = running
+            .iter()
+            .find(|r| r["total"].as_u64().unwrap_or(0) > 0)
+        {
+            break r.clone();
+        }
+        assert!(
+            s["state"] != "done" && start.elapsed() < DEADLINE,
+            "never saw a running task's progress: {s}"
+        );
+        std::thread::sleep(Duration::from_millis(30));
+    };
+    assert_eq!(seen["key"], "folds/f000000", "{seen}");
+    let worker = seen["worker"].as_str().unwrap_or("").to_string();
+    assert!(!worker.is_empty(), "no worker named: {seen}");
+    assert_eq!(seen["total"], 32, "two passes over 16 frames: {seen}");
+    // The plain-text status says the same.
+    let o = c.cli(&["status", &id]);
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    let state = c.status(&id);
+    if state["tasks_running"].as_u64() == Some(1) && state["running"][0]["key"] == "folds/f000000" {
+        assert!(
+            text.contains(&format!("running folds/f000000 on {worker}")),
+            "{text}"
+        );
+    }
+    c.wait_state(&id, &["done"]);
+}

@@ -2,14 +2,12 @@
 //! the new sequence's end, detected anchors, fold images) and keeps files crease did not write, both for the
 //! local `crease run` and for a job submitted to a coordinator and workers.
 
-mod support;
-
+use crease_e2e::*;
 use std::path::Path;
 use std::process::Command;
-use support::*;
 
 fn crease(args: &[&str]) {
-    let o = Command::new(BIN).args(args).output().unwrap();
+    let o = Command::new(bin()).args(args).output().unwrap();
     assert!(o.status.success(), "crease {args:?}: {}", stderr(&o));
 }
 

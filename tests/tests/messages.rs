@@ -1,13 +1,11 @@
 //! Messages a user gets for bad input: they name the flag, field or file, and read as sentences.
 
-mod support;
-
+use crease_e2e::*;
 use std::process::Command;
 use std::time::{Duration, Instant};
-use support::*;
 
 fn crease(args: &[&str]) -> std::process::Output {
-    Command::new(BIN).args(args).output().unwrap()
+    Command::new(bin()).args(args).output().unwrap()
 }
 
 #[test]

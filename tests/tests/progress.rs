@@ -1,15 +1,13 @@
 //! Progress a user can see: fold detection, one task over the whole sequence, reports its frames (not a task
 //! bar standing at 0/N), and `crease status` shows a running task's worker and its latest progress.
 
-mod support;
-
+use crease_e2e::*;
 use std::process::Command;
 use std::time::{Duration, Instant};
-use support::*;
 
 fn demo(dir: &std::path::Path, triangles: &str, frames: &str) -> String {
     let root = dir.join("demo");
-    let o = Command::new(BIN)
+    let o = Command::new(bin())
         .args(["demo", "--out", root.to_str().unwrap()])
         .args(["--triangles", triangles, "--frames", frames])
         .output()
@@ -24,7 +22,7 @@ fn fold_detection_reports_its_frames() {
     let input = demo(dir.path(), "2000", "6");
     let out = dir.path().join("out");
     // stderr is a file here, so progress comes as plain log lines.
-    let o = Command::new(BIN)
+    let o = Command::new(bin())
         .args(["run", "--input", &input, "--folds", "stretch"])
         .args(["--out", out.to_str().unwrap(), "--preview-size", "64"])
         .output()

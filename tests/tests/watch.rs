@@ -2,18 +2,16 @@
 //! queue file) and ends 0 when the job completes; its exit status tells a failed job (3), a cancelled one (4)
 //! and a lost coordinator (5) apart; a failed or cancelled watch never says "done".
 
-mod support;
-
+use crease_e2e::*;
 use std::fs::File;
 use std::path::Path;
 use std::process::{Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
-use support::*;
 
 /// Starts `crease watch JOB` with its stderr in `log`.
 fn start_watch(c: &Coordinator, id: &str, log: &Path, reconnect_secs: &str) -> Proc {
     Proc(
-        Command::new(BIN)
+        Command::new(bin())
             .args(["watch", id, "--coordinator", &c.url()])
             .args(["--reconnect-secs", reconnect_secs])
             .stdout(Stdio::null())
@@ -91,7 +89,10 @@ fn exit_status_tells_failed_cancelled_and_lost_apart() {
     assert_eq!(o.status.code(), Some(3), "{err}");
     assert!(err.contains("failed") && !err.contains(" done:"), "{err}");
     assert!(err.contains("--cg-max-iter"), "{err}");
-    let help = Command::new(BIN).args(["run", "--help"]).output().unwrap();
+    let help = Command::new(bin())
+        .args(["run", "--help"])
+        .output()
+        .unwrap();
     assert!(String::from_utf8_lossy(&help.stdout).contains("--cg-max-iter "));
 
     // Cancelled.
@@ -127,7 +128,7 @@ fn exit_status_tells_failed_cancelled_and_lost_apart() {
 
 #[test]
 fn watch_help_documents_the_exit_codes() {
-    let o = Command::new(BIN)
+    let o = Command::new(bin())
         .args(["watch", "--help"])
         .output()
         .unwrap();

@@ -112,6 +112,8 @@ struct DeformFields {
     mode: Option<WeightMode>,
     anchor_block: Option<usize>,
     stretch_passes: Option<usize>,
+    stretch_rotation: Option<StretchRotation>,
+    shape_cutoff: Option<f64>,
     pinning: Option<Pinning>,
 }
 
@@ -151,6 +153,8 @@ impl TryFrom<DeformFields> for DeformParams {
             mode: f.mode.unwrap_or(d.mode),
             anchor_block: f.anchor_block.unwrap_or(d.anchor_block),
             stretch_passes: f.stretch_passes.unwrap_or(d.stretch_passes),
+            stretch_rotation: f.stretch_rotation.unwrap_or(d.stretch_rotation),
+            shape_cutoff: f.shape_cutoff.unwrap_or(d.shape_cutoff),
             pinning: f.pinning.unwrap_or(d.pinning),
         })
     }

@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)]
 //! `crease export` writes files the DCCs and engines read: GLB that Khronos' glTF-Validator passes, USD that
 //! Pixar's USD opens with the OBJ's points, and MDD/PC2 point caches that read back frame for frame.
 

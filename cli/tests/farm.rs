@@ -1,3 +1,4 @@
+#![allow(clippy::needless_range_loop)]
 //! Farms run crease's task graph: `crease export-job` writes an OpenJD template that `openjd check` accepts and
 //! `openjd run` executes end to end through `crease task run`, with outputs byte-identical to `crease run`.
 

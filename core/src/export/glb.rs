@@ -161,19 +161,19 @@ pub fn write_glb(frames: &FrameReader, out: &Path, opts: &ExportOptions) -> Resu
         }
         put(w, out, &buf)?;
         let base_normals = unit_normals(&topo, &base);
-        put(w, out, &vec3_bytes(&base32, &mut buf))?;
-        put(w, out, &vec3_bytes(&base_normals, &mut buf))?;
+        put(w, out, vec3_bytes(&base32, &mut buf))?;
+        put(w, out, vec3_bytes(&base_normals, &mut buf))?;
         for t in 1..n {
             let f = frames.read(t)?;
             let d: Vec<[f32; 3]> = f.iter().zip(&base).map(|(p, b)| delta(*p, *b)).collect();
-            put(w, out, &vec3_bytes(&d, &mut buf))?;
+            put(w, out, vec3_bytes(&d, &mut buf))?;
             let normals = unit_normals(&topo, &f);
             let dn: Vec<[f32; 3]> = normals
                 .iter()
                 .zip(&base_normals)
                 .map(|(a, b)| [a[0] - b[0], a[1] - b[1], a[2] - b[2]])
                 .collect();
-            put(w, out, &vec3_bytes(&dn, &mut buf))?;
+            put(w, out, vec3_bytes(&dn, &mut buf))?;
         }
         if targets > 0 {
             buf.clear();
@@ -213,9 +213,9 @@ fn bounds(points: impl Iterator<Item = [f32; 3]>) -> Bounds {
         max: [f32::NEG_INFINITY; 3],
     };
     for p in points {
-        for c in 0..3 {
-            b.min[c] = b.min[c].min(p[c]);
-            b.max[c] = b.max[c].max(p[c]);
+        for ((lo, hi), x) in b.min.iter_mut().zip(b.max.iter_mut()).zip(p) {
+            *lo = lo.min(x);
+            *hi = hi.max(x);
         }
     }
     b
@@ -232,6 +232,7 @@ fn vec3_bytes<'a>(v: &[[f32; 3]], buf: &'a mut Vec<u8>) -> &'a [u8] {
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::super::test_support::{read_le_f32, read_le_u32, two_triangles};
     use super::super::{export, ExportFormat, ExportOptions};

@@ -41,6 +41,7 @@ pub fn write_mdd(frames: &FrameReader, out: &Path, opts: &ExportOptions) -> Resu
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::super::test_support::{read_be_f32, read_be_i32, two_triangles};
     use super::super::{export, ExportFormat, ExportOptions};

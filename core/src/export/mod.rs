@@ -262,6 +262,7 @@ pub(crate) fn unit_normals(topo: &crate::mesh::Topology, p: &[V3]) -> Vec<[f32; 
 pub(crate) mod test_support;
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::test_support::two_triangles;
     use super::*;

@@ -29,6 +29,7 @@ pub fn write_pc2_cache(frames: &FrameReader, out: &Path, opts: &ExportOptions) -
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::super::test_support::two_triangles;
     use super::super::{export, ExportFormat, ExportOptions};

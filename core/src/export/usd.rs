@@ -123,6 +123,7 @@ fn fmt_num(x: f64) -> String {
 }
 
 #[cfg(test)]
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::super::test_support::two_triangles;
     use super::super::{export, ExportFormat, ExportOptions};
@@ -138,8 +139,8 @@ mod tests {
                 let (time, arr) = line.trim().split_once(": ").unwrap();
                 let arr = arr.trim_end_matches(',');
                 let nums: Vec<f32> = arr
-                    .trim_matches(|c| c == '[' || c == ']')
-                    .split(|c| c == '(' || c == ')' || c == ',')
+                    .trim_matches(['[', ']'])
+                    .split(['(', ')', ','])
                     .map(str::trim)
                     .filter(|s| !s.is_empty())
                     .map(|s| s.parse().unwrap())

@@ -269,7 +269,14 @@ function connect() {
   const live = document.getElementById("live");
   const es = new EventSource("/api/events");
   es.addEventListener("open", () => { live.textContent = "live"; live.className = "live on"; });
-  es.addEventListener("error", () => { live.textContent = "reconnecting"; live.className = "live off"; });
+  es.addEventListener("error", () => {
+    live.textContent = "reconnecting"; live.className = "live off";
+    // The browser retries a dropped stream by itself but gives up on a refused one (signed out, coordinator
+    // restarted with other tokens): find out which, once, and either go to the login form or reconnect.
+    if (es.readyState === EventSource.CLOSED) {
+      setTimeout(() => api("/api/workers").then(connect, (e) => problem(`live updates: ${e.message}`)), 3000);
+    }
+  });
   es.addEventListener("jobs", (ev) => {
     state.jobs = new Map(JSON.parse(ev.data).jobs.map((j) => [j.id, j]));
     redraw();

@@ -70,15 +70,16 @@ pub struct VideoArgs {
     /// Drop pairs whose edges run on the garment's border triangles (cuffs, collars, hems).
     #[arg(long)]
     pub skip_border: bool,
-    /// Anchor angle of the narrowest pair of a frame, degrees [default: 60].
+    /// Anchor angle of pairs `--narrow-width` wide or narrower, degrees [default: 60].
     #[arg(long)]
     pub narrow_angle: Option<f64>,
-    /// Anchor angle of the widest pair of a frame, degrees [default: 30].
+    /// Anchor angle of pairs `--wide-width` wide or wider, degrees [default: 30].
     #[arg(long)]
     pub wide_angle: Option<f64>,
-    /// Pair widths (mean edge lengths of frame 0) that get the narrow / wide angle [default: 1.5, 6].
+    /// Pair width (mean edge lengths of frame 0) up to which pairs get the narrow angle [default: 1.5].
     #[arg(long)]
     pub narrow_width: Option<f64>,
+    /// Pair width (mean edge lengths of frame 0) from which on pairs get the wide angle [default: 6].
     #[arg(long)]
     pub wide_width: Option<f64>,
     /// Look for fold edges in the raw image, not in its residual against the captured mesh's fitted shading.

@@ -211,7 +211,8 @@ fn bad_inputs_get_clear_errors_and_no_report() {
     let err = stderr(&o);
     assert!(!o.status.success());
     assert!(
-        err.contains("frame_0021.obj") && err.contains("vertex 10"),
+        // 1-based, as in the file: the 11th `v` line.
+        err.contains("frame_0021.obj") && err.contains("vertex 11"),
         "{err}"
     );
     assert!(!out.join("report.json").exists());

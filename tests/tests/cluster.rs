@@ -287,7 +287,8 @@ fn a_task_that_always_fails_is_retried_to_the_limit_then_fails_the_job() {
     assert_eq!(s["state"], "failed", "{s}");
     let msg = s["message"].as_str().unwrap();
     assert!(
-        msg.contains("frame_0023.obj") && msg.contains("vertex 10") && msg.contains("task `"),
+        // 1-based, as in the file: the 11th `v` line.
+        msg.contains("frame_0023.obj") && msg.contains("vertex 11") && msg.contains("task `"),
         "{msg}"
     );
     assert!(!d.join("out-nan/report.json").exists());

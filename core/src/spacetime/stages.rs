@@ -198,10 +198,16 @@ pub fn position_frame(
         *metrics += clock.elapsed().as_secs_f64();
     };
     measure(&out, &mut metrics);
+    // A frame the positioning left exactly in place (no anchor's weight reaches it) has no stretch to reduce:
+    // a pass would only add round-off (the closest rotation to an identity gradient is I up to rounding), and
+    // no anchors must give the input back bit for bit.
+    let moved = out != rest;
     let mut pass_times = Vec::with_capacity(passes);
     for _ in 0..passes {
         let clock = Instant::now();
-        out = super::stretch::pass(&fp, &out, rotation);
+        if moved {
+            out = super::stretch::pass(&fp, &out, rotation);
+        }
         pass_times.push(clock.elapsed().as_secs_f64());
         measure(&out, &mut metrics);
     }

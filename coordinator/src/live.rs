@@ -6,14 +6,16 @@ use crease_proto as pb;
 use std::collections::HashMap;
 use std::sync::Mutex;
 
+/// (job, task key) → (stage, done, total).
+type Table = HashMap<(String, String), (String, u64, u64)>;
+
 #[derive(Default)]
 pub struct LiveProgress {
-    /// (job, task key) → (stage, done, total).
-    tasks: Mutex<HashMap<(String, String), (String, u64, u64)>>,
+    tasks: Mutex<Table>,
 }
 
 impl LiveProgress {
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<(String, String), (String, u64, u64)>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Table> {
         self.tasks.lock().unwrap_or_else(|p| p.into_inner())
     }
 

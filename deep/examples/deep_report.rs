@@ -1,0 +1,528 @@
+//! The DeepWrinkles figures on the sleeve training data, one sequence held out (docs/deepwrinkles.md):
+//!
+//! ```text
+//! cargo run --release -p crease-deep --example deep_report -- subspace   DATA OUT [held-out]
+//! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT [held-out] [epochs] [layers] [hidden]
+//! cargo run --release -p crease-deep --example deep_report -- cgan       DATA OUT [held-out] [epochs] [res] [filters]
+//! cargo run --release -p crease-deep --example deep_report -- register   DATA OUT [frames]
+//! cargo run --release -p crease-deep --example deep_report -- score      APPLY_OUT GT CAPTURED
+//! ```
+//!
+//! DATA is `sleeve-train/` (seed_1, seed_2, seed_3); the held-out sequence defaults to seed_3. Every part
+//! prints a Markdown table and writes JSON (and PNGs) under OUT.
+
+use crease_core::mesh::geometry::vertex_normals;
+use crease_core::mesh::io::open_sequence;
+use crease_core::mesh::{Frame, Sequence, Topology};
+use crease_core::vec3::{self, V3};
+use crease_deep::bake::{map_normal_error, mesh_normal_error};
+use crease_deep::cgan::{Cgan, CganConfig, Sample};
+use crease_deep::cgan_data::{map_pairs, samples};
+use crease_deep::lstm::{windows, LstmConfig, LstmRegressor};
+use crease_deep::normal_map::{sample_vertex_normals, NormalMap};
+use crease_deep::pose::ControlSpec;
+use crease_deep::raster::TexelMap;
+use crease_deep::register::{synth_scan, RegisterParams, Registration};
+use crease_deep::regress::LinearRegression;
+use crease_deep::subspace::{vertex_error, Subspace};
+use crease_deep::train::{load_training_dir, TrainingSequence};
+use crease_deep::uv::{auto_atlas, read_obj_uv};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+type R<T> = Result<T, Box<dyn std::error::Error>>;
+
+fn main() -> R<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let part = args.first().map(String::as_str).unwrap_or("");
+    let arg = |i: usize| args.get(i).cloned();
+    match part {
+        "subspace" => subspace(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            &arg(3).unwrap_or("seed_3".into()),
+        ),
+        "regression" => regression(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            &arg(3).unwrap_or("seed_3".into()),
+            arg(4).map_or(Ok(300), |s| s.parse())?,
+            arg(5).map_or(Ok(4), |s| s.parse())?,
+            arg(6).map_or(Ok(256), |s| s.parse())?,
+        ),
+        "cgan" => cgan(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            &arg(3).unwrap_or("seed_3".into()),
+            arg(4).map_or(Ok(3), |s| s.parse())?,
+            arg(5).map_or(Ok(64), |s| s.parse())?,
+            arg(6).map_or(Ok(16), |s| s.parse())?,
+        ),
+        "register" => register(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            arg(3).map_or(Ok(5), |s| s.parse())?,
+        ),
+        "score" => score(
+            &arg(1).ok_or("APPLY_OUT")?,
+            &arg(2).ok_or("GT")?,
+            &arg(3).ok_or("CAPTURED")?,
+        ),
+        _ => Err("usage: deep_report subspace|regression|cgan|register|score ...".into()),
+    }
+}
+
+fn split(data: &str, held: &str) -> R<(Vec<TrainingSequence>, TrainingSequence)> {
+    let mut train = Vec::new();
+    let mut test = None;
+    let mut names: Vec<PathBuf> = std::fs::read_dir(data)?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.join("pose.json").exists())
+        .collect();
+    names.sort();
+    for p in names {
+        let s = load_training_dir(&p)?;
+        if p.file_name().is_some_and(|n| n == held) {
+            test = Some(s);
+        } else {
+            train.push(s);
+        }
+    }
+    Ok((train, test.ok_or("held-out sequence not found")?))
+}
+
+fn mm(x: f64) -> String {
+    format!("{:.2}", x * 1e3)
+}
+
+fn mean_err(a: &[Frame], b: &[Frame]) -> (f64, f64) {
+    let e: Vec<(f64, f64)> = a.iter().zip(b).map(|(x, y)| vertex_error(x, y)).collect();
+    let n = e.len() as f64;
+    (
+        e.iter().map(|x| x.0).sum::<f64>() / n,
+        e.iter().map(|x| x.1).sum::<f64>() / n,
+    )
+}
+
+fn write_json(out: &str, name: &str, v: &serde_json::Value) -> R<()> {
+    std::fs::create_dir_all(out)?;
+    std::fs::write(Path::new(out).join(name), serde_json::to_string_pretty(v)?)?;
+    Ok(())
+}
+
+fn subspace(data: &str, out: &str, held: &str) -> R<()> {
+    let (train, test) = split(data, held)?;
+    let frames: Vec<&[V3]> = train
+        .iter()
+        .flat_map(|s| s.fine.iter().map(|f| f.as_slice()))
+        .collect();
+    let t0 = Instant::now();
+    let full = Subspace::fit(&frames, frames.len())?;
+    let fit_s = t0.elapsed().as_secs_f64();
+    println!(
+        "subspace of {} training frames ({} components) in {fit_s:.1} s; held out: {held}",
+        frames.len(),
+        full.k()
+    );
+    println!("| k | train mean (mm) | train p95 (mm) | held-out mean (mm) | held-out p95 (mm) |\n|---|---|---|---|---|");
+    let mut rows = Vec::new();
+    let train_frames: Vec<Frame> = train.iter().flat_map(|s| s.fine.iter().cloned()).collect();
+    for k in [5, 10, 25, 50, 100, 200, full.k()] {
+        let s = full.truncated(k);
+        let rec = |f: &Frame| s.reconstruct(&s.project(f, k));
+        let tr: Vec<Frame> = train_frames.iter().map(rec).collect();
+        let te: Vec<Frame> = test.fine.iter().map(rec).collect();
+        let (a, b) = mean_err(&tr, &train_frames);
+        let (c, d) = mean_err(&te, &test.fine);
+        println!("| {k} | {} | {} | {} | {} |", mm(a), mm(b), mm(c), mm(d));
+        rows.push(serde_json::json!({"k": k, "train_mean_m": a, "train_p95_m": b, "heldout_mean_m": c, "heldout_p95_m": d}));
+    }
+    write_json(
+        out,
+        "subspace.json",
+        &serde_json::json!({"held_out": held, "fit_s": fit_s, "rows": rows}),
+    )
+}
+
+fn regression(
+    data: &str,
+    out: &str,
+    held: &str,
+    epochs: usize,
+    layers: usize,
+    hidden: usize,
+) -> R<()> {
+    let (train, test) = split(data, held)?;
+    let frames: Vec<&[V3]> = train
+        .iter()
+        .flat_map(|s| s.fine.iter().map(|f| f.as_slice()))
+        .collect();
+    let k = 200;
+    let sub = Subspace::fit(&frames, k)?;
+    let k = sub.k();
+    let pose_refs: Vec<&[Vec<f64>]> = train.iter().map(|s| s.poses.as_slice()).collect();
+    let mut rows = Vec::new();
+    println!("held out: {held}; subspace k = {k}");
+    println!("| regressor | coefficient MSE (m²) | held-out vertex error mean (mm) | p95 (mm) | normal error (°) | captured normal error (°) | fit s |\n|---|---|---|---|---|---|---|");
+    let truth: Vec<Vec<f64>> = test.fine.iter().map(|f| sub.project(f, k)).collect();
+    let topo = test.topology.clone();
+    let captured_ne: f64 = test
+        .fine
+        .iter()
+        .zip(&test.coarse)
+        .map(|(g, c)| mesh_normal_error(&topo, g, c))
+        .sum::<f64>()
+        / test.fine.len() as f64;
+    let report = |name: &str, pred: Vec<Vec<f64>>, secs: f64, rows: &mut Vec<serde_json::Value>| {
+        let mse = pred
+            .iter()
+            .zip(&truth)
+            .map(|(p, t)| p.iter().zip(t).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / k as f64)
+            .sum::<f64>()
+            / pred.len() as f64;
+        let shapes: Vec<Frame> = pred.iter().map(|c| sub.reconstruct(c)).collect();
+        let (m, p) = mean_err(&shapes, &test.fine);
+        let ne = shapes
+            .iter()
+            .zip(&test.fine)
+            .map(|(s, g)| mesh_normal_error(&topo, s, g))
+            .sum::<f64>()
+            / shapes.len() as f64;
+        println!(
+            "| {name} | {mse:.3e} | {} | {} | {ne:.2} | {captured_ne:.2} | {secs:.1} |",
+            mm(m),
+            mm(p)
+        );
+        rows.push(serde_json::json!({"regressor": name, "coeff_mse": mse, "vertex_mean_m": m, "vertex_p95_m": p, "normal_error_deg": ne, "captured_normal_error_deg": captured_ne, "fit_s": secs}));
+    };
+    report(
+        "subspace projection (oracle)",
+        truth.clone(),
+        0.0,
+        &mut rows,
+    );
+    for (name, lags) in [
+        ("linear, pose+vel+acc", vec![]),
+        ("linear, + pose lags 1..32", vec![1, 2, 4, 8, 16, 32]),
+    ] {
+        let spec = ControlSpec::fit(&pose_refs, lags)?;
+        let mut c = Vec::new();
+        let mut t = Vec::new();
+        for s in &train {
+            c.extend(spec.controls(&s.poses)?);
+            t.extend(s.fine.iter().map(|f| sub.project(f, k)));
+        }
+        let t0 = Instant::now();
+        let reg = LinearRegression::fit(&c, &t, 1e-3)?;
+        let secs = t0.elapsed().as_secs_f64();
+        let pred: Vec<Vec<f64>> = spec
+            .controls(&test.poses)?
+            .iter()
+            .map(|c| reg.predict(c))
+            .collect();
+        report(name, pred, secs, &mut rows);
+    }
+    // LSTM on the lagged controls.
+    let spec = ControlSpec::fit(&pose_refs, vec![1, 2, 4, 8, 16, 32])?;
+    let mut data_w = Vec::new();
+    let mut all_t = Vec::new();
+    for s in &train {
+        let c = spec.controls(&s.poses)?;
+        let t: Vec<Vec<f64>> = s.fine.iter().map(|f| sub.project(f, k)).collect();
+        all_t.extend(t.iter().cloned());
+        data_w.extend(windows(&c, &t, 3));
+    }
+    let scale: Vec<f64> = (0..k)
+        .map(|j| {
+            (all_t.iter().map(|t| t[j] * t[j]).sum::<f64>() / all_t.len() as f64)
+                .sqrt()
+                .max(1e-9)
+        })
+        .collect();
+    let cfg = LstmConfig {
+        layers,
+        hidden,
+        seq_len: 3,
+        epochs,
+        batch: 32,
+        lr: 1e-3,
+        seed: 1,
+    };
+    let mut net = LstmRegressor::new(cfg, spec.len(), k, scale)?;
+    let t0 = Instant::now();
+    let losses = net.train(&data_w, |e, l| {
+        if (e + 1) % 25 == 0 {
+            eprintln!("lstm epoch {}: {l:.5}", e + 1)
+        }
+    })?;
+    let secs = t0.elapsed().as_secs_f64();
+    let tc = spec.controls(&test.poses)?;
+    let pred = net.predict(&windows(&tc, &truth, 3))?;
+    report(
+        &format!("LSTM {layers}x{hidden}, seq 3, {epochs} epochs"),
+        pred,
+        secs,
+        &mut rows,
+    );
+    println!(
+        "LSTM: {:.2} s per epoch; loss {:.4} -> {:.4}",
+        secs / epochs.max(1) as f64,
+        losses[0],
+        losses[losses.len() - 1]
+    );
+    write_json(
+        out,
+        "regression.json",
+        &serde_json::json!({"held_out": held, "k": k, "rows": rows, "lstm_losses": losses, "lstm_s_per_epoch": secs / epochs.max(1) as f64}),
+    )
+}
+
+/// Pixel-wise errors of Eq. 4 on held-out frames: mean |G(x_t) − y_t| and |mean(G(x_t) − y_{t−1})| over
+/// covered texel channels, plus the DESIGN §9 normal error of the maps sampled at the vertices.
+fn eval_maps(preds: &[NormalMap], pairs: &[(NormalMap, NormalMap)]) -> (f64, f64) {
+    let (mut data, mut temp) = (0.0, 0.0);
+    for (t, p) in preds.iter().enumerate() {
+        let y = &pairs[t].1;
+        let yp = &pairs[t.saturating_sub(1)].1;
+        let (mut s, mut st, mut c) = (0.0, 0.0, 0.0);
+        for k in 0..p.n.len() {
+            if y.covered[k] {
+                for ch in 0..3 {
+                    s += (p.n[k][ch] - y.n[k][ch]).abs() as f64;
+                    st += (p.n[k][ch] - yp.n[k][ch]) as f64;
+                    c += 1.0;
+                }
+            }
+        }
+        data += s / c;
+        temp += (st / c).abs();
+    }
+    (data / preds.len() as f64, temp / preds.len() as f64)
+}
+
+fn to_rgb(m: &NormalMap) -> image::RgbImage {
+    image::RgbImage::from_fn(m.width as u32, m.height as u32, |x, y| {
+        let k = y as usize * m.width + x as usize;
+        if !m.covered[k] {
+            return image::Rgb([128, 128, 128]);
+        }
+        let c = |v: f32| ((v.clamp(-1.0, 1.0) + 1.0) * 127.5) as u8;
+        image::Rgb([c(m.n[k][0]), c(m.n[k][1]), c(m.n[k][2])])
+    })
+}
+
+fn cgan(data: &str, out: &str, held: &str, epochs: usize, res: usize, filters: usize) -> R<()> {
+    let (train, test) = split(data, held)?;
+    let topo = test.topology.clone();
+    let frames: Vec<&[V3]> = train
+        .iter()
+        .flat_map(|s| s.fine.iter().map(|f| f.as_slice()))
+        .collect();
+    let sub = Subspace::fit(&frames, 200)?;
+    let mean_shape = crease_deep::subspace::unflatten(&sub.mean);
+    let layout = auto_atlas(&topo, &mean_shape, 0.01)?;
+    let texels = TexelMap::new(&layout, res, res);
+    // Inputs of the variants: coarse shapes per sequence.
+    let pose_refs: Vec<&[Vec<f64>]> = train.iter().map(|s| s.poses.as_slice()).collect();
+    let spec = ControlSpec::fit(&pose_refs, vec![1, 2, 4, 8, 16, 32])?;
+    let mut c = Vec::new();
+    let mut t = Vec::new();
+    for s in &train {
+        c.extend(spec.controls(&s.poses)?);
+        t.extend(s.fine.iter().map(|f| sub.project(f, 200)));
+    }
+    let reg = LinearRegression::fit(&c, &t, 1e-3)?;
+    let shapes = |s: &TrainingSequence, kind: &str| -> R<Vec<Frame>> {
+        Ok(match kind {
+            "captured" => s.coarse.clone(),
+            "subspace200" | "subspace50" => {
+                let k = if kind == "subspace200" { 200 } else { 50 };
+                let st = sub.truncated(k);
+                s.fine
+                    .iter()
+                    .map(|f| st.reconstruct(&st.project(f, k)))
+                    .collect()
+            }
+            _ => spec
+                .controls(&s.poses)?
+                .iter()
+                .map(|c| sub.reconstruct(&reg.predict(c)))
+                .collect(),
+        })
+    };
+    let variants = [
+        ("captured, Eq. 4", "captured", 50.0),
+        ("captured, no temporal", "captured", 0.0),
+        ("subspace k=200", "subspace200", 50.0),
+        ("subspace k=50", "subspace50", 50.0),
+        ("regression (linear)", "regression", 50.0),
+    ];
+    println!("held out: {held}; {res}x{res} maps, generator {filters} filters, {epochs} epochs per variant");
+    println!("| input | data (L1) | temporal | map angle to target (°) | input's data (L1) | vertex normal error (°) | captured mesh normal error (°) | s/epoch |\n|---|---|---|---|---|---|---|---|");
+    let mut rows = Vec::new();
+    let mut strip: Vec<image::RgbImage> = Vec::new();
+    let show = test.fine.len() / 3;
+    let gt_ne: f64 = test
+        .fine
+        .iter()
+        .zip(&test.coarse)
+        .map(|(g, c)| mesh_normal_error(&topo, g, c))
+        .sum::<f64>()
+        / test.fine.len() as f64;
+    for (name, kind, w_temp) in variants {
+        let mut train_samples: Vec<Sample> = Vec::new();
+        for s in &train {
+            train_samples.extend(samples(&map_pairs(
+                &topo,
+                &texels,
+                &shapes(s, kind)?,
+                &s.fine,
+                8.0,
+            )?));
+        }
+        let test_shapes = shapes(&test, kind)?;
+        let test_pairs = map_pairs(&topo, &texels, &test_shapes, &test.fine, 8.0)?;
+        let cfg = CganConfig {
+            resolution: res,
+            filters,
+            disc_filters: filters,
+            w_temporal: w_temp,
+            epochs,
+            ..Default::default()
+        };
+        let mut gan = Cgan::new(cfg)?;
+        let t0 = Instant::now();
+        let hist = gan.train(
+            &train_samples,
+            |_, _, _| {},
+            |_, e, l| {
+                eprintln!(
+                    "{name}: epoch {e}: L1 {:.4} temporal {:.4} GAN {:.3} D {:.3}",
+                    l.l1, l.temporal, l.gan, l.disc
+                );
+                Ok(())
+            },
+        )?;
+        let per_epoch = t0.elapsed().as_secs_f64() / epochs.max(1) as f64;
+        let preds: Vec<NormalMap> = test_pairs
+            .iter()
+            .map(|p| gan.enhance(&p.0))
+            .collect::<Result<_, _>>()?;
+        let (d, tmp) = eval_maps(&preds, &test_pairs);
+        let inputs: Vec<NormalMap> = test_pairs.iter().map(|p| p.0.clone()).collect();
+        let (d_in, _) = eval_maps(&inputs, &test_pairs);
+        let angle = preds
+            .iter()
+            .zip(&test_pairs)
+            .map(|(p, q)| p.mean_angle_deg(&q.1))
+            .sum::<f64>()
+            / preds.len() as f64;
+        let ne = preds
+            .iter()
+            .zip(&test.fine)
+            .map(|(p, g)| map_normal_error(&sample_vertex_normals(p, &topo, &layout), &topo, g).0)
+            .sum::<f64>()
+            / preds.len() as f64;
+        println!("| {name} | {d:.4} | {tmp:.4} | {angle:.2} | {d_in:.4} | {ne:.2} | {gt_ne:.2} | {per_epoch:.1} |");
+        rows.push(serde_json::json!({"input": name, "data_l1": d, "temporal": tmp, "map_angle_deg": angle, "input_data_l1": d_in, "vertex_normal_error_deg": ne, "captured_normal_error_deg": gt_ne, "s_per_epoch": per_epoch, "history": hist}));
+        // Fig. 11 row: input | prediction | target.
+        let (w, h) = (res as u32, res as u32);
+        let mut row = image::RgbImage::new(3 * w, h);
+        for (i, m) in [&test_pairs[show].0, &preds[show], &test_pairs[show].1]
+            .iter()
+            .enumerate()
+        {
+            image::imageops::overlay(&mut row, &to_rgb(m), (i as u32 * w) as i64, 0);
+        }
+        strip.push(row);
+    }
+    let (w, h) = (strip[0].width(), strip[0].height());
+    let mut fig = image::RgbImage::new(w, h * strip.len() as u32);
+    for (i, r) in strip.iter().enumerate() {
+        image::imageops::overlay(&mut fig, r, 0, (i as u32 * h) as i64);
+    }
+    std::fs::create_dir_all(out)?;
+    fig.save(Path::new(out).join("fig11_strip.png"))?;
+    write_json(
+        out,
+        "table1.json",
+        &serde_json::json!({"held_out": held, "resolution": res, "filters": filters, "epochs": epochs, "frame_shown": show + 1, "rows": rows}),
+    )
+}
+
+fn register(data: &str, out: &str, frames: usize) -> R<()> {
+    let seq = Sequence::load(
+        open_sequence(&Path::new(data).join("seed_1/gt"))?
+            .source
+            .as_ref(),
+    )?;
+    let topo: std::sync::Arc<Topology> = seq.topology.clone();
+    let mut reg = Registration::new(topo.clone(), &seq.frames[0], RegisterParams::default())?;
+    println!("{} graph nodes; template = gt frame 1; scans sampled from later frames (20% holes, 2 mm noise)", reg.n_nodes());
+    println!(
+        "| frame | mean (mm) | p95 (mm) | template-to-frame mean (mm) | s |\n|---|---|---|---|---|"
+    );
+    let mut rows = Vec::new();
+    let step = (seq.frames.len() / frames.max(1)).max(1);
+    for t in (step..seq.frames.len()).step_by(step).take(frames) {
+        let scan = synth_scan(&topo, &seq.frames[t], 3.0, 0.2, 0.002, t as u64);
+        let t0 = Instant::now();
+        let got = reg.register(&scan)?;
+        let secs = t0.elapsed().as_secs_f64();
+        let (m, p) = vertex_error(&got, &seq.frames[t]);
+        let (b, _) = vertex_error(&seq.frames[0], &seq.frames[t]);
+        println!(
+            "| {} | {} | {} | {} | {secs:.1} |",
+            t + 1,
+            mm(m),
+            mm(p),
+            mm(b)
+        );
+        rows.push(serde_json::json!({"frame": t + 1, "mean_m": m, "p95_m": p, "before_m": b, "seconds": secs}));
+    }
+    write_json(
+        out,
+        "registration.json",
+        &serde_json::json!({"rows": rows, "nodes": reg.n_nodes()}),
+    )
+}
+
+/// DESIGN §9 normal error of an apply output (mesh/ + normals/) against gt, beside the captured input's and the
+/// coarse mesh's own; shape error of the coarse mesh to gt.
+fn score(out: &str, gt: &str, captured: &str) -> R<()> {
+    let gt = Sequence::load(open_sequence(Path::new(gt))?.source.as_ref())?;
+    let cap = Sequence::load(open_sequence(Path::new(captured))?.source.as_ref())?;
+    let topo = gt.topology.clone();
+    let (mut map_e, mut mesh_e, mut cap_e, mut shape) = (0.0, 0.0, 0.0, 0.0);
+    let n = gt.frames.len();
+    for t in 0..n {
+        let stem = format!("frame_{:04}", t + 1);
+        let obj = Path::new(out).join("mesh").join(format!("{stem}.obj"));
+        let (mtopo, coarse, layout) = crease_deep::uv::read_obj_mesh(&obj)?;
+        let layout = layout.ok_or("output mesh without vt")?;
+        let _ = read_obj_uv(&obj, &mtopo)?;
+        let map = NormalMap::read_png(&Path::new(out).join("normals").join(format!("{stem}.png")))?;
+        map_e += map_normal_error(
+            &sample_vertex_normals(&map, &mtopo, &layout),
+            &topo,
+            &gt.frames[t],
+        )
+        .0;
+        mesh_e += mesh_normal_error(&topo, &coarse, &gt.frames[t]);
+        cap_e += mesh_normal_error(&topo, &cap.frames[t], &gt.frames[t]);
+        shape += vertex_error(&coarse, &gt.frames[t]).0;
+        let _ = vertex_normals(&topo, &coarse);
+        let _ = vec3::norm([0.0; 3]);
+    }
+    let n = n as f64;
+    println!("| frames | map normal error (°) | coarse mesh normal error (°) | captured normal error (°) | shape error (mm) |\n|---|---|---|---|---|");
+    println!(
+        "| {} | {:.2} | {:.2} | {:.2} | {} |",
+        n,
+        map_e / n,
+        mesh_e / n,
+        cap_e / n,
+        mm(shape / n)
+    );
+    Ok(())
+}

@@ -1,0 +1,206 @@
+//! `crease deep apply`: a trained model run on a pose sequence or on coarse meshes, writing the DESIGN §7
+//! output contract. Every frame depends only on the inputs (pose history included) and the model, never on
+//! which other frames were computed in the same run, so a frame range gives the same bytes as the full run:
+//! that is what lets the job system split apply into frame chunks.
+
+use crate::contract;
+use crate::lstm::windows;
+use crate::model::{Model, RegressorKind};
+use crate::normal_map::{bake_coarse, convert_space, NormalMap, Space};
+use crate::pose::read_pose_file;
+use crate::raster::TexelMap;
+use crease_core::mesh::io::open_sequence;
+use crease_core::mesh::{Frame, FrameSource};
+use crease_core::progress::Progress;
+use crease_core::vec3::V3;
+use crease_core::{Error, Result};
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Clone)]
+pub enum ApplyInput {
+    /// A pose file: shapes come from the regression.
+    Pose(PathBuf),
+    /// A coarse mesh sequence in the model's topology (e.g. a capture).
+    Coarse(PathBuf),
+}
+
+#[derive(Debug, Clone)]
+pub struct ApplyParams {
+    pub space: Space,
+    /// Overrides the model's regressor for `--pose`.
+    pub regressor: Option<RegressorKind>,
+    /// Frames to write (0-based, end exclusive); all when `None`.
+    pub frames: Option<Range<usize>>,
+    /// Skip the cGAN and write the coarse maps (for comparisons).
+    pub no_cgan: bool,
+}
+
+impl Default for ApplyParams {
+    fn default() -> Self {
+        ApplyParams {
+            space: Space::World,
+            regressor: None,
+            frames: None,
+            no_cgan: false,
+        }
+    }
+}
+
+/// The coarse shapes of every input frame: the regression's (from poses) or the given meshes.
+pub enum CoarseShapes {
+    Frames(Vec<Frame>),
+    Source(Box<dyn FrameSource>),
+}
+
+impl CoarseShapes {
+    pub fn n_frames(&self) -> usize {
+        match self {
+            CoarseShapes::Frames(f) => f.len(),
+            CoarseShapes::Source(s) => s.n_frames(),
+        }
+    }
+    pub fn frame(&self, t: usize) -> Result<Frame> {
+        match self {
+            CoarseShapes::Frames(f) => Ok(f[t].clone()),
+            CoarseShapes::Source(s) => s.read_frame(t),
+        }
+    }
+}
+
+/// Shapes predicted from a pose file (the whole file: controls need the history).
+pub fn shapes_from_poses(
+    model: &Model,
+    pose_path: &Path,
+    regressor: RegressorKind,
+) -> Result<Vec<Frame>> {
+    let poses = read_pose_file(pose_path, None)?;
+    if poses[0].len() != model.manifest.control.pose_dim() {
+        return Err(Error::format(
+            pose_path,
+            None,
+            format!(
+                "pose vectors have {} numbers; the model was trained on {}",
+                poses[0].len(),
+                model.manifest.control.pose_dim()
+            ),
+        ));
+    }
+    let controls = model.manifest.control.controls(&poses)?;
+    let coeffs: Vec<Vec<f64>> = match regressor {
+        RegressorKind::Linear => controls.iter().map(|c| model.linear.predict(c)).collect(),
+        RegressorKind::Lstm => {
+            let net = model.lstm.as_ref().ok_or_else(|| {
+                Error::param(
+                    "regressor",
+                    format!(
+                        "the model at {} has no LSTM (trained with the linear regressor only)",
+                        model.dir.display()
+                    ),
+                )
+            })?;
+            let dummy = vec![vec![0.0; model.subspace.k()]; controls.len()];
+            net.predict(&windows(&controls, &dummy, net.config.seq_len))?
+        }
+    };
+    Ok(coeffs
+        .iter()
+        .map(|c| model.subspace.reconstruct(c))
+        .collect())
+}
+
+/// Opens coarse meshes and checks them against the model's topology, naming the file on a mismatch.
+pub fn open_coarse(model: &Model, dir: &Path) -> Result<Box<dyn FrameSource>> {
+    let opened = open_sequence(dir)?;
+    let topo = opened.source.topology();
+    if topo.n_vertices() != model.topology.n_vertices()
+        || topo.triangles() != model.topology.triangles()
+    {
+        return Err(Error::Mesh {
+            path: Some(dir.to_path_buf()),
+            frame: None,
+            msg: format!(
+                "{} vertices / {} triangles do not match the model's topology ({} / {}); {}",
+                topo.n_vertices(),
+                topo.n_triangles(),
+                model.topology.n_vertices(),
+                model.topology.n_triangles(),
+                opened.source.describe_frame(0)
+            ),
+        });
+    }
+    Ok(opened.source)
+}
+
+/// Runs the model on `input` and writes frames (all, or `params.frames`) into `out`.
+pub fn apply(
+    model: &Model,
+    input: &ApplyInput,
+    params: &ApplyParams,
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<usize> {
+    let shapes = match input {
+        ApplyInput::Pose(p) => CoarseShapes::Frames(shapes_from_poses(
+            model,
+            p,
+            params.regressor.unwrap_or(model.manifest.regressor),
+        )?),
+        ApplyInput::Coarse(d) => CoarseShapes::Source(open_coarse(model, d)?),
+    };
+    let n = shapes.n_frames();
+    let range = params.frames.clone().unwrap_or(0..n);
+    if range.start >= range.end || range.end > n {
+        return Err(Error::param(
+            "frames",
+            format!(
+                "{}..{} is not a frame range of this {n}-frame input",
+                range.start + 1,
+                range.end
+            ),
+        ));
+    }
+    let res = model.manifest.resolution;
+    let texels = TexelMap::new(&model.layout, res, res);
+    let enhancer = if params.no_cgan {
+        None
+    } else {
+        crate::enhance::Enhancer::for_model(model)?
+    };
+    contract::prepare(out)?;
+    progress.begin("apply", range.len() as u64);
+    // Each frame needs its predecessor's map only through the cGAN's input, never its output, so frames are
+    // independent; they run one after another to keep memory flat and the cGAN on all cores.
+    for t in range.clone() {
+        if progress.cancelled() {
+            return Err(Error::Cancelled);
+        }
+        let c = shapes.frame(t)?;
+        let map = frame_map(model, &texels, &c, enhancer.as_ref(), params.space)?;
+        contract::write_frame(out, t, &model.topology, &c, &model.layout, &map)?;
+        progress.advance("apply", 1);
+    }
+    progress.end("apply");
+    if params.frames.is_none() {
+        contract::finish(out, n, params.space, res, "crease deep apply")?;
+    }
+    Ok(range.len())
+}
+
+/// One frame's map: the coarse map, enhanced by the cGAN when the model has one, in the asked space.
+pub fn frame_map(
+    model: &Model,
+    texels: &TexelMap,
+    coarse: &[V3],
+    enhancer: Option<&crate::enhance::Enhancer>,
+    space: Space,
+) -> Result<NormalMap> {
+    let mut map = bake_coarse(texels, &model.topology, coarse);
+    if let Some(e) = enhancer {
+        map = e.enhance(&map)?;
+    }
+    if space == Space::Tangent {
+        map = convert_space(&map, texels, &model.topology, coarse, &model.layout, true);
+    }
+    Ok(map)
+}

@@ -1,0 +1,291 @@
+//! LSTM encoder–decoder pose-to-shape regression (Lähner et al. §3.3; paper: 4 layers × 256, sequences of 3).
+//!
+//! The encoder reads the control vectors of frames t−L+1..t; its last hidden state, repeated L times, drives
+//! the decoder, whose outputs map (one linear layer) to the subspace coefficients of the same frames. Frame t's
+//! prediction is the last one. Coefficients are learned in units of their training standard deviation so every
+//! component counts alike in the MSE. candle (CPU, f32); weights are seeded (see [`crate::seed`]).
+
+use crate::seed::{init_vars, Rng};
+use candle_core::{DType, Device, Module, Tensor};
+use candle_nn::rnn::{LSTMConfig, LSTM, RNN};
+use candle_nn::{linear, Linear, Optimizer, VarBuilder, VarMap};
+use crease_core::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LstmConfig {
+    pub layers: usize,
+    pub hidden: usize,
+    pub seq_len: usize,
+    pub epochs: usize,
+    pub batch: usize,
+    pub lr: f64,
+    pub seed: u64,
+}
+
+impl Default for LstmConfig {
+    fn default() -> Self {
+        LstmConfig {
+            layers: 4,
+            hidden: 256,
+            seq_len: 3,
+            epochs: 300,
+            batch: 32,
+            lr: 1e-3,
+            seed: 1,
+        }
+    }
+}
+
+impl LstmConfig {
+    pub fn validate(&self) -> Result<()> {
+        for (name, v) in [
+            ("lstm.layers", self.layers),
+            ("lstm.hidden", self.hidden),
+            ("lstm.seq_len", self.seq_len),
+            ("lstm.batch", self.batch),
+        ] {
+            if v == 0 {
+                return Err(Error::param(name, "must be at least 1"));
+            }
+        }
+        if !(self.lr.is_finite() && self.lr > 0.0) {
+            return Err(Error::param("lstm.lr", "must be a positive number"));
+        }
+        Ok(())
+    }
+}
+
+fn ce(e: candle_core::Error) -> Error {
+    Error::Numeric {
+        stage: "lstm".into(),
+        msg: e.to_string(),
+    }
+}
+
+pub struct LstmRegressor {
+    pub config: LstmConfig,
+    pub in_dim: usize,
+    pub out_dim: usize,
+    /// Per-coefficient standard deviation the network's outputs are multiplied by.
+    pub out_scale: Vec<f64>,
+    varmap: VarMap,
+    encoder: Vec<LSTM>,
+    decoder: Vec<LSTM>,
+    head: Linear,
+}
+
+/// One training example: the control vectors of L consecutive frames and their coefficients.
+pub struct Window {
+    pub controls: Vec<Vec<f64>>,
+    pub targets: Vec<Vec<f64>>,
+}
+
+/// Windows of `len` frames ending at every frame of a sequence (the first frames repeat frame 0, as the
+/// control vectors do).
+pub fn windows(controls: &[Vec<f64>], targets: &[Vec<f64>], len: usize) -> Vec<Window> {
+    (0..controls.len())
+        .map(|t| {
+            let idx: Vec<usize> = (0..len).map(|i| (t + i + 1).saturating_sub(len)).collect();
+            Window {
+                controls: idx.iter().map(|&i| controls[i].clone()).collect(),
+                targets: idx.iter().map(|&i| targets[i].clone()).collect(),
+            }
+        })
+        .collect()
+}
+
+impl LstmRegressor {
+    pub fn new(
+        config: LstmConfig,
+        in_dim: usize,
+        out_dim: usize,
+        out_scale: Vec<f64>,
+    ) -> Result<Self> {
+        config.validate()?;
+        let varmap = VarMap::new();
+        let vb = VarBuilder::from_varmap(&varmap, DType::F32, &Device::Cpu);
+        let mut encoder = Vec::new();
+        let mut decoder = Vec::new();
+        for l in 0..config.layers {
+            let d_in = if l == 0 { in_dim } else { config.hidden };
+            let cfg = LSTMConfig {
+                layer_idx: l,
+                ..Default::default()
+            };
+            encoder.push(LSTM::new(d_in, config.hidden, cfg, vb.pp("encoder")).map_err(ce)?);
+            decoder
+                .push(LSTM::new(config.hidden, config.hidden, cfg, vb.pp("decoder")).map_err(ce)?);
+        }
+        let head = linear(config.hidden, out_dim, vb.pp("head")).map_err(ce)?;
+        init_vars(&varmap, config.seed, &[]).map_err(ce)?;
+        Ok(LstmRegressor {
+            config,
+            in_dim,
+            out_dim,
+            out_scale,
+            varmap,
+            encoder,
+            decoder,
+            head,
+        })
+    }
+
+    /// [batch, L, in] → [batch, L, out] (normalised coefficients).
+    fn forward(&self, x: &Tensor) -> candle_core::Result<Tensor> {
+        let mut h = x.clone();
+        for layer in &self.encoder {
+            let states = layer.seq(&h)?;
+            h = layer.states_to_tensor(&states)?;
+        }
+        let l = self.config.seq_len;
+        let last = h.narrow(1, l - 1, 1)?; // [b, 1, hidden]
+        let mut d = last.repeat((1, l, 1))?;
+        for layer in &self.decoder {
+            let states = layer.seq(&d)?;
+            d = layer.states_to_tensor(&states)?;
+        }
+        let (b, _, hd) = d.dims3()?;
+        let y = self.head.forward(&d.reshape((b * l, hd))?)?;
+        y.reshape((b, l, self.out_dim))
+    }
+
+    fn batch_tensors(&self, ws: &[&Window]) -> candle_core::Result<(Tensor, Tensor)> {
+        let l = self.config.seq_len;
+        let mut xs = Vec::with_capacity(ws.len() * l * self.in_dim);
+        let mut ys = Vec::with_capacity(ws.len() * l * self.out_dim);
+        for w in ws {
+            for i in 0..l {
+                xs.extend(w.controls[i].iter().map(|&v| v as f32));
+                ys.extend(
+                    w.targets[i]
+                        .iter()
+                        .zip(&self.out_scale)
+                        .map(|(&v, s)| (v / s) as f32),
+                );
+            }
+        }
+        Ok((
+            Tensor::from_vec(xs, (ws.len(), l, self.in_dim), &Device::Cpu)?,
+            Tensor::from_vec(ys, (ws.len(), l, self.out_dim), &Device::Cpu)?,
+        ))
+    }
+
+    /// Trains with AdamW on shuffled mini-batches; `on_epoch(epoch, mean loss)` after each epoch. Returns the
+    /// per-epoch losses.
+    pub fn train(
+        &mut self,
+        data: &[Window],
+        mut on_epoch: impl FnMut(usize, f64),
+    ) -> Result<Vec<f64>> {
+        if data.is_empty() {
+            return Err(Error::param("lstm", "no training windows"));
+        }
+        let mut opt = candle_nn::AdamW::new(
+            self.varmap.all_vars_sorted(),
+            candle_nn::ParamsAdamW {
+                lr: self.config.lr,
+                weight_decay: 0.0,
+                ..Default::default()
+            },
+        )
+        .map_err(ce)?;
+        let mut rng = Rng::new(self.config.seed.wrapping_add(1));
+        let mut order: Vec<usize> = (0..data.len()).collect();
+        let mut losses = Vec::with_capacity(self.config.epochs);
+        for epoch in 0..self.config.epochs {
+            rng.shuffle(&mut order);
+            let (mut sum, mut count) = (0.0, 0usize);
+            for chunk in order.chunks(self.config.batch) {
+                let ws: Vec<&Window> = chunk.iter().map(|&i| &data[i]).collect();
+                let (x, y) = self.batch_tensors(&ws).map_err(ce)?;
+                let pred = self.forward(&x).map_err(ce)?;
+                let loss = (pred - y)
+                    .map_err(ce)?
+                    .sqr()
+                    .map_err(ce)?
+                    .mean_all()
+                    .map_err(ce)?;
+                opt.backward_step(&loss).map_err(ce)?;
+                sum += loss.to_scalar::<f32>().map_err(ce)? as f64 * ws.len() as f64;
+                count += ws.len();
+            }
+            let mean = sum / count as f64;
+            if !mean.is_finite() {
+                return Err(Error::Numeric {
+                    stage: "lstm".into(),
+                    msg: format!("training loss became {mean} at epoch {}", epoch + 1),
+                });
+            }
+            losses.push(mean);
+            on_epoch(epoch, mean);
+        }
+        Ok(losses)
+    }
+
+    /// Coefficients of the last frame of each window.
+    pub fn predict(&self, ws: &[Window]) -> Result<Vec<Vec<f64>>> {
+        let mut out = Vec::with_capacity(ws.len());
+        for chunk in ws.chunks(256) {
+            let refs: Vec<&Window> = chunk.iter().collect();
+            let (x, _) = self.batch_tensors(&refs).map_err(ce)?;
+            let y = self.forward(&x).map_err(ce)?;
+            let l = self.config.seq_len;
+            let last = y.narrow(1, l - 1, 1).map_err(ce)?.squeeze(1).map_err(ce)?;
+            let rows: Vec<Vec<f32>> = last.to_vec2().map_err(ce)?;
+            for r in rows {
+                out.push(
+                    r.iter()
+                        .zip(&self.out_scale)
+                        .map(|(&v, s)| v as f64 * s)
+                        .collect(),
+                );
+            }
+        }
+        Ok(out)
+    }
+
+    /// Saves the weights (safetensors).
+    pub fn save(&self, path: &Path) -> Result<()> {
+        self.varmap
+            .save(path)
+            .map_err(|e| Error::format(path, None, format!("cannot save LSTM weights: {e}")))
+    }
+
+    /// Loads weights saved by [`LstmRegressor::save`] into a network of the same shape.
+    pub fn load(
+        config: LstmConfig,
+        in_dim: usize,
+        out_dim: usize,
+        out_scale: Vec<f64>,
+        path: &Path,
+    ) -> Result<Self> {
+        let mut net = LstmRegressor::new(config, in_dim, out_dim, out_scale)?;
+        net.varmap.load(path).map_err(|e| {
+            Error::format(
+                path,
+                None,
+                format!("not LSTM weights of this model's shape: {e}"),
+            )
+        })?;
+        Ok(net)
+    }
+}
+
+/// Sorted variables, so the optimizer's order (and float summation order) never depends on hashing.
+pub trait SortedVars {
+    fn all_vars_sorted(&self) -> Vec<candle_core::Var>;
+}
+
+impl SortedVars for VarMap {
+    fn all_vars_sorted(&self) -> Vec<candle_core::Var> {
+        let data = match self.data().lock() {
+            Ok(d) => d,
+            Err(p) => p.into_inner(),
+        };
+        let mut named: Vec<(&String, &candle_core::Var)> = data.iter().collect();
+        named.sort_by(|a, b| a.0.cmp(b.0));
+        named.into_iter().map(|(_, v)| v.clone()).collect()
+    }
+}

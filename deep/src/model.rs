@@ -1,0 +1,372 @@
+//! A trained DeepWrinkles model on disk: a directory of `.npy` arrays, network weights (safetensors) and a
+//! `manifest.json` that names the format version and every file with its size and FNV-1a hash.
+//!
+//! A model is written into a temporary sibling directory and renamed into place only after the manifest (the
+//! last file) is written, so a crash or full disk never leaves a half-written model under the final name; a
+//! loader checks the version first and each file against the manifest, so a model from another version or a
+//! damaged file is a clear error, never a silently different model.
+
+use crate::lstm::{LstmConfig, LstmRegressor};
+use crate::pose::ControlSpec;
+use crate::regress::LinearRegression;
+use crate::subspace::Subspace;
+use crate::uv::{write_obj_with_uv, UvLayout};
+use crease_core::mesh::Topology;
+use crease_core::{npy, Error, Result};
+use faer::Mat;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Format written and read by this build. Bump when the layout or meaning of any file changes.
+pub const MODEL_VERSION: u32 = 1;
+pub const MODEL_FORMAT: &str = "crease-deep-model";
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RegressorKind {
+    Linear,
+    Lstm,
+}
+
+impl std::str::FromStr for RegressorKind {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "linear" => Ok(RegressorKind::Linear),
+            "lstm" => Ok(RegressorKind::Lstm),
+            _ => Err(format!("unknown regressor `{s}` (linear or lstm)")),
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FileEntry {
+    pub bytes: u64,
+    pub fnv1a64: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub format: String,
+    pub version: u32,
+    pub vertices: usize,
+    pub triangles: usize,
+    pub k: usize,
+    pub control: ControlSpec,
+    /// Which regressor `apply --pose` uses; the linear one is always present.
+    pub regressor: RegressorKind,
+    pub lstm: Option<LstmConfig>,
+    /// Training standard deviation of each coefficient (the LSTM's output units).
+    pub coeff_scale: Vec<f64>,
+    /// Normal map resolution the model (and its cGAN) works at.
+    pub resolution: usize,
+    /// The cGAN's configuration, when the model has one (`cgan.safetensors`).
+    pub cgan: Option<serde_json::Value>,
+    /// Free-form training summary (data, losses, timings) for people.
+    pub training: serde_json::Value,
+    pub files: BTreeMap<String, FileEntry>,
+}
+
+pub struct Model {
+    pub manifest: Manifest,
+    pub topology: Arc<Topology>,
+    pub layout: UvLayout,
+    pub subspace: Subspace,
+    pub linear: LinearRegression,
+    pub lstm: Option<LstmRegressor>,
+    /// Directory the model was loaded from (for components that load lazily, like the cGAN).
+    pub dir: PathBuf,
+}
+
+pub fn fnv1a64(bytes: &[u8]) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    format!("{h:016x}")
+}
+
+/// Collects a model's files in a staging directory, then publishes them atomically.
+pub struct ModelWriter {
+    final_dir: PathBuf,
+    staging: PathBuf,
+    files: BTreeMap<String, FileEntry>,
+}
+
+impl ModelWriter {
+    pub fn new(final_dir: &Path) -> Result<Self> {
+        let parent = final_dir
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        crease_core::fsutil::create_dir_all(parent)?;
+        let name = final_dir.file_name().ok_or_else(|| {
+            Error::param(
+                "out",
+                format!("{} is not a directory name", final_dir.display()),
+            )
+        })?;
+        let staging = parent.join(format!(
+            ".{}.partial-{}",
+            name.to_string_lossy(),
+            std::process::id()
+        ));
+        if staging.exists() {
+            std::fs::remove_dir_all(&staging).map_err(|e| Error::io(&staging, e))?;
+        }
+        crease_core::fsutil::create_dir_all(&staging)?;
+        Ok(ModelWriter {
+            final_dir: final_dir.to_path_buf(),
+            staging,
+            files: BTreeMap::new(),
+        })
+    }
+
+    /// Path inside the staging directory for a file a library writes itself (then [`ModelWriter::record`]).
+    pub fn staging_path(&self, name: &str) -> PathBuf {
+        self.staging.join(name)
+    }
+
+    pub fn record(&mut self, name: &str) -> Result<()> {
+        let path = self.staging.join(name);
+        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+        self.files.insert(
+            name.to_string(),
+            FileEntry {
+                bytes: bytes.len() as u64,
+                fnv1a64: fnv1a64(&bytes),
+            },
+        );
+        Ok(())
+    }
+
+    pub fn put(&mut self, name: &str, bytes: &[u8]) -> Result<()> {
+        crease_core::fsutil::write_atomic(&self.staging.join(name), bytes)?;
+        self.record(name)
+    }
+
+    /// Writes the manifest last and renames the staging directory to the final name (replacing an older model
+    /// there only now, when the new one is whole).
+    pub fn publish(mut self, mut manifest: Manifest) -> Result<PathBuf> {
+        manifest.files = std::mem::take(&mut self.files);
+        let text = serde_json::to_string_pretty(&manifest)
+            .map_err(|e| Error::param("manifest", e.to_string()))?;
+        crease_core::fsutil::write_atomic(&self.staging.join("manifest.json"), text.as_bytes())?;
+        if self.final_dir.exists() {
+            let old = self.staging.with_extension("old");
+            std::fs::rename(&self.final_dir, &old).map_err(|e| Error::io(&self.final_dir, e))?;
+            std::fs::rename(&self.staging, &self.final_dir)
+                .map_err(|e| Error::io(&self.final_dir, e))?;
+            let _ = std::fs::remove_dir_all(&old);
+        } else {
+            std::fs::rename(&self.staging, &self.final_dir)
+                .map_err(|e| Error::io(&self.final_dir, e))?;
+        }
+        Ok(self.final_dir.clone())
+    }
+}
+
+impl Drop for ModelWriter {
+    fn drop(&mut self) {
+        // Not published (an error on the way): leave nothing that could be mistaken for a model.
+        if self.staging.exists() {
+            let _ = std::fs::remove_dir_all(&self.staging);
+        }
+    }
+}
+
+/// Writes the parts every model has; the caller adds the networks it trained, then publishes.
+#[allow(clippy::too_many_arguments)]
+pub fn write_core_parts(
+    w: &mut ModelWriter,
+    topo: &Topology,
+    layout: &UvLayout,
+    subspace: &Subspace,
+    linear: &LinearRegression,
+) -> Result<()> {
+    let tris: Vec<u32> = topo
+        .triangles()
+        .iter()
+        .flat_map(|t| t.iter().copied())
+        .collect();
+    w.put(
+        "triangles.npy",
+        &npy::to_bytes(&[topo.n_triangles(), 3], &tris),
+    )?;
+    let uv: Vec<f64> = layout.uv.iter().flat_map(|p| p.iter().copied()).collect();
+    w.put("uv.npy", &npy::to_bytes(&[layout.uv.len(), 2], &uv))?;
+    let corners: Vec<u32> = layout
+        .corners
+        .iter()
+        .flat_map(|c| c.iter().copied())
+        .collect();
+    w.put(
+        "uv_corners.npy",
+        &npy::to_bytes(&[layout.corners.len(), 3], &corners),
+    )?;
+    w.put(
+        "mean.npy",
+        &npy::to_bytes(&[subspace.dim()], &subspace.mean),
+    )?;
+    let (d, k) = (subspace.dim(), subspace.k());
+    let mut basis = Vec::with_capacity(d * k);
+    for r in 0..d {
+        for c in 0..k {
+            basis.push(subspace.basis[(r, c)]);
+        }
+    }
+    w.put("basis.npy", &npy::to_bytes(&[d, k], &basis))?;
+    w.put(
+        "singular_values.npy",
+        &npy::to_bytes(&[subspace.singular_values.len()], &subspace.singular_values),
+    )?;
+    w.put(
+        "linear.npy",
+        &npy::to_bytes(&[linear.k, linear.m], &linear.weights),
+    )?;
+    // For people and other tools: the mean shape with its UV layout.
+    let mean_shape = crate::subspace::unflatten(&subspace.mean);
+    let obj = w.staging_path("template.obj");
+    write_obj_with_uv(&obj, topo, &mean_shape, layout)?;
+    w.record("template.obj")
+}
+
+impl Model {
+    /// Reads the manifest (version first), then every file, checking each against the manifest.
+    pub fn load(dir: &Path) -> Result<Model> {
+        let mpath = dir.join("manifest.json");
+        if !mpath.exists() {
+            let partial = dir.is_dir();
+            return Err(Error::format(
+                &mpath,
+                None,
+                if partial {
+                    "missing: this is not a complete crease-deep model (training did not finish?)"
+                } else {
+                    "missing: no model at this path"
+                },
+            ));
+        }
+        let text = std::fs::read_to_string(&mpath).map_err(|e| Error::io(&mpath, e))?;
+        let raw: serde_json::Value = serde_json::from_str(&text)
+            .map_err(|e| Error::format(&mpath, Some(e.line()), format!("invalid JSON: {e}")))?;
+        if raw.get("format").and_then(|f| f.as_str()) != Some(MODEL_FORMAT) {
+            return Err(Error::format(
+                &mpath,
+                None,
+                format!("not a {MODEL_FORMAT} manifest (`format` field)"),
+            ));
+        }
+        match raw.get("version").and_then(|v| v.as_u64()) {
+            Some(v) if v == MODEL_VERSION as u64 => {}
+            Some(v) => {
+                return Err(Error::format(
+                    &mpath,
+                    None,
+                    format!("model format version {v}; this build of crease reads version {MODEL_VERSION} (retrain or use the matching crease)"),
+                ))
+            }
+            None => return Err(Error::format(&mpath, None, "no `version` field")),
+        }
+        let manifest: Manifest = serde_json::from_value(raw)
+            .map_err(|e| Error::format(&mpath, None, format!("malformed manifest: {e}")))?;
+        let read = |name: &str| -> Result<Vec<u8>> {
+            let path = dir.join(name);
+            let entry = manifest
+                .files
+                .get(name)
+                .ok_or_else(|| Error::format(&mpath, None, format!("does not list `{name}`")))?;
+            let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+            if bytes.len() as u64 != entry.bytes || fnv1a64(&bytes) != entry.fnv1a64 {
+                return Err(Error::format(
+                    &path,
+                    None,
+                    "does not match the model manifest (size or hash): damaged or from another model",
+                ));
+            }
+            Ok(bytes)
+        };
+        let p = |name: &str| dir.join(name);
+        let (shape, tris) = npy::from_bytes::<u32>(&p("triangles.npy"), &read("triangles.npy")?)?;
+        if shape.len() != 2 || shape[1] != 3 || shape[0] != manifest.triangles {
+            return Err(Error::format(
+                p("triangles.npy"),
+                None,
+                format!("shape {shape:?}"),
+            ));
+        }
+        let tris: Vec<[u32; 3]> = tris.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let topology = Arc::new(
+            Topology::new(manifest.vertices, tris)
+                .map_err(|e| e.at(Some(p("triangles.npy")), None))?,
+        );
+        let (_, uv) = npy::from_bytes::<f64>(&p("uv.npy"), &read("uv.npy")?)?;
+        let (_, corners) = npy::from_bytes::<u32>(&p("uv_corners.npy"), &read("uv_corners.npy")?)?;
+        let layout = UvLayout {
+            uv: uv.chunks_exact(2).map(|c| [c[0], c[1]]).collect(),
+            corners: corners
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect(),
+        };
+        layout.check(&topology, &p("uv_corners.npy").display().to_string())?;
+        let (_, mean) = npy::from_bytes::<f64>(&p("mean.npy"), &read("mean.npy")?)?;
+        let (bshape, basis) = npy::from_bytes::<f64>(&p("basis.npy"), &read("basis.npy")?)?;
+        if bshape != [3 * manifest.vertices, manifest.k] || mean.len() != 3 * manifest.vertices {
+            return Err(Error::format(
+                p("basis.npy"),
+                None,
+                format!("shape {bshape:?} does not fit the manifest"),
+            ));
+        }
+        let (_, sv) =
+            npy::from_bytes::<f64>(&p("singular_values.npy"), &read("singular_values.npy")?)?;
+        let k = manifest.k;
+        let subspace = Subspace {
+            mean,
+            basis: Mat::from_fn(3 * manifest.vertices, k, |r, c| basis[r * k + c]),
+            singular_values: sv,
+        };
+        let (lshape, weights) = npy::from_bytes::<f64>(&p("linear.npy"), &read("linear.npy")?)?;
+        if lshape != [k, manifest.control.len()] {
+            return Err(Error::format(
+                p("linear.npy"),
+                None,
+                format!("shape {lshape:?} does not fit the manifest"),
+            ));
+        }
+        let linear = LinearRegression {
+            k,
+            m: manifest.control.len(),
+            weights,
+        };
+        let lstm = match &manifest.lstm {
+            Some(cfg) => {
+                read("lstm.safetensors")?;
+                Some(LstmRegressor::load(
+                    cfg.clone(),
+                    manifest.control.len(),
+                    k,
+                    manifest.coeff_scale.clone(),
+                    &p("lstm.safetensors"),
+                )?)
+            }
+            None => None,
+        };
+        if manifest.cgan.is_some() {
+            read("cgan.safetensors")?;
+        }
+        Ok(Model {
+            manifest,
+            topology,
+            layout,
+            subspace,
+            linear,
+            lstm,
+            dir: dir.to_path_buf(),
+        })
+    }
+}

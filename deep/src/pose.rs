@@ -1,0 +1,186 @@
+//! Pose files (`pose.json`: one pose vector per frame) and the control vectors built from them.
+//!
+//! The cloth's shape depends on its history, not only on the current pose (sleeve-train README: equal poses,
+//! meshes 18 mm apart), so the control vector Θ_t (Lähner et al. §3.3) holds the pose, its velocity and
+//! acceleration, and the pose at a few earlier lags. Everything is normalised with statistics of the training
+//! data; constant dimensions (4 of the sleeve's 6) are guarded against a zero variance.
+
+use crease_core::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Reads `pose_vectors` from a pose file. Every vector must have the same length and only finite numbers; the
+/// error names the file, the frame (1-based) and the component. `expect_frames` checks the count.
+pub fn read_pose_file(path: &Path, expect_frames: Option<usize>) -> Result<Vec<Vec<f64>>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let value: serde_json::Value = match serde_json::from_str(&text) {
+        Ok(v) => v,
+        // Python's json module writes NaN/Infinity, which is not JSON: read them as null so the error can
+        // name the frame instead of a byte offset.
+        Err(first) => serde_json::from_str(&replace_non_finite(&text)).map_err(|_| {
+            Error::format(path, Some(first.line()), format!("invalid JSON: {first}"))
+        })?,
+    };
+    let vectors = value
+        .get("pose_vectors")
+        .and_then(|v| v.as_array())
+        .ok_or_else(|| Error::format(path, None, "no `pose_vectors` array"))?;
+    if vectors.is_empty() {
+        return Err(Error::format(path, None, "`pose_vectors` is empty"));
+    }
+    let mut out = Vec::with_capacity(vectors.len());
+    for (i, v) in vectors.iter().enumerate() {
+        let arr = v.as_array().ok_or_else(|| {
+            Error::format(
+                path,
+                None,
+                format!("frame {}: `pose_vectors[{i}]` is not an array", i + 1),
+            )
+        })?;
+        let mut row = Vec::with_capacity(arr.len());
+        for (j, x) in arr.iter().enumerate() {
+            match x.as_f64() {
+                Some(f) if f.is_finite() => row.push(f),
+                _ => {
+                    return Err(Error::format(
+                        path,
+                        None,
+                        format!(
+                            "frame {}: `pose_vectors[{i}][{j}]` is not a finite number ({x})",
+                            i + 1
+                        ),
+                    ))
+                }
+            }
+        }
+        if let Some(first) = out.first().map(|r: &Vec<f64>| r.len()) {
+            if row.len() != first {
+                return Err(Error::format(
+                    path,
+                    None,
+                    format!(
+                        "frame {}: pose vector has {} numbers, frame 1 has {first}",
+                        i + 1,
+                        row.len()
+                    ),
+                ));
+            }
+        }
+        out.push(row);
+    }
+    if let Some(n) = expect_frames {
+        if out.len() != n {
+            return Err(Error::format(
+                path,
+                None,
+                format!("{} pose vectors for a sequence of {n} frames", out.len()),
+            ));
+        }
+    }
+    Ok(out)
+}
+
+fn replace_non_finite(text: &str) -> String {
+    let mut s = text.replace("-Infinity", "null");
+    s = s.replace("Infinity", "null");
+    s.replace("NaN", "null")
+}
+
+/// How control vectors are built; stored in the model so apply builds them the same way.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ControlSpec {
+    /// Earlier frames whose pose joins the control vector (frame t − lag, clamped at the first frame).
+    pub lags: Vec<usize>,
+    /// Per pose dimension: mean and scale (1 / std, or 0 for a constant dimension).
+    pub mean: Vec<f64>,
+    pub scale: Vec<f64>,
+}
+
+impl ControlSpec {
+    /// Statistics from all training poses.
+    pub fn fit(sequences: &[&[Vec<f64>]], lags: Vec<usize>) -> Result<Self> {
+        let dim = sequences
+            .iter()
+            .find_map(|s| s.first().map(|r| r.len()))
+            .ok_or_else(|| Error::param("poses", "no training poses"))?;
+        let all: Vec<&Vec<f64>> = sequences.iter().flat_map(|s| s.iter()).collect();
+        if let Some(r) = all.iter().find(|r| r.len() != dim) {
+            return Err(Error::param(
+                "poses",
+                format!("pose vectors of length {} and {dim}", r.len()),
+            ));
+        }
+        let n = all.len() as f64;
+        let mean: Vec<f64> = (0..dim)
+            .map(|j| all.iter().map(|r| r[j]).sum::<f64>() / n)
+            .collect();
+        let scale = (0..dim)
+            .map(|j| {
+                let var = all.iter().map(|r| (r[j] - mean[j]).powi(2)).sum::<f64>() / n;
+                if var > 1e-12 {
+                    1.0 / var.sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        Ok(ControlSpec { lags, mean, scale })
+    }
+
+    pub fn pose_dim(&self) -> usize {
+        self.mean.len()
+    }
+
+    /// Length of a control vector: pose, velocity, acceleration, one pose per lag, and a constant 1.
+    pub fn len(&self) -> usize {
+        self.pose_dim() * (3 + self.lags.len()) + 1
+    }
+
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Control vectors Θ_t for every frame of one sequence.
+    pub fn controls(&self, poses: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
+        if let Some((i, r)) = poses
+            .iter()
+            .enumerate()
+            .find(|(_, r)| r.len() != self.pose_dim())
+        {
+            return Err(Error::param(
+                "pose",
+                format!(
+                    "frame {}: pose vector has {} numbers, the model expects {}",
+                    i + 1,
+                    r.len(),
+                    self.pose_dim()
+                ),
+            ));
+        }
+        let norm = |t: usize| -> Vec<f64> {
+            poses[t]
+                .iter()
+                .enumerate()
+                .map(|(j, x)| (x - self.mean[j]) * self.scale[j])
+                .collect()
+        };
+        let normed: Vec<Vec<f64>> = (0..poses.len()).map(norm).collect();
+        let at = |t: isize| -> &Vec<f64> { &normed[t.max(0) as usize] };
+        // Velocity and acceleration in units of one frame, scaled up so they are comparable to the pose.
+        const DYN: f64 = 10.0;
+        Ok((0..poses.len() as isize)
+            .map(|t| {
+                let (p0, p1, p2) = (at(t), at(t - 1), at(t - 2));
+                let mut c = Vec::with_capacity(self.len());
+                c.extend(p0.iter().copied());
+                c.extend(p0.iter().zip(p1).map(|(a, b)| DYN * (a - b)));
+                c.extend((0..p0.len()).map(|j| DYN * DYN * (p0[j] - 2.0 * p1[j] + p2[j])));
+                for &lag in &self.lags {
+                    c.extend(at(t - lag as isize).iter().copied());
+                }
+                c.push(1.0);
+                c
+            })
+            .collect())
+    }
+}

@@ -1,0 +1,626 @@
+//! Template registration to scans (Lähner et al. §3.1): non-rigid ICP over an embedded deformation graph.
+//!
+//! Graph nodes are template vertices a few edges apart; each carries an affine map (A_j, t_j) and moves the
+//! vertices near it: v' = Σ_j w_j(v) (A_j (v − g_j) + g_j + t_j) (Sumner et al. 2007, the "grid deformation"
+//! the paper cites). Eq. 1 is minimised by Gauss–Newton:
+//! * E_data: deformed vertices to their nearest scan points (pairs farther than a shrinking threshold are
+//!   dropped, which is how holes stay holes instead of pulling the surface in);
+//! * E_rigid: each A_j close to a rotation (orthonormal columns), weight ω_r = 500;
+//! * E_smooth: neighbouring nodes agree on where they move each other, ω_s = 500;
+//! * E_bound: template boundary vertices to scan boundary points chosen by the paper's Eq. 2 rule, ω_b = 10.
+//!   Distances are measured in template mean edge lengths so the paper's weights keep their balance whatever
+//!   the units. As in Li et al. 2009, ω_r and ω_s are halved whenever the energy falls by less than 5 %, down to a floor,
+//!   so the fit starts stiff and ends detailed.
+
+use crate::kdtree::KdTree;
+use crease_core::mesh::{Topology, NONE};
+use crease_core::vec3::{self, V3};
+use crease_core::{Error, Result};
+use faer::linalg::solvers::Solve;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Mat, Side};
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+use std::path::Path;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RegisterParams {
+    pub w_rigid: f64,
+    pub w_smooth: f64,
+    pub w_bound: f64,
+    /// Node spacing in template edge lengths.
+    pub node_spacing: f64,
+    /// Nodes influencing each vertex.
+    pub k_nodes: usize,
+    /// ICP iterations (one Gauss–Newton step each) per scan.
+    pub iterations: usize,
+    /// Pairs farther than this (edge lengths) are ignored; it shrinks to a third over the iterations.
+    pub max_pair_dist: f64,
+    /// Lower bound of the relaxed ω_r and ω_s.
+    pub min_weight: f64,
+}
+
+impl Default for RegisterParams {
+    fn default() -> Self {
+        RegisterParams {
+            w_rigid: 500.0,
+            w_smooth: 500.0,
+            w_bound: 10.0,
+            node_spacing: 2.5,
+            k_nodes: 4,
+            iterations: 40,
+            max_pair_dist: 6.0,
+            min_weight: 1.0,
+        }
+    }
+}
+
+impl RegisterParams {
+    pub fn validate(&self) -> Result<()> {
+        for (n, v) in [
+            ("w-rigid", self.w_rigid),
+            ("w-smooth", self.w_smooth),
+            ("w-bound", self.w_bound),
+            ("min-weight", self.min_weight),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::param(n, "must be a non-negative number"));
+            }
+        }
+        if !(self.node_spacing.is_finite() && self.node_spacing > 0.0) {
+            return Err(Error::param("node-spacing", "must be positive"));
+        }
+        if !(self.max_pair_dist.is_finite() && self.max_pair_dist > 0.0) {
+            return Err(Error::param("max-pair-dist", "must be positive"));
+        }
+        if self.k_nodes < 1 || self.iterations < 1 {
+            return Err(Error::param("k-nodes/iterations", "must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
+/// A scan: points, and which of them lie on the garment's boundary (the paper marks boundaries in colour).
+#[derive(Debug, Clone, Default)]
+pub struct Scan {
+    pub points: Vec<V3>,
+    pub boundary: Vec<bool>,
+}
+
+/// Reads a scan from an OBJ's `v x y z [r g b]` lines (faces ignored); red points (r > 0.5, g and b < 0.5)
+/// are boundary points.
+pub fn read_scan(path: &Path) -> Result<Scan> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut scan = Scan::default();
+    for (i, line) in text.lines().enumerate() {
+        let mut it = line.split_whitespace();
+        if it.next() != Some("v") {
+            continue;
+        }
+        let vals: Vec<f64> = it
+            .map(|s| s.parse::<f64>())
+            .collect::<std::result::Result<_, _>>()
+            .map_err(|_| Error::format(path, Some(i + 1), "malformed `v` line"))?;
+        if vals.len() < 3 || vals.iter().any(|v| !v.is_finite()) {
+            return Err(Error::format(
+                path,
+                Some(i + 1),
+                "a `v` line needs 3 finite coordinates",
+            ));
+        }
+        scan.points.push([vals[0], vals[1], vals[2]]);
+        scan.boundary
+            .push(vals.len() >= 6 && vals[3] > 0.5 && vals[4] < 0.5 && vals[5] < 0.5);
+    }
+    if scan.points.is_empty() {
+        return Err(Error::format(path, None, "no points (`v` lines)"));
+    }
+    Ok(scan)
+}
+
+/// Writes a scan as OBJ points, boundary points red.
+pub fn write_scan(path: &Path, scan: &Scan) -> Result<()> {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    for (p, &b) in scan.points.iter().zip(&scan.boundary) {
+        let c = if b { "1 0 0" } else { "0.7 0.7 0.7" };
+        let _ = writeln!(s, "v {} {} {} {c}", p[0], p[1], p[2]);
+    }
+    crease_core::fsutil::write_atomic(path, s.as_bytes())
+}
+
+/// The deformation graph of a template, reused for every scan of a sequence.
+pub struct Registration {
+    params: RegisterParams,
+    rest: Vec<V3>,
+    scale: f64,
+    nodes: Vec<V3>,
+    /// Per vertex: (node, weight) pairs.
+    influence: Vec<Vec<(u32, f64)>>,
+    /// Node graph edges (j, k), both directions.
+    edges: Vec<(u32, u32)>,
+    boundary_vertices: Vec<u32>,
+    /// Current node transforms: A (row-major 9) then t (3), in scaled units.
+    x: Vec<f64>,
+}
+
+const NV: usize = 12;
+
+impl Registration {
+    /// Builds the graph on `template` (the template in its starting pose).
+    pub fn new(
+        topo: std::sync::Arc<Topology>,
+        template: &[V3],
+        params: RegisterParams,
+    ) -> Result<Self> {
+        params.validate()?;
+        let edge = crate::bake::mean_edge_length(&topo, template);
+        if !(edge.is_finite() && edge > 0.0) {
+            return Err(Error::mesh("template has no edges of positive length"));
+        }
+        let scale = 1.0 / edge;
+        let rest: Vec<V3> = template.iter().map(|p| vec3::scale(*p, scale)).collect();
+        // Greedy Poisson-disk sampling of the vertices.
+        let r2 = params.node_spacing * params.node_spacing;
+        let mut nodes: Vec<V3> = Vec::new();
+        for p in &rest {
+            if nodes.iter().all(|g| dist2(*g, *p) >= r2) {
+                nodes.push(*p);
+            }
+        }
+        let k = params.k_nodes.min(nodes.len());
+        let mut influence = Vec::with_capacity(rest.len());
+        let mut pair_set = std::collections::BTreeSet::new();
+        for p in &rest {
+            let mut d: Vec<(f64, u32)> = nodes
+                .iter()
+                .enumerate()
+                .map(|(j, g)| (dist2(*g, *p), j as u32))
+                .collect();
+            let take = (k + 1).min(d.len());
+            d.select_nth_unstable_by(take - 1, |a, b| a.0.total_cmp(&b.0));
+            d[..take].sort_by(|a, b| a.0.total_cmp(&b.0));
+            let dmax = d[take - 1].0.sqrt().max(1e-9) * 1.0001;
+            let mut w: Vec<(u32, f64)> = d[..k]
+                .iter()
+                .map(|&(d2, j)| (j, (1.0 - d2.sqrt() / dmax).powi(2)))
+                .collect();
+            let s: f64 = w.iter().map(|e| e.1).sum();
+            for e in w.iter_mut() {
+                e.1 = if s > 0.0 { e.1 / s } else { 1.0 / k as f64 };
+            }
+            for a in &w {
+                for b in &w {
+                    if a.0 != b.0 {
+                        pair_set.insert((a.0, b.0));
+                    }
+                }
+            }
+            influence.push(w);
+        }
+        let boundary_vertices = boundary_vertices(&topo);
+        let mut x = vec![0.0; nodes.len() * NV];
+        for j in 0..nodes.len() {
+            x[j * NV] = 1.0;
+            x[j * NV + 4] = 1.0;
+            x[j * NV + 8] = 1.0;
+        }
+        Ok(Registration {
+            params,
+            rest,
+            scale,
+            nodes,
+            influence,
+            edges: pair_set.into_iter().collect(),
+            boundary_vertices,
+            x,
+        })
+    }
+
+    pub fn n_nodes(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Deformed template (scaled units).
+    fn deformed(&self) -> Vec<V3> {
+        self.rest
+            .iter()
+            .zip(&self.influence)
+            .map(|(v, inf)| {
+                let mut out = [0.0; 3];
+                for &(j, w) in inf {
+                    out = vec3::add(out, vec3::scale(self.apply_node(j as usize, *v), w));
+                }
+                out
+            })
+            .collect()
+    }
+
+    fn apply_node(&self, j: usize, p: V3) -> V3 {
+        let x = &self.x[j * NV..(j + 1) * NV];
+        let g = self.nodes[j];
+        let d = vec3::sub(p, g);
+        [
+            x[0] * d[0] + x[1] * d[1] + x[2] * d[2] + g[0] + x[9],
+            x[3] * d[0] + x[4] * d[1] + x[5] * d[2] + g[1] + x[10],
+            x[6] * d[0] + x[7] * d[1] + x[8] * d[2] + g[2] + x[11],
+        ]
+    }
+
+    /// Registers the (current) template to `scan`, starting from the previous result; returns the deformed
+    /// template in the input units.
+    pub fn register(&mut self, scan: &Scan) -> Result<Vec<V3>> {
+        if scan.points.len() != scan.boundary.len() || scan.points.is_empty() {
+            return Err(Error::param(
+                "scan",
+                "empty scan or boundary flags of another length",
+            ));
+        }
+        let pts: Vec<V3> = scan
+            .points
+            .iter()
+            .map(|p| vec3::scale(*p, self.scale))
+            .collect();
+        let tree = KdTree::new(&pts);
+        let bpts: Vec<V3> = pts
+            .iter()
+            .zip(&scan.boundary)
+            .filter(|(_, &b)| b)
+            .map(|(p, _)| *p)
+            .collect();
+        let (mut wr, mut ws) = (self.params.w_rigid, self.params.w_smooth);
+        let mut prev_energy = f64::INFINITY;
+        let iters = self.params.iterations;
+        for it in 0..iters {
+            let frac = it as f64 / (iters.max(2) - 1) as f64;
+            let max_d = self.params.max_pair_dist * (1.0 - 2.0 / 3.0 * frac);
+            let cur = self.deformed();
+            let pairs: Vec<Option<V3>> = cur
+                .iter()
+                .map(|p| {
+                    tree.nearest(*p)
+                        .filter(|&(_, d2)| d2 <= max_d * max_d)
+                        .map(|(i, _)| pts[i])
+                })
+                .collect();
+            let bound = boundary_pairs(&self.boundary_vertices, &cur, &bpts);
+            let energy = self.gauss_newton_step(&pairs, &bound, wr, ws)?;
+            if std::env::var_os("CREASE_DEEP_DEBUG").is_some() {
+                let paired = pairs.iter().filter(|p| p.is_some()).count();
+                eprintln!(
+                    "icp {it}: energy {energy:.3} wr {wr} ws {ws} paired {paired} bound {}",
+                    bound.len()
+                );
+            }
+            if energy > prev_energy * (1.0 - 5e-2) {
+                wr = (wr * 0.5).max(self.params.min_weight);
+                ws = (ws * 0.5).max(self.params.min_weight);
+            }
+            prev_energy = energy;
+        }
+        Ok(self
+            .deformed()
+            .iter()
+            .map(|p| vec3::scale(*p, 1.0 / self.scale))
+            .collect())
+    }
+
+    /// One Gauss–Newton step of Eq. 1 at the current transforms; returns the energy before the step.
+    fn gauss_newton_step(
+        &mut self,
+        pairs: &[Option<V3>],
+        bound: &[(u32, V3)],
+        wr: f64,
+        ws: f64,
+    ) -> Result<f64> {
+        let n = self.nodes.len() * NV;
+        let mut sys = NormalEq::new(n);
+        let mut energy = 0.0;
+        // Data and boundary: per vertex coordinate c, v'_c = Σ_j w (Σ_d A_j[c][d] (v − g_j)_d + g_j[c] + t_j[c]).
+        let vertex_rows =
+            |sys: &mut NormalEq, energy: &mut f64, v: usize, target: V3, weight: f64| {
+                let p = self.rest[v];
+                let cur = {
+                    let mut o = [0.0; 3];
+                    for &(j, w) in &self.influence[v] {
+                        o = vec3::add(o, vec3::scale(self.apply_node(j as usize, p), w));
+                    }
+                    o
+                };
+                for c in 0..3 {
+                    let mut row: Vec<(usize, f64)> = Vec::with_capacity(16);
+                    for &(j, w) in &self.influence[v] {
+                        let base = j as usize * NV;
+                        let d = vec3::sub(p, self.nodes[j as usize]);
+                        for (dd, dv) in d.iter().enumerate() {
+                            row.push((base + 3 * c + dd, w * dv));
+                        }
+                        row.push((base + 9 + c, w));
+                    }
+                    let r = cur[c] - target[c];
+                    *energy += weight * r * r;
+                    sys.add_row(&row, r, weight);
+                }
+            };
+        for (v, t) in pairs.iter().enumerate() {
+            if let Some(t) = t {
+                vertex_rows(&mut sys, &mut energy, v, *t, 1.0);
+            }
+        }
+        for &(v, t) in bound {
+            vertex_rows(&mut sys, &mut energy, v as usize, t, self.params.w_bound);
+        }
+        // Rigidity: columns of A orthonormal.
+        for j in 0..self.nodes.len() {
+            let base = j * NV;
+            let a = &self.x[base..base + 9];
+            let col = |k: usize| [a[k], a[3 + k], a[6 + k]];
+            let idx = |k: usize| [base + k, base + 3 + k, base + 6 + k];
+            for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+                let (cp, cq) = (col(p), col(q));
+                let r = vec3::dot(cp, cq);
+                let mut row = Vec::with_capacity(6);
+                for i in 0..3 {
+                    row.push((idx(p)[i], cq[i]));
+                    row.push((idx(q)[i], cp[i]));
+                }
+                energy += wr * r * r;
+                sys.add_row(&row, r, wr);
+            }
+            for p in 0..3 {
+                let cp = col(p);
+                let r = vec3::dot(cp, cp) - 1.0;
+                let row: Vec<(usize, f64)> = (0..3).map(|i| (idx(p)[i], 2.0 * cp[i])).collect();
+                energy += wr * r * r;
+                sys.add_row(&row, r, wr);
+            }
+        }
+        // Smoothness: node j's map of node k's position agrees with node k's own move.
+        for &(j, k) in &self.edges {
+            let (j, k) = (j as usize, k as usize);
+            let d = vec3::sub(self.nodes[k], self.nodes[j]);
+            let pj = self.apply_node(j, self.nodes[k]);
+            let pk = vec3::add(
+                self.nodes[k],
+                [self.x[k * NV + 9], self.x[k * NV + 10], self.x[k * NV + 11]],
+            );
+            for c in 0..3 {
+                let mut row = Vec::with_capacity(5);
+                for (dd, dv) in d.iter().enumerate() {
+                    row.push((j * NV + 3 * c + dd, *dv));
+                }
+                row.push((j * NV + 9 + c, 1.0));
+                row.push((k * NV + 9 + c, -1.0));
+                let r = pj[c] - pk[c];
+                energy += ws * r * r;
+                sys.add_row(&row, r, ws);
+            }
+        }
+        let delta = sys.solve(1e-6)?;
+        for (x, d) in self.x.iter_mut().zip(&delta) {
+            *x -= d;
+        }
+        Ok(energy)
+    }
+}
+
+fn dist2(a: V3, b: V3) -> f64 {
+    let d = vec3::sub(a, b);
+    vec3::dot(d, d)
+}
+
+/// Vertices on open boundary edges (an edge with no triangle across).
+pub fn boundary_vertices(topo: &Topology) -> Vec<u32> {
+    let mut on = vec![false; topo.n_vertices()];
+    for (t, adj) in topo.tri_adj().iter().enumerate() {
+        for k in 0..3 {
+            if adj[k] == NONE {
+                let tri = topo.triangles()[t];
+                on[tri[k] as usize] = true;
+                on[tri[(k + 1) % 3] as usize] = true;
+            }
+        }
+    }
+    (0..topo.n_vertices() as u32)
+        .filter(|&v| on[v as usize])
+        .collect()
+}
+
+/// Eq. 2: each scan boundary point votes for its nearest template boundary vertex; each vertex is paired with
+/// the farthest point among its voters (none if nobody voted), which spreads the pairs along the boundary and
+/// reaches into folds instead of bunching at the closest points.
+pub fn boundary_pairs(
+    template_boundary: &[u32],
+    current: &[V3],
+    scan_boundary: &[V3],
+) -> Vec<(u32, V3)> {
+    if template_boundary.is_empty() || scan_boundary.is_empty() {
+        return Vec::new();
+    }
+    let tpos: Vec<V3> = template_boundary
+        .iter()
+        .map(|&v| current[v as usize])
+        .collect();
+    let tree = KdTree::new(&tpos);
+    let mut best: Vec<Option<(f64, V3)>> = vec![None; tpos.len()];
+    for s in scan_boundary {
+        if let Some((i, d2)) = tree.nearest(*s) {
+            if best[i].is_none_or(|b| d2 > b.0) {
+                best[i] = Some((d2, *s));
+            }
+        }
+    }
+    template_boundary
+        .iter()
+        .zip(best)
+        .filter_map(|(&v, b)| b.map(|(_, s)| (v, s)))
+        .collect()
+}
+
+/// Gauss–Newton normal equations JᵀW J δ = JᵀW r, accumulated in 12 × 12 node blocks.
+struct NormalEq {
+    n: usize,
+    blocks: HashMap<(u32, u32), [f64; NV * NV]>,
+    rhs: Vec<f64>,
+}
+
+impl NormalEq {
+    fn new(n: usize) -> Self {
+        NormalEq {
+            n,
+            blocks: HashMap::new(),
+            rhs: vec![0.0; n],
+        }
+    }
+
+    fn add_row(&mut self, row: &[(usize, f64)], r: f64, w: f64) {
+        for &(i, a) in row {
+            self.rhs[i] += w * a * r;
+            for &(j, b) in row {
+                let key = ((i / NV) as u32, (j / NV) as u32);
+                let blk = self.blocks.entry(key).or_insert([0.0; NV * NV]);
+                blk[(i % NV) * NV + j % NV] += w * a * b;
+            }
+        }
+    }
+
+    fn solve(self, damping: f64) -> Result<Vec<f64>> {
+        let mut trip = Vec::with_capacity(self.blocks.len() * NV * NV);
+        let mut keys: Vec<_> = self.blocks.keys().copied().collect();
+        keys.sort_unstable();
+        for key in keys {
+            let blk = &self.blocks[&key];
+            for a in 0..NV {
+                for b in 0..NV {
+                    let (i, j) = (key.0 as usize * NV + a, key.1 as usize * NV + b);
+                    let mut v = blk[a * NV + b];
+                    if i == j {
+                        v += damping * (1.0 + v.abs());
+                    }
+                    if v != 0.0 || i == j {
+                        trip.push(Triplet::new(i, j, v));
+                    }
+                }
+            }
+        }
+        for i in 0..self.n {
+            if !self
+                .blocks
+                .contains_key(&((i / NV) as u32, (i / NV) as u32))
+            {
+                trip.push(Triplet::new(i, i, 1.0));
+            }
+        }
+        let mat = SparseColMat::<usize, f64>::try_new_from_triplets(self.n, self.n, &trip)
+            .map_err(|e| Error::Numeric {
+                stage: "registration".into(),
+                msg: format!("{e:?}"),
+            })?;
+        let llt = mat.sp_cholesky(Side::Lower).map_err(|e| Error::Numeric {
+            stage: "registration".into(),
+            msg: format!("Cholesky: {e:?}"),
+        })?;
+        let rhs = Mat::<f64>::from_fn(self.n, 1, |i, _| self.rhs[i]);
+        let sol = llt.solve(&rhs);
+        Ok((0..self.n).map(|i| sol[(i, 0)]).collect())
+    }
+}
+
+/// Samples a scan from a mesh: `per_vertex` × vertex-count points, area-weighted on the triangles, with
+/// spherical holes removing `hole_fraction` of them, Gaussian noise of `noise` (input units) and the points on
+/// boundary edges marked. Deterministic for a seed: it is the test and benchmark input.
+pub fn synth_scan(
+    topo: &Topology,
+    p: &[V3],
+    per_vertex: f64,
+    hole_fraction: f64,
+    noise: f64,
+    seed: u64,
+) -> Scan {
+    let mut rng = crate::seed::Rng::new(seed);
+    let tris = topo.triangles();
+    let areas: Vec<f64> = tris
+        .iter()
+        .map(|t| {
+            0.5 * vec3::norm(vec3::cross(
+                vec3::sub(p[t[1] as usize], p[t[0] as usize]),
+                vec3::sub(p[t[2] as usize], p[t[0] as usize]),
+            ))
+        })
+        .collect();
+    let total: f64 = areas.iter().sum();
+    let mut cdf = Vec::with_capacity(areas.len());
+    let mut acc = 0.0;
+    for a in &areas {
+        acc += a / total;
+        cdf.push(acc);
+    }
+    let n = (per_vertex * p.len() as f64) as usize;
+    let gauss = |rng: &mut crate::seed::Rng| {
+        let (u1, u2) = (rng.uniform().max(1e-12), rng.uniform());
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    };
+    let mut pts = Vec::with_capacity(n);
+    for _ in 0..n {
+        let u = rng.uniform();
+        let t = cdf.partition_point(|&c| c < u).min(tris.len() - 1);
+        let (mut a, mut b) = (rng.uniform(), rng.uniform());
+        if a + b > 1.0 {
+            a = 1.0 - a;
+            b = 1.0 - b;
+        }
+        let tri = tris[t];
+        let q = vec3::add(
+            p[tri[0] as usize],
+            vec3::add(
+                vec3::scale(vec3::sub(p[tri[1] as usize], p[tri[0] as usize]), a),
+                vec3::scale(vec3::sub(p[tri[2] as usize], p[tri[0] as usize]), b),
+            ),
+        );
+        pts.push(q);
+    }
+    // Holes: spheres around random points, until the fraction is gone.
+    let edge = crate::bake::mean_edge_length(topo, p);
+    let mut keep = vec![true; pts.len()];
+    let target = (hole_fraction * pts.len() as f64) as usize;
+    let mut removed = 0;
+    while removed < target {
+        let c = pts[(rng.next_u64() % pts.len() as u64) as usize];
+        let r = edge * (3.0 + 5.0 * rng.uniform());
+        for (i, q) in pts.iter().enumerate() {
+            if keep[i] && dist2(*q, c) < r * r && removed < target {
+                keep[i] = false;
+                removed += 1;
+            }
+        }
+    }
+    let mut scan = Scan::default();
+    for (q, k) in pts.iter().zip(&keep) {
+        if *k {
+            scan.points.push([
+                q[0] + noise * gauss(&mut rng),
+                q[1] + noise * gauss(&mut rng),
+                q[2] + noise * gauss(&mut rng),
+            ]);
+            scan.boundary.push(false);
+        }
+    }
+    // Boundary points: 4 per boundary edge (the coloured seam of the paper's capture), with noise too.
+    for (t, adj) in topo.tri_adj().iter().enumerate() {
+        for k in 0..3 {
+            if adj[k] == NONE {
+                let (a, b) = (p[tris[t][k] as usize], p[tris[t][(k + 1) % 3] as usize]);
+                for s in 0..4 {
+                    let q = vec3::add(a, vec3::scale(vec3::sub(b, a), (s as f64 + 0.5) / 4.0));
+                    scan.points.push([
+                        q[0] + noise * gauss(&mut rng),
+                        q[1] + noise * gauss(&mut rng),
+                        q[2] + noise * gauss(&mut rng),
+                    ]);
+                    scan.boundary.push(true);
+                }
+            }
+        }
+    }
+    scan
+}

@@ -1,0 +1,373 @@
+//! `crease deep train`: from training sequences (registered fine meshes, coarse meshes, poses) to a model.
+//!
+//! Each training directory holds `gt/` (the registered fine shapes: the subspace is learned from them),
+//! `captured/` (the coarse input the cGAN learns to enrich) and `pose.json`. The data's meshes already share
+//! the template's topology; raw scans go through `crease deep register` first.
+
+use crate::lstm::{windows, LstmConfig, LstmRegressor};
+use crate::model::{
+    write_core_parts, Manifest, ModelWriter, RegressorKind, MODEL_FORMAT, MODEL_VERSION,
+};
+use crate::pose::{read_pose_file, ControlSpec};
+use crate::regress::LinearRegression;
+use crate::subspace::Subspace;
+use crate::uv::{auto_atlas, read_obj_uv, UvLayout};
+use crease_core::mesh::io::open_sequence;
+use crease_core::mesh::{Frame, Sequence, Topology};
+use crease_core::progress::Progress;
+use crease_core::{Error, Result};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+pub struct TrainingSequence {
+    pub dir: PathBuf,
+    pub topology: Arc<Topology>,
+    pub fine: Vec<Frame>,
+    pub coarse: Vec<Frame>,
+    pub poses: Vec<Vec<f64>>,
+}
+
+/// Loads `dir/gt`, `dir/captured` and `dir/pose.json`, checking they agree on frames and topology.
+pub fn load_training_dir(dir: &Path) -> Result<TrainingSequence> {
+    let gt = Sequence::load(open_sequence(&dir.join("gt"))?.source.as_ref())?;
+    let captured = Sequence::load(open_sequence(&dir.join("captured"))?.source.as_ref())?;
+    if captured.frames.len() != gt.frames.len() {
+        return Err(Error::param(
+            "data",
+            format!(
+                "{}: gt has {} frames, captured {}",
+                dir.display(),
+                gt.frames.len(),
+                captured.frames.len()
+            ),
+        ));
+    }
+    if captured.topology.triangles() != gt.topology.triangles()
+        || captured.topology.n_vertices() != gt.topology.n_vertices()
+    {
+        return Err(Error::mesh(format!(
+            "{}: gt and captured do not share one topology",
+            dir.display()
+        )));
+    }
+    let poses = read_pose_file(&dir.join("pose.json"), Some(gt.frames.len()))?;
+    Ok(TrainingSequence {
+        dir: dir.to_path_buf(),
+        topology: gt.topology,
+        fine: gt.frames,
+        coarse: captured.frames,
+        poses,
+    })
+}
+
+#[derive(Debug, Clone)]
+pub struct TrainParams {
+    /// Subspace size (capped by the number of training frames).
+    pub k: usize,
+    pub lags: Vec<usize>,
+    /// Ridge weight of the linear regression, relative to the mean diagonal of ΘᵀΘ.
+    pub ridge: f64,
+    /// Regressor used by `apply --pose`; `Lstm` also trains the linear one.
+    pub regressor: RegressorKind,
+    pub lstm: LstmConfig,
+    pub resolution: usize,
+    /// A template OBJ whose `vt` must give the layout; without it one is computed from the first mean shape.
+    pub uv: Option<PathBuf>,
+    /// cGAN training on (captured → gt) map pairs at `resolution`, when asked for.
+    pub cgan: Option<crate::cgan::CganConfig>,
+    /// Where cGAN checkpoints go after every epoch; an existing checkpoint there is resumed.
+    pub checkpoint: Option<PathBuf>,
+}
+
+impl Default for TrainParams {
+    fn default() -> Self {
+        TrainParams {
+            k: 200,
+            lags: vec![1, 2, 4, 8, 16, 32],
+            ridge: 1e-3,
+            regressor: RegressorKind::Linear,
+            lstm: LstmConfig::default(),
+            resolution: 256,
+            uv: None,
+            cgan: None,
+            checkpoint: None,
+        }
+    }
+}
+
+impl TrainParams {
+    pub fn validate(&self) -> Result<()> {
+        if self.k == 0 {
+            return Err(Error::param("k", "must be at least 1"));
+        }
+        if !(self.ridge.is_finite() && self.ridge >= 0.0) {
+            return Err(Error::param("ridge", "must be a non-negative number"));
+        }
+        if !(16..=4096).contains(&self.resolution) {
+            return Err(Error::param(
+                "resolution",
+                format!("{} is outside 16..=4096", self.resolution),
+            ));
+        }
+        self.lstm.validate()
+    }
+}
+
+/// The layout: from `--uv` (required to have `vt`), else computed on `shape`.
+pub fn layout_for(uv: Option<&Path>, topo: &Topology, shape: &[[f64; 3]]) -> Result<UvLayout> {
+    match uv {
+        Some(path) => read_obj_uv(path, topo)?.ok_or_else(|| {
+            Error::format(
+                path,
+                None,
+                "has no texture coordinates (`vt` lines and `f v/vt` faces), which --uv requires",
+            )
+        }),
+        None => auto_atlas(topo, shape, 0.01),
+    }
+}
+
+/// Checks that all sequences share one topology.
+pub fn common_topology(seqs: &[TrainingSequence]) -> Result<Arc<Topology>> {
+    let first = seqs
+        .first()
+        .ok_or_else(|| Error::param("data", "no training directories"))?;
+    for s in &seqs[1..] {
+        if s.topology.n_vertices() != first.topology.n_vertices()
+            || s.topology.triangles() != first.topology.triangles()
+        {
+            return Err(Error::mesh(format!(
+                "{} does not have the topology of {} ({} vs {} vertices)",
+                s.dir.display(),
+                first.dir.display(),
+                s.topology.n_vertices(),
+                first.topology.n_vertices()
+            )));
+        }
+    }
+    Ok(first.topology.clone())
+}
+
+/// Subspace + regressors fitted to `seqs`, without writing anything (also used by the experiments).
+pub struct Fitted {
+    pub subspace: Subspace,
+    pub control: ControlSpec,
+    pub linear: LinearRegression,
+    pub lstm: Option<LstmRegressor>,
+    pub coeff_scale: Vec<f64>,
+    pub lstm_losses: Vec<f64>,
+    pub seconds: BTreeSummary,
+}
+
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct BTreeSummary {
+    pub subspace_s: f64,
+    pub linear_s: f64,
+    pub lstm_s: f64,
+    pub lstm_s_per_epoch: f64,
+}
+
+pub fn fit(
+    seqs: &[TrainingSequence],
+    params: &TrainParams,
+    progress: &dyn Progress,
+) -> Result<Fitted> {
+    params.validate()?;
+    common_topology(seqs)?;
+    let t0 = Instant::now();
+    let frames: Vec<&[[f64; 3]]> = seqs
+        .iter()
+        .flat_map(|s| s.fine.iter().map(|f| f.as_slice()))
+        .collect();
+    let subspace = Subspace::fit(&frames, params.k)?;
+    let k = subspace.k();
+    let subspace_s = t0.elapsed().as_secs_f64();
+    progress.note(&format!(
+        "subspace: {k} components from {} frames in {subspace_s:.1} s",
+        frames.len()
+    ));
+    let pose_refs: Vec<&[Vec<f64>]> = seqs.iter().map(|s| s.poses.as_slice()).collect();
+    let control = ControlSpec::fit(&pose_refs, params.lags.clone())?;
+    let mut controls = Vec::new();
+    let mut targets = Vec::new();
+    let mut per_seq = Vec::new();
+    for s in seqs {
+        let c = control.controls(&s.poses)?;
+        let t: Vec<Vec<f64>> = s.fine.iter().map(|f| subspace.project(f, k)).collect();
+        controls.extend(c.iter().cloned());
+        targets.extend(t.iter().cloned());
+        per_seq.push((c, t));
+    }
+    let t1 = Instant::now();
+    let linear = LinearRegression::fit(&controls, &targets, params.ridge)?;
+    let linear_s = t1.elapsed().as_secs_f64();
+    let n = targets.len() as f64;
+    let coeff_scale: Vec<f64> = (0..k)
+        .map(|j| {
+            (targets.iter().map(|t| t[j] * t[j]).sum::<f64>() / n)
+                .sqrt()
+                .max(1e-9)
+        })
+        .collect();
+    let (mut lstm, mut lstm_losses, mut lstm_s) = (None, Vec::new(), 0.0);
+    if params.regressor == RegressorKind::Lstm {
+        let t2 = Instant::now();
+        let mut net =
+            LstmRegressor::new(params.lstm.clone(), control.len(), k, coeff_scale.clone())?;
+        let data: Vec<_> = per_seq
+            .iter()
+            .flat_map(|(c, t)| windows(c, t, params.lstm.seq_len))
+            .collect();
+        progress.begin("lstm", params.lstm.epochs as u64);
+        lstm_losses = net.train(&data, |epoch, loss| {
+            progress.advance("lstm", 1);
+            if (epoch + 1) % 25 == 0 || epoch == 0 {
+                progress.note(&format!("lstm epoch {}: loss {loss:.5}", epoch + 1));
+            }
+        })?;
+        progress.end("lstm");
+        lstm_s = t2.elapsed().as_secs_f64();
+        lstm = Some(net);
+    }
+    Ok(Fitted {
+        subspace,
+        control,
+        linear,
+        lstm,
+        coeff_scale,
+        lstm_losses,
+        seconds: BTreeSummary {
+            subspace_s,
+            linear_s,
+            lstm_s,
+            lstm_s_per_epoch: lstm_s / params.lstm.epochs.max(1) as f64,
+        },
+    })
+}
+
+/// Trains on `seqs` and publishes the model at `out`.
+pub fn train(
+    seqs: &[TrainingSequence],
+    params: &TrainParams,
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<PathBuf> {
+    let topo = common_topology(seqs)?;
+    let fitted = fit(seqs, params, progress)?;
+    let mean_shape = crate::subspace::unflatten(&fitted.subspace.mean);
+    let layout = layout_for(params.uv.as_deref(), &topo, &mean_shape)?;
+    let mut w = ModelWriter::new(out)?;
+    write_core_parts(&mut w, &topo, &layout, &fitted.subspace, &fitted.linear)?;
+    if let Some(net) = &fitted.lstm {
+        net.save(&w.staging_path("lstm.safetensors"))?;
+        w.record("lstm.safetensors")?;
+    }
+    let mut cgan_value = None;
+    let mut cgan_summary = serde_json::Value::Null;
+    if let Some(cfg) = &params.cgan {
+        let cfg = crate::cgan::CganConfig {
+            resolution: params.resolution,
+            ..cfg.clone()
+        };
+        cgan_summary = train_cgan(
+            seqs,
+            &topo,
+            &layout,
+            &cfg,
+            params.checkpoint.as_deref(),
+            &w.staging_path("cgan.safetensors"),
+            progress,
+        )?;
+        w.record("cgan.safetensors")?;
+        cgan_value =
+            Some(serde_json::to_value(&cfg).map_err(|e| Error::param("cgan", e.to_string()))?);
+    }
+    let manifest = Manifest {
+        format: MODEL_FORMAT.into(),
+        version: MODEL_VERSION,
+        vertices: topo.n_vertices(),
+        triangles: topo.n_triangles(),
+        k: fitted.subspace.k(),
+        control: fitted.control.clone(),
+        regressor: params.regressor,
+        lstm: fitted.lstm.as_ref().map(|n| n.config.clone()),
+        coeff_scale: fitted.coeff_scale.clone(),
+        resolution: params.resolution,
+        cgan: cgan_value,
+        training: serde_json::json!({
+            "data": seqs.iter().map(|s| s.dir.display().to_string()).collect::<Vec<_>>(),
+            "frames": seqs.iter().map(|s| s.fine.len()).sum::<usize>(),
+            "seconds": fitted.seconds,
+            "lstm_final_loss": fitted.lstm_losses.last(),
+            "cgan": cgan_summary,
+        }),
+        files: Default::default(),
+    };
+    w.publish(manifest)
+}
+
+/// Trains the cGAN on every training frame (captured map → gt map), with per-epoch checkpoints, and writes the
+/// generator's weights to `weights_out`. Returns the per-epoch losses and timings.
+pub fn train_cgan(
+    seqs: &[TrainingSequence],
+    topo: &Topology,
+    layout: &UvLayout,
+    cfg: &crate::cgan::CganConfig,
+    checkpoint: Option<&Path>,
+    weights_out: &Path,
+    progress: &dyn Progress,
+) -> Result<serde_json::Value> {
+    use crate::cgan::Cgan;
+    let texels = crate::raster::TexelMap::new(layout, cfg.resolution, cfg.resolution);
+    let t0 = Instant::now();
+    let mut data = Vec::new();
+    for s in seqs {
+        let pairs = crate::cgan_data::map_pairs(topo, &texels, &s.coarse, &s.fine, 8.0)?;
+        data.extend(crate::cgan_data::samples(&pairs));
+    }
+    let prep_s = t0.elapsed().as_secs_f64();
+    let mut gan = match checkpoint {
+        Some(dir) if dir.join("state.json").exists() => {
+            let g = Cgan::resume(cfg.clone(), dir)?;
+            progress.note(&format!(
+                "cgan: resuming from {} after epoch {}",
+                dir.display(),
+                g.epoch
+            ));
+            g
+        }
+        _ => Cgan::new(cfg.clone())?,
+    };
+    let steps_per_epoch = data.len().div_ceil(cfg.batch) as u64;
+    progress.begin(
+        "cgan",
+        steps_per_epoch * (cfg.epochs.saturating_sub(gan.epoch)) as u64,
+    );
+    let t1 = Instant::now();
+    let epochs_before = gan.epoch;
+    let history = gan.train(
+        &data,
+        |_, _, _| progress.advance("cgan", 1),
+        |g, epoch, l| {
+            progress.note(&format!(
+                "cgan epoch {epoch}: L1 {:.4} temporal {:.4} GAN {:.3} D {:.3}",
+                l.l1, l.temporal, l.gan, l.disc
+            ));
+            if let Some(dir) = checkpoint {
+                g.save_checkpoint(dir)?;
+            }
+            Ok(())
+        },
+    )?;
+    progress.end("cgan");
+    let train_s = t1.elapsed().as_secs_f64();
+    gan.save_generator(weights_out)?;
+    Ok(serde_json::json!({
+        "samples": data.len(),
+        "map_preparation_s": prep_s,
+        "training_s": train_s,
+        "s_per_epoch": train_s / (gan.epoch - epochs_before).max(1) as f64,
+        "epochs": history,
+    }))
+}

@@ -245,7 +245,17 @@ async fn cancellation_and_malformed_tasks() {
         let err = execute(&task, &ctx).await.unwrap_err();
         assert!(!err.retryable() && err.reason.contains(needle), "{err:?}");
     }
-    // Finalize refuses to vouch for an output whose frame files are not all there.
+    // Finalize reads every frame's positions (shape figures): put back the one deleted above, then check that it
+    // refuses to vouch for an output whose frame files are not all there.
+    execute(
+        &TaskSpec::Position {
+            job: spec.clone(),
+            frames: 0..10,
+        },
+        &ctx,
+    )
+    .await
+    .unwrap();
     std::fs::remove_file(out.join("frame_0005.obj")).unwrap();
     let err = execute(&TaskSpec::Finalize { job: spec.clone() }, &ctx)
         .await

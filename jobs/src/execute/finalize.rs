@@ -54,28 +54,6 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     // "Shape kept" (DESIGN §9): every output frame against its input frame.
     let filter = TaubinFilter::captured(&topo);
     let mut shape_kept = ShapeAccumulator::default();
-    // Frame files the positioning tasks wrote must all be there before anything is read or vouched for: a
-    // missing one is the output's fault (not retryable), not a storage hiccup while reading the positions.
-    let present = |names: &[String]| -> Result<(), TaskError> {
-        let mut missing = Vec::new();
-        for name in names {
-            if !env.block_on(env.out.exists(name)).map_err(storage_err)? {
-                missing.push(name.clone());
-            }
-        }
-        if missing.is_empty() {
-            return Ok(());
-        }
-        Err(TaskError::fatal(format!(
-            "finalize: {} output frame file(s) missing from {} although their positioning tasks succeeded: {}",
-            missing.len(),
-            job.output,
-            missing.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
-        )))
-    };
-    if sink.is_none() {
-        present(&output_files(job, &opened.layout, n))?;
-    }
     env.progress().begin("finalize", n as u64);
     for (t, stretch_of_t) in frame_stretch.iter_mut().enumerate() {
         env.check_cancelled()?;
@@ -132,18 +110,28 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         env.progress().advance("finalize", 1);
     }
     let names: Vec<String> = match sink.as_mut() {
-        Some(sink) => {
-            let names: Vec<String> = sink
-                .finish()
-                .map_err(core_err("output"))?
-                .iter()
-                .filter_map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()))
-                .collect();
-            present(&names)?;
-            names
-        }
+        Some(sink) => sink
+            .finish()
+            .map_err(core_err("output"))?
+            .iter()
+            .filter_map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()))
+            .collect(),
         None => output_files(job, &opened.layout, n),
     };
+    let mut missing = Vec::new();
+    for name in &names {
+        if !env.block_on(env.out.exists(name)).map_err(storage_err)? {
+            missing.push(name.clone());
+        }
+    }
+    if !missing.is_empty() {
+        return Err(TaskError::fatal(format!(
+            "finalize: {} output frame file(s) missing from {} although their positioning tasks succeeded: {}",
+            missing.len(),
+            job.output,
+            missing.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
+        )));
+    }
     let windows: Vec<WindowStats> = (0..env.windows(n).len())
         .map(|k| {
             env.get_json::<WindowRecord>(&keys::window_stats(k))

@@ -5,6 +5,7 @@ mod bench;
 mod bench_cluster;
 mod certs;
 mod cluster;
+mod deep;
 mod error_text;
 mod eval;
 mod export;
@@ -74,6 +75,10 @@ enum Command {
     ExportJob(farm::ExportJobArgs),
     /// Write a sequence as GLB, USD, MDD or PC2.
     Export(export::ExportArgs),
+    /// DeepWrinkles (Lähner et al. 2018): register templates to scans, train, apply.
+    Deep(deep::DeepArgs),
+    /// Bake a detailed sequence into normal maps on its coarse input (DESIGN §7 output layout).
+    Bake(deep::BakeArgs),
 }
 
 fn lossy(args: &[std::ffi::OsString]) -> Vec<String> {
@@ -126,6 +131,8 @@ fn main() {
         Command::Task(a) => farm::task(a),
         Command::ExportJob(a) => farm::export_job_cmd(a),
         Command::Export(a) => export::export_cmd(a),
+        Command::Deep(a) => deep::deep(a),
+        Command::Bake(a) => deep::bake(a),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_text::one_line(&e));

@@ -1,0 +1,357 @@
+//! `crease deep register|train|apply` and `crease bake`: DeepWrinkles (Lähner et al. 2018) from the command
+//! line. The work is in crease-deep; this module parses arguments, shows progress and prints summaries.
+
+use crate::progress::CliProgress;
+use anyhow::{bail, Context, Result};
+use clap::{Args, Subcommand};
+use crease_core::mesh::io::{open_sequence, sort_numbered, write_obj};
+use crease_core::mesh::FrameSource;
+use crease_deep::apply::{apply, ApplyInput, ApplyParams};
+use crease_deep::bake::{bake_sequence, BakeParams};
+use crease_deep::cgan::CganConfig;
+use crease_deep::lstm::LstmConfig;
+use crease_deep::model::{Model, RegressorKind};
+use crease_deep::normal_map::Space;
+use crease_deep::register::{read_scan, RegisterParams, Registration};
+use crease_deep::train::{load_training_dir, train, TrainParams};
+use crease_deep::uv::{auto_atlas, read_obj_mesh, read_obj_uv, UvLayout};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Args, Debug)]
+pub struct DeepArgs {
+    #[command(subcommand)]
+    pub command: DeepCommand,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum DeepCommand {
+    /// Register a template to a directory of scans (non-rigid ICP, §3.1); writes OUT/frame_NNNN.obj.
+    Register(RegisterArgs),
+    /// Train a model (subspace, regression, optional LSTM) from training directories (gt/, captured/, pose.json).
+    Train(TrainArgs),
+    /// Run a model on a pose file or on coarse meshes; writes OUT/mesh/*.obj and OUT/normals/*.png.
+    Apply(ApplyArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct RegisterArgs {
+    /// Template mesh (OBJ) in its starting pose.
+    #[arg(long)]
+    pub template: PathBuf,
+    /// Directory of numbered scans: OBJ `v x y z [r g b]` points, boundary points coloured red.
+    #[arg(long)]
+    pub scans: PathBuf,
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Rigidity weight ω_r (paper: 500).
+    #[arg(long, default_value_t = 500.0)]
+    pub w_rigid: f64,
+    /// Smoothness weight ω_s (paper: 500).
+    #[arg(long, default_value_t = 500.0)]
+    pub w_smooth: f64,
+    /// Boundary weight ω_b (paper: 10).
+    #[arg(long, default_value_t = 10.0)]
+    pub w_bound: f64,
+    /// Graph node spacing in template edge lengths.
+    #[arg(long, default_value_t = 2.5)]
+    pub node_spacing: f64,
+    /// ICP iterations per scan.
+    #[arg(long, default_value_t = 30)]
+    pub iterations: usize,
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct TrainArgs {
+    /// Training directories, each with gt/, captured/ and pose.json.
+    #[arg(long, num_args = 1.., required = true)]
+    pub data: Vec<PathBuf>,
+    /// Model directory to write (replaced only when the new model is complete).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Subspace size (capped by the number of training frames).
+    #[arg(long, default_value_t = 200)]
+    pub k: usize,
+    /// Regressor `apply --pose` uses: linear (pseudo-inverse) or lstm (also trains the linear one).
+    #[arg(long, default_value = "linear")]
+    pub regressor: RegressorKind,
+    /// Pose lags (frames) in the control vector.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32")]
+    pub lags: Vec<usize>,
+    /// Ridge weight of the linear regression (relative).
+    #[arg(long, default_value_t = 1e-3)]
+    pub ridge: f64,
+    #[arg(long, default_value_t = 4)]
+    pub lstm_layers: usize,
+    #[arg(long, default_value_t = 256)]
+    pub lstm_hidden: usize,
+    #[arg(long, default_value_t = 3)]
+    pub lstm_seq: usize,
+    #[arg(long, default_value_t = 300)]
+    pub lstm_epochs: usize,
+    #[arg(long, default_value_t = 1e-3)]
+    pub lstm_lr: f64,
+    /// Seed of every random choice (weights, batches): the same seed gives the same model.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Normal map resolution.
+    #[arg(long, default_value_t = 256)]
+    pub resolution: usize,
+    /// A template OBJ whose `vt` gives the UV layout (required to have `vt`); default: computed (LSCM charts).
+    #[arg(long)]
+    pub uv: Option<PathBuf>,
+    /// cGAN epochs on (captured → gt) map pairs at --resolution (0: no cGAN; apply then writes coarse maps).
+    #[arg(long, default_value_t = 0)]
+    pub cgan_epochs: usize,
+    /// Filters of the generator's first layer (paper: 64).
+    #[arg(long, default_value_t = 64)]
+    pub cgan_filters: usize,
+    /// Filters of the discriminator's first layer (paper: 64).
+    #[arg(long, default_value_t = 64)]
+    pub cgan_disc_filters: usize,
+    /// Weight of the temporal term (paper: 50; 0 trains without it).
+    #[arg(long, default_value_t = 50.0)]
+    pub cgan_w_temporal: f64,
+    /// cGAN checkpoint directory, written after every epoch and resumed when present.
+    #[arg(long)]
+    pub checkpoint: Option<PathBuf>,
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ApplyArgs {
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Pose file (pose.json): shapes come from the model's regression.
+    #[arg(long, conflicts_with = "coarse", required_unless_present = "coarse")]
+    pub pose: Option<PathBuf>,
+    /// Coarse mesh sequence in the model's topology (e.g. a capture).
+    #[arg(long)]
+    pub coarse: Option<PathBuf>,
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Normal map space: world (default) or tangent.
+    #[arg(long, default_value = "world")]
+    pub space: Space,
+    /// Override the model's regressor for --pose.
+    #[arg(long)]
+    pub regressor: Option<RegressorKind>,
+    /// Write the coarse maps without the cGAN.
+    #[arg(long)]
+    pub no_cgan: bool,
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct BakeArgs {
+    /// Coarse sequence the maps belong to.
+    #[arg(long)]
+    pub coarse: PathBuf,
+    /// Detailed sequence (any mode's output, or gt), same frame count; may have another topology.
+    #[arg(long)]
+    pub detailed: PathBuf,
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value = "world")]
+    pub space: Space,
+    #[arg(long, default_value_t = 256)]
+    pub resolution: usize,
+    /// OBJ with the UV layout to use (required to have `vt`); default: the coarse input's own `vt`, else
+    /// computed (LSCM charts).
+    #[arg(long)]
+    pub uv: Option<PathBuf>,
+    /// How far a texel's ray may reach for the detailed surface, in coarse edge lengths.
+    #[arg(long, default_value_t = 8.0)]
+    pub max_dist: f64,
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+pub fn deep(a: DeepArgs) -> Result<()> {
+    match a.command {
+        DeepCommand::Register(a) => register(a),
+        DeepCommand::Train(a) => train_cmd(a),
+        DeepCommand::Apply(a) => apply_cmd(a),
+    }
+}
+
+fn register(a: RegisterArgs) -> Result<()> {
+    let (topo, template, _) = read_obj_mesh(&a.template)?;
+    let mut files = Vec::new();
+    for e in std::fs::read_dir(&a.scans).with_context(|| format!("{}", a.scans.display()))? {
+        let p = e?.path();
+        if p.extension().is_some_and(|x| x.eq_ignore_ascii_case("obj")) {
+            files.push(p);
+        }
+    }
+    if files.is_empty() {
+        bail!("{}: no scans (.obj point files)", a.scans.display());
+    }
+    let files = sort_numbered(files)?;
+    let params = RegisterParams {
+        w_rigid: a.w_rigid,
+        w_smooth: a.w_smooth,
+        w_bound: a.w_bound,
+        node_spacing: a.node_spacing,
+        iterations: a.iterations,
+        ..Default::default()
+    };
+    let progress = CliProgress::new(a.quiet);
+    let mut reg = Registration::new(topo.clone(), &template, params)?;
+    progress.println(&format!(
+        "deformation graph: {} nodes for {} vertices",
+        reg.n_nodes(),
+        topo.n_vertices()
+    ));
+    crease_core::fsutil::create_dir_all(&a.out)?;
+    use crease_core::progress::Progress;
+    progress.begin("register", files.len() as u64);
+    let t0 = Instant::now();
+    for (i, f) in files.iter().enumerate() {
+        let scan = read_scan(&f.path)?;
+        let out = reg
+            .register(&scan)
+            .with_context(|| format!("registering {}", f.path.display()))?;
+        write_obj(&a.out.join(format!("frame_{:04}.obj", i + 1)), &topo, &out)?;
+        progress.advance("register", 1);
+    }
+    progress.end("register");
+    progress.println(&format!(
+        "registered {} scans, {:.1} s per scan",
+        files.len(),
+        t0.elapsed().as_secs_f64() / files.len() as f64
+    ));
+    Ok(())
+}
+
+fn train_cmd(a: TrainArgs) -> Result<()> {
+    let progress = CliProgress::new(a.quiet);
+    let mut seqs = Vec::new();
+    for d in &a.data {
+        seqs.push(load_training_dir(d)?);
+        progress.println(&format!(
+            "loaded {}: {} frames",
+            d.display(),
+            seqs.last().map_or(0, |s| s.fine.len())
+        ));
+    }
+    let params = TrainParams {
+        k: a.k,
+        lags: a.lags,
+        ridge: a.ridge,
+        regressor: a.regressor,
+        lstm: LstmConfig {
+            layers: a.lstm_layers,
+            hidden: a.lstm_hidden,
+            seq_len: a.lstm_seq,
+            epochs: a.lstm_epochs,
+            batch: 32,
+            lr: a.lstm_lr,
+            seed: a.seed,
+        },
+        resolution: a.resolution,
+        uv: a.uv,
+        cgan: (a.cgan_epochs > 0).then(|| CganConfig {
+            resolution: a.resolution,
+            filters: a.cgan_filters,
+            disc_filters: a.cgan_disc_filters,
+            w_temporal: a.cgan_w_temporal,
+            epochs: a.cgan_epochs,
+            seed: a.seed,
+            ..Default::default()
+        }),
+        checkpoint: a.checkpoint,
+    };
+    let t0 = Instant::now();
+    let out = train(&seqs, &params, &a.out, &progress)?;
+    progress.println(&format!(
+        "model written to {} in {:.1} s",
+        out.display(),
+        t0.elapsed().as_secs_f64()
+    ));
+    Ok(())
+}
+
+fn apply_cmd(a: ApplyArgs) -> Result<()> {
+    let model = Model::load(&a.model)?;
+    let input = match (&a.pose, &a.coarse) {
+        (Some(p), None) => ApplyInput::Pose(p.clone()),
+        (None, Some(c)) => ApplyInput::Coarse(c.clone()),
+        _ => bail!("give exactly one of --pose and --coarse"),
+    };
+    let params = ApplyParams {
+        space: a.space,
+        regressor: a.regressor,
+        frames: None,
+        no_cgan: a.no_cgan,
+    };
+    let progress = CliProgress::new(a.quiet);
+    let t0 = Instant::now();
+    let n = apply(&model, &input, &params, &a.out, &progress)?;
+    progress.println(&format!(
+        "wrote {n} frames to {} ({:.1} ms per frame)",
+        a.out.display(),
+        1e3 * t0.elapsed().as_secs_f64() / n.max(1) as f64
+    ));
+    Ok(())
+}
+
+/// The layout a bake uses: `--uv` (must have `vt`), else the coarse input's own `vt`, else computed.
+fn bake_layout(
+    uv: Option<&Path>,
+    coarse_path: &Path,
+    coarse: &dyn FrameSource,
+) -> Result<UvLayout> {
+    let topo = coarse.topology();
+    if let Some(p) = uv {
+        return read_obj_uv(p, topo)?.with_context(|| {
+            format!(
+                "{}: has no texture coordinates (`vt`), which --uv requires",
+                p.display()
+            )
+        });
+    }
+    let layout = crease_core::mesh::io::detect_layout(coarse_path)?;
+    if let Some(obj) = layout
+        .input_files()
+        .into_iter()
+        .find(|f| f.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")))
+    {
+        if let Some(l) = read_obj_uv(&obj, topo)? {
+            return Ok(l);
+        }
+    }
+    Ok(auto_atlas(topo, &coarse.read_frame(0)?, 0.01)?)
+}
+
+pub fn bake(a: BakeArgs) -> Result<()> {
+    let coarse = open_sequence(&a.coarse)?.source;
+    let detailed = open_sequence(&a.detailed)?.source;
+    let layout = bake_layout(a.uv.as_deref(), &a.coarse, coarse.as_ref())?;
+    let params = BakeParams {
+        resolution: a.resolution,
+        space: a.space,
+        max_dist_edges: a.max_dist,
+    };
+    let progress = CliProgress::new(a.quiet);
+    let t0 = Instant::now();
+    bake_sequence(
+        coarse.as_ref(),
+        detailed.as_ref(),
+        &layout,
+        &params,
+        &a.out,
+        &progress,
+    )?;
+    progress.println(&format!(
+        "baked {} frames into {} in {:.1} s",
+        coarse.n_frames(),
+        a.out.display(),
+        t0.elapsed().as_secs_f64()
+    ));
+    Ok(())
+}

@@ -1,6 +1,8 @@
 #![allow(clippy::needless_range_loop)]
 //! `crease export` writes files the DCCs and engines read: GLB that Khronos' glTF-Validator passes, USD that
-//! Pixar's USD opens with the OBJ's points, and MDD/PC2 point caches that read back frame for frame.
+//! Pixar's USD opens with the OBJ's points, and MDD/PC2 point caches that read back frame for frame. Texture
+//! coordinates travel end to end: a UV'd tube with a seam, through `crease run` (subdivided) and `crease
+//! export`, into GLB's `TEXCOORD_0` and USD's `primvars:st`.
 
 mod tools;
 
@@ -192,4 +194,112 @@ fn bad_export_requests_are_named_and_write_nothing() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("`fps`"), "{}", stderr(&o));
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+}
+
+/// The UV tube (synthetic, with a seam) written as OBJ frames with `vt` and `f v/vt`.
+fn uv_tube_input(dir: &Path) -> (PathBuf, crease_core::mesh::Sequence) {
+    let seq = crease_core::synth::uv_tube(12, 8, 4).unwrap();
+    let input = dir.join("uv-in");
+    crease_core::synth::write_frames(&input, &seq).unwrap();
+    (input, seq)
+}
+
+/// OBJ's texture coordinate of every triangle corner of a sequence's topology.
+fn corner_uvs(seq_topo: &crease_core::mesh::Topology) -> Vec<[f32; 2]> {
+    let uvs = seq_topo
+        .uvs()
+        .expect("the sequence has texture coordinates");
+    uvs.corners()
+        .iter()
+        .flatten()
+        .map(|&k| uvs.uv()[k as usize])
+        .collect()
+}
+
+#[test]
+fn uvs_run_through_a_subdivided_run_into_glb_and_usd() {
+    let (_d, dir) = out_dir();
+    let (input, seq) = uv_tube_input(&dir);
+    // `crease run --folds stretch --subdivide 1`: the output OBJ frames carry the subdivided UVs.
+    let out = dir.join("out");
+    let o = Command::new(BIN)
+        .args([
+            "run",
+            "--input",
+            input.to_str().unwrap(),
+            "--folds",
+            "stretch",
+        ])
+        .args([
+            "--subdivide",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let opened = open_sequence(&out).unwrap();
+    let topo = opened.source.topology().clone();
+    assert_eq!(topo.n_triangles(), 4 * seq.topology.n_triangles());
+    let fine = corner_uvs(&topo);
+    let coarse = corner_uvs(&seq.topology);
+    // Corner a of child 0 of each coarse triangle is the coarse corner a; the middle child's corners are
+    // the midpoints of the coarse triangle's corner coordinates, on each side of the seam.
+    for t in 0..seq.topology.n_triangles() {
+        assert_eq!(fine[12 * t], coarse[3 * t], "triangle {t}");
+        let mid = |i: usize, j: usize| {
+            let (p, q) = (coarse[3 * t + i], coarse[3 * t + j]);
+            [0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])]
+        };
+        assert_eq!(fine[12 * t + 9], mid(0, 1), "triangle {t}");
+        assert_eq!(fine[12 * t + 10], mid(1, 2), "triangle {t}");
+        assert_eq!(fine[12 * t + 11], mid(2, 0), "triangle {t}");
+    }
+    // Some corner has u = 1 (the seam's far side) and its own vertex also appears with u = 0.
+    assert!(fine.iter().any(|c| c[0] == 1.0) && fine.iter().any(|c| c[0] == 0.0));
+
+    let glb = dir.join("uv.glb");
+    let o = export(&out, "glb", &glb);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report = validate_gltf(&glb);
+    std::fs::write(dir.join("validator-uv.json"), report.to_string()).unwrap();
+    let issues = &report["issues"];
+    assert_eq!(
+        issues["numErrors"], 0,
+        "validator errors: {}",
+        issues["messages"]
+    );
+    let info = &report["info"];
+    assert_eq!(info["maxUVs"], 1, "{info}");
+    assert_eq!(info["hasMorphTargets"], true, "{info}");
+    // The seam vertices are split: more vertices than the mesh has, one copy per seam row.
+    let split = info["totalVertexCount"].as_u64().unwrap() as usize;
+    assert!(split > topo.n_vertices(), "{info}");
+
+    let usda = dir.join("uv.usda");
+    let o = export(&out, "usd", &usda);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let usd = read_usd(&usda, &["1"]);
+    let st = &usd["st"];
+    assert_eq!(st["type"], "texCoord2f[]", "{st}");
+    assert_eq!(st["interpolation"], "faceVarying", "{st}");
+    assert_eq!(st["indexed"], true, "{st}");
+    let got: Vec<[f32; 2]> = st["corners"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| [c[0].as_f64().unwrap() as f32, c[1].as_f64().unwrap() as f32])
+        .collect();
+    assert_eq!(got, fine, "USD's st at every face corner");
+    // Without UVs the stage has no st.
+    assert!(read_usd_fixture_has_no_st(&dir));
+}
+
+fn read_usd_fixture_has_no_st(dir: &Path) -> bool {
+    let usda = dir.join("plain.usda");
+    let o = export(&fixture(), "usd", &usda);
+    assert!(o.status.success(), "{}", stderr(&o));
+    read_usd(&usda, &[]).get("st").is_none()
 }

@@ -551,3 +551,61 @@ pub fn write_demo(
     anchors.write(&anchors_path)?;
     Ok((input, anchors_path))
 }
+
+/// A small tube with texture coordinates and a seam, moving over `n_frames` frames: `cols` vertices around,
+/// `rows` along its axis, u = column / cols and v = row / (rows − 1). The columns wrap, so the vertices of
+/// column 0 are on the UV seam with two coordinates each (u = 0 and u = 1), which is what the UV paths of the
+/// readers, subdivision and exporters must keep exact. The fixture of the UV tests.
+pub fn uv_tube(cols: usize, rows: usize, n_frames: usize) -> Result<Sequence> {
+    if cols < 3 || rows < 2 {
+        return Err(crate::Error::param(
+            "uv_tube",
+            format!("needs at least 3 columns and 2 rows, got {cols} × {rows}"),
+        ));
+    }
+    let grid = Grid {
+        cols,
+        rows,
+        periodic: true,
+    };
+    let tris = grid.triangles();
+    let uv_index = |c: usize, r: usize| (r * (cols + 1) + c) as u32;
+    let mut uv = Vec::with_capacity((cols + 1) * rows);
+    for r in 0..rows {
+        for c in 0..=cols {
+            uv.push([c as f32 / cols as f32, r as f32 / (rows - 1).max(1) as f32]);
+        }
+    }
+    let corners = tris
+        .iter()
+        .map(|t| {
+            let col = |v: u32| v as usize % cols;
+            // The wrapping cell joins column cols − 1 to column 0: there, column 0 is u = 1.
+            let wraps = t.iter().any(|&v| col(v) == cols - 1) && t.iter().any(|&v| col(v) == 0);
+            t.map(|v| {
+                let c = col(v);
+                let c = if wraps && c == 0 { cols } else { c };
+                uv_index(c, v as usize / cols)
+            })
+        })
+        .collect();
+    let topo = grid
+        .topology()?
+        .with_uvs(Some(crate::mesh::UvSet::new(uv, corners)?))?;
+    let frames = (0..n_frames)
+        .map(|t| {
+            let phase = 0.6 * t as f64;
+            (0..rows)
+                .flat_map(|r| {
+                    (0..cols).map(move |c| {
+                        let a = 2.0 * PI * c as f64 / cols as f64;
+                        let z = r as f64 * 0.05;
+                        let radius = 0.1 + 0.01 * (phase + 3.0 * a + 20.0 * z).sin();
+                        [radius * a.cos(), radius * a.sin(), z]
+                    })
+                })
+                .collect()
+        })
+        .collect();
+    Sequence::new(Arc::new(topo), frames)
+}

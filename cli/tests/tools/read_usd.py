@@ -1,5 +1,6 @@
-"""Opens a .usda with Pixar's USD (usd-core) and prints, as JSON, the stage's time range and, for each time
-code asked for, the mesh's points and normals counts and its points (as float32 values)."""
+"""Opens a .usda with Pixar's USD (usd-core) and prints, as JSON, the stage's time range, the texture
+coordinates (`st` primvar: interpolation, whether indexed, and its value at every face corner) when present,
+and, for each time code asked for, the mesh's points and normals counts and its points (as float32 values)."""
 import json
 import sys
 
@@ -21,6 +22,14 @@ out = {
     "faces": len(mesh.GetFaceVertexCountsAttr().Get()),
     "frames": {},
 }
+st = UsdGeom.PrimvarsAPI(mesh.GetPrim()).GetPrimvar("st")
+if st and st.HasValue():
+    out["st"] = {
+        "type": str(st.GetTypeName()),
+        "interpolation": st.GetInterpolation(),
+        "indexed": st.IsIndexed(),
+        "corners": [[float(c) for c in uv] for uv in st.ComputeFlattened()],
+    }
 for t in times:
     pts = mesh.GetPointsAttr().Get(float(t))
     nrm = mesh.GetNormalsAttr().Get(float(t))

@@ -9,12 +9,18 @@
 //! keyframes are frames × (frames − 1) floats, 9 KB at 48 frames but 4 MB at 1,000: beyond a few hundred
 //! frames, USD or a point cache is the better container (docs/export.md).
 //!
+//! With texture coordinates (`TEXCOORD_0`), vertices on a UV seam are split ([`crate::mesh::UvSet::split_seams`]):
+//! glTF has one coordinate per vertex. Positions, normals and every morph target go through the same index
+//! map, and normals are computed on the unsplit mesh so that shading stays smooth across the seam. glTF's UV
+//! origin is the top left of the image, OBJ's the bottom left, so v is written as 1 − v.
+//!
 //! A GLB's JSON chunk precedes its binary chunk and must carry every morph target's min/max, so the writer reads
 //! the frames twice: once for the bounds, once to stream the binary chunk. Memory stays at one frame.
 
 use super::staging::{put, write_staged};
 use super::{to_f32, unit_normals, ExportOptions, FrameReader, UpAxis};
 use crate::error::{Error, Result};
+use crate::mesh::uv::SeamSplit;
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -26,9 +32,20 @@ const UNSIGNED_INT: u32 = 5125;
 pub fn write_glb(frames: &FrameReader, out: &Path, opts: &ExportOptions) -> Result<()> {
     let topo = frames.source.topology().clone();
     let n = frames.n_frames();
-    let nv = topo.n_vertices();
     let nt = topo.n_triangles();
     let targets = n - 1;
+    let split: Option<SeamSplit> = topo
+        .uvs()
+        .map(|u| u.split_seams(topo.n_vertices(), topo.triangles()));
+    // Vertices as written: the mesh's own, or with the seam copies appended.
+    let nv = split.as_ref().map_or(topo.n_vertices(), |s| s.source.len());
+    let per_vertex = |v: Vec<[f32; 3]>| match &split {
+        Some(s) => s.gather(&v),
+        None => v,
+    };
+    let triangles = split
+        .as_ref()
+        .map_or(topo.triangles(), |s| s.triangles.as_slice());
 
     // Pass 1: bounds of the base positions and of every target's position deltas.
     let base = frames.read(0)?;
@@ -73,6 +90,13 @@ pub fn write_glb(frames: &FrameReader, out: &Path, opts: &ExportOptions) -> Resu
     );
     let position = add(vec3_len, Some(ARRAY_BUFFER), vec3(nv, Some(&base_bounds)));
     let normal = add(vec3_len, Some(ARRAY_BUFFER), vec3(nv, None));
+    let texcoord = split.as_ref().map(|_| {
+        add(
+            nv as u64 * 8,
+            Some(ARRAY_BUFFER),
+            json!({ "componentType": FLOAT, "count": nv, "type": "VEC2" }),
+        )
+    });
     let mut target_json = Vec::with_capacity(targets);
     for b in &target_bounds {
         let p = add(vec3_len, Some(ARRAY_BUFFER), vec3(nv, Some(b)));
@@ -84,6 +108,9 @@ pub fn write_glb(frames: &FrameReader, out: &Path, opts: &ExportOptions) -> Resu
         "indices": indices,
         "mode": 4,
     });
+    if let Some(t) = texcoord {
+        primitive["attributes"]["TEXCOORD_0"] = json!(t);
+    }
     let mut mesh = json!({ "name": "garment", "primitives": [] });
     let mut animations = Vec::new();
     if targets > 0 {
@@ -154,20 +181,28 @@ pub fn write_glb(frames: &FrameReader, out: &Path, opts: &ExportOptions) -> Resu
         put(w, out, &(bin_len as u32).to_le_bytes())?;
         put(w, out, b"BIN\0")?;
         let mut buf = Vec::with_capacity(nv * 12);
-        for tri in topo.triangles() {
+        for tri in triangles {
             for v in tri {
                 buf.extend_from_slice(&v.to_le_bytes());
             }
         }
         put(w, out, &buf)?;
-        let base_normals = unit_normals(&topo, &base);
-        put(w, out, vec3_bytes(&base32, &mut buf))?;
+        let base_normals = per_vertex(unit_normals(&topo, &base));
+        put(w, out, vec3_bytes(&per_vertex(base32), &mut buf))?;
         put(w, out, vec3_bytes(&base_normals, &mut buf))?;
+        if let Some(s) = &split {
+            buf.clear();
+            for c in &s.uv {
+                buf.extend_from_slice(&c[0].to_le_bytes());
+                buf.extend_from_slice(&(1.0 - c[1]).to_le_bytes());
+            }
+            put(w, out, &buf)?;
+        }
         for t in 1..n {
             let f = frames.read(t)?;
             let d: Vec<[f32; 3]> = f.iter().zip(&base).map(|(p, b)| delta(*p, *b)).collect();
-            put(w, out, vec3_bytes(&d, &mut buf))?;
-            let normals = unit_normals(&topo, &f);
+            put(w, out, vec3_bytes(&per_vertex(d), &mut buf))?;
+            let normals = per_vertex(unit_normals(&topo, &f));
             let dn: Vec<[f32; 3]> = normals
                 .iter()
                 .zip(&base_normals)
@@ -298,6 +333,83 @@ mod tests {
         let at = view["byteOffset"].as_u64().unwrap() as usize;
         let w: Vec<f32> = (0..6).map(|i| read_le_f32(bin, at + 4 * i)).collect();
         assert_eq!(w, vec![0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
+    }
+
+    /// A tube with a UV seam: the seam vertices are split, and through the index map every triangle corner
+    /// still has its frame's position (base + morph target) and its own texture coordinate (v flipped).
+    #[test]
+    fn seams_split_with_every_target_following_the_index_map() {
+        let seq = crate::synth::uv_tube(6, 4, 3).unwrap();
+        let topo = seq.topology.clone();
+        let uvs = topo.uvs().unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("a.glb");
+        export(
+            &seq,
+            ExportFormat::Glb,
+            &out,
+            &ExportOptions::default(),
+            &NoProgress,
+        )
+        .unwrap();
+        let b = std::fs::read(&out).unwrap();
+        let json_len = read_le_u32(&b, 12) as usize;
+        let doc: serde_json::Value = serde_json::from_slice(&b[20..20 + json_len]).unwrap();
+        let bin = &b[20 + json_len + 8..];
+        let prim = &doc["meshes"][0]["primitives"][0];
+        let at = |a: &serde_json::Value| -> (usize, usize) {
+            let acc = &doc["accessors"][a.as_u64().unwrap() as usize];
+            let view = &doc["bufferViews"][acc["bufferView"].as_u64().unwrap() as usize];
+            (
+                view["byteOffset"].as_u64().unwrap() as usize,
+                acc["count"].as_u64().unwrap() as usize,
+            )
+        };
+        let (uv_at, n_split) = at(&prim["attributes"]["TEXCOORD_0"]);
+        // Each of the four rows has one seam vertex, which gets a second copy.
+        assert_eq!(n_split, topo.n_vertices() + 4);
+        assert_eq!(at(&prim["attributes"]["POSITION"]).1, n_split);
+        assert_eq!(at(&prim["attributes"]["NORMAL"]).1, n_split);
+        let (idx_at, n_idx) = at(&prim["indices"]);
+        assert_eq!(n_idx, 3 * topo.n_triangles());
+        let targets = prim["targets"].as_array().unwrap();
+        let vec3 = |a: &serde_json::Value, v: usize| -> [f32; 3] {
+            let (o, n) = at(a);
+            assert_eq!(n, n_split);
+            [0, 4, 8].map(|c| read_le_f32(bin, o + v * 12 + c))
+        };
+        for (t, tri) in topo.triangles().iter().enumerate() {
+            for k in 0..3 {
+                let g = read_le_u32(bin, idx_at + 4 * (3 * t + k)) as usize;
+                let want_uv = uvs.uv()[uvs.corners()[t][k] as usize];
+                let got_uv = [
+                    read_le_f32(bin, uv_at + 8 * g),
+                    read_le_f32(bin, uv_at + 8 * g + 4),
+                ];
+                assert_eq!(
+                    got_uv,
+                    [want_uv[0], 1.0 - want_uv[1]],
+                    "triangle {t} corner {k}"
+                );
+                for f in 0..3 {
+                    let mut p = vec3(&prim["attributes"]["POSITION"], g);
+                    if f > 0 {
+                        let d = vec3(&targets[f - 1]["POSITION"], g);
+                        p = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
+                    }
+                    let want = seq.frames[f][tri[k] as usize];
+                    for c in 0..3 {
+                        assert!(
+                            (p[c] - want[c] as f32).abs() <= 1e-6,
+                            "frame {f} triangle {t} corner {k}"
+                        );
+                    }
+                }
+            }
+        }
+        // Normals are the unsplit mesh's: a seam vertex and its copy have the same normal.
+        let n = |v: usize| vec3(&prim["attributes"]["NORMAL"], v);
+        assert_eq!(n(0), n(topo.n_vertices()));
     }
 
     #[test]

@@ -3,6 +3,10 @@
 //! Alembic (export from the DCC). Floats are written in their shortest exact `f32` form, so a reader gets
 //! the same `f32` back.
 //!
+//! Texture coordinates, when the input has them, are the `primvars:st` primvar: `texCoord2f[]` values with
+//! `faceVarying` interpolation and `primvars:st:indices` (one per face corner), so seams are exact and shared
+//! coordinates are written once. USD's st origin is the bottom left of the image, like OBJ's.
+//!
 //! Text USD puts all samples of one attribute in one dictionary, so the points are written in a first pass over
 //! the frames and the normals in a second; the per-frame extents (6 floats a frame) are kept in between.
 
@@ -45,7 +49,25 @@ pub fn write_usda(frames: &FrameReader, out: &Path, opts: &ExportOptions) -> Res
             let sep = if i == 0 { "" } else { ", " };
             write!(w, "{sep}{}, {}, {}", t[0], t[1], t[2]).map_err(&io)?;
         }
-        w.write_all(b"]\n        point3f[] points.timeSamples = {\n")
+        w.write_all(b"]\n").map_err(&io)?;
+        if let Some(uvs) = topo.uvs() {
+            w.write_all(b"        texCoord2f[] primvars:st = [")
+                .map_err(&io)?;
+            for (i, c) in uvs.uv().iter().enumerate() {
+                let sep = if i == 0 { "" } else { ", " };
+                write!(w, "{sep}({}, {})", fmt_f32(c[0]), fmt_f32(c[1])).map_err(&io)?;
+            }
+            w.write_all(
+                b"] (\n            interpolation = \"faceVarying\"\n        )\n        int[] primvars:st:indices = [",
+            )
+            .map_err(&io)?;
+            for (i, c) in uvs.corners().iter().enumerate() {
+                let sep = if i == 0 { "" } else { ", " };
+                write!(w, "{sep}{}, {}, {}", c[0], c[1], c[2]).map_err(&io)?;
+            }
+            w.write_all(b"]\n").map_err(&io)?;
+        }
+        w.write_all(b"        point3f[] points.timeSamples = {\n")
             .map_err(&io)?;
         let mut extents = Vec::with_capacity(n);
         for t in 0..n {
@@ -179,5 +201,47 @@ mod tests {
         }
         assert_eq!(text.matches("normals.timeSamples").count(), 1);
         assert_eq!(text.matches("extent.timeSamples").count(), 1);
+        assert!(!text.contains("primvars:st"), "no UVs in, none out");
+    }
+
+    /// The UV tube's texture coordinates come out as an indexed faceVarying `st` whose value at every face
+    /// corner is the corner's own coordinate.
+    #[test]
+    fn texture_coordinates_are_an_indexed_face_varying_primvar() {
+        let seq = crate::synth::uv_tube(5, 3, 2).unwrap();
+        let uvs = seq.topology.uvs().unwrap().clone();
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("a.usda");
+        export(
+            &seq,
+            ExportFormat::Usd,
+            &out,
+            &ExportOptions::default(),
+            &NoProgress,
+        )
+        .unwrap();
+        let text = std::fs::read_to_string(&out).unwrap();
+        let line = |key: &str| {
+            let at = text.find(key).unwrap_or_else(|| panic!("no {key}"));
+            let rest = &text[at..];
+            let open = rest.find("= [").unwrap() + 3;
+            rest[open..open + rest[open..].find(']').unwrap()].to_string()
+        };
+        let values: Vec<f32> = line("texCoord2f[] primvars:st = ")
+            .split(['(', ')', ','])
+            .map(str::trim)
+            .filter(|s| !s.is_empty())
+            .map(|s| s.parse().unwrap())
+            .collect();
+        let indices: Vec<usize> = line("int[] primvars:st:indices = ")
+            .split(", ")
+            .map(|s| s.parse().unwrap())
+            .collect();
+        assert!(text.contains("interpolation = \"faceVarying\""));
+        assert_eq!(indices.len(), 3 * seq.topology.n_triangles());
+        for (i, &k) in indices.iter().enumerate() {
+            let want = uvs.uv()[uvs.corners()[i / 3][i % 3] as usize];
+            assert_eq!([values[2 * k], values[2 * k + 1]], want, "corner {i}");
+        }
     }
 }

@@ -4,8 +4,10 @@ pub mod geometry;
 pub mod io;
 pub mod subdivide;
 mod topology;
+pub mod uv;
 
 pub use topology::{Topology, NONE};
+pub use uv::UvSet;
 
 use crate::error::Result;
 use crate::vec3::V3;

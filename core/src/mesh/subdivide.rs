@@ -5,7 +5,8 @@
 //! keeps the original vertices where they are and adds no smoothing of its own: the subdivided frame is the
 //! same surface, so the stretch analysis and the fold metrics see the capture unchanged. The original
 //! vertices keep their indices and come first; the new edge vertices follow in order of first appearance.
-//! Topology is shared by all frames, so it is built once and every frame is subdivided lazily.
+//! Topology is shared by all frames, so it is built once and every frame is subdivided lazily. Texture
+//! coordinates, when the input has them, are subdivided per triangle corner with the topology.
 
 use super::{Frame, FrameSource, Topology};
 use crate::error::{Error, Result};
@@ -54,8 +55,10 @@ impl Subdivision {
         let mut all = Vec::with_capacity(levels);
         for _ in 0..levels {
             let (next, edges) = one_level(&cur)?;
+            // Texture coordinates follow the same children, seam-aware (`UvSet::subdivide`).
+            let uvs = cur.uvs().map(|u| u.subdivide());
             all.push(edges);
-            cur = next;
+            cur = next.with_uvs(uvs)?;
         }
         Ok(Subdivision {
             topology: Arc::new(cur),
@@ -172,7 +175,7 @@ impl FrameSource for SubdividedSource<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::Sequence;
+    use crate::mesh::{Sequence, UvSet};
 
     /// A point given on the coarse mesh lands on the fine triangle that holds the same 3D point.
     #[test]
@@ -204,6 +207,72 @@ mod tests {
                 "{tri}: {got:?} {want:?}"
             );
         }
+    }
+
+    /// Texture coordinates on a sheet cut by a seam: triangles left of x = 1.5 map (x, y) to (x, y), the others
+    /// to (x + 10, y), so the vertices on the cut carry two coordinates. Midpoints are exact averages, so on the
+    /// subdivided mesh every corner must still sit at its chart's affine map of its position.
+    #[test]
+    fn texture_coordinates_subdivide_per_corner_across_a_seam() {
+        let (topo, p) = crate::synth::sheet(4, 3, 1.0).unwrap();
+        let chart = |t: &[u32; 3], pts: &[V3]| -> f32 {
+            let cx: f64 = t.iter().map(|&v| pts[v as usize][0]).sum::<f64>() / 3.0;
+            if cx < 1.5 {
+                0.0
+            } else {
+                10.0
+            }
+        };
+        let mut uv = Vec::new();
+        let mut corners = Vec::new();
+        for t in topo.triangles() {
+            let shift = chart(t, &p);
+            let mut c = [0u32; 3];
+            for k in 0..3 {
+                let q = p[t[k] as usize];
+                let want = [q[0] as f32 + shift, q[1] as f32];
+                c[k] = match uv.iter().position(|u| *u == want) {
+                    Some(i) => i as u32,
+                    None => {
+                        uv.push(want);
+                        (uv.len() - 1) as u32
+                    }
+                };
+            }
+            corners.push(c);
+        }
+        let topo = (*topo)
+            .clone()
+            .with_uvs(Some(UvSet::new(uv, corners).unwrap()))
+            .unwrap();
+        let sub = Subdivision::new(&topo, 2).unwrap();
+        let fine = sub.topology();
+        let uvs = fine
+            .uvs()
+            .expect("subdivision keeps the texture coordinates");
+        assert_eq!(uvs.corners().len(), fine.n_triangles());
+        let q = sub.apply(&p);
+        let mut seam_corners = 0;
+        for (t, (tri, c)) in fine.triangles().iter().zip(uvs.corners()).enumerate() {
+            // The coarse parent (children of i are 16i..16i+16 after two levels) decides the chart.
+            let shift = chart(&topo.triangles()[t / 16], &p);
+            for k in 0..3 {
+                let x = q[tri[k] as usize];
+                let got = uvs.uv()[c[k] as usize];
+                assert!(
+                    (got[0] - (x[0] as f32 + shift)).abs() < 1e-5
+                        && (got[1] - x[1] as f32).abs() < 1e-5,
+                    "fine triangle {t} corner {k}: uv {got:?} at {x:?}"
+                );
+                if (x[0] - 1.0).abs() < 1e-9 || (x[0] - 2.0).abs() < 1e-9 {
+                    seam_corners += 1;
+                }
+            }
+        }
+        assert!(seam_corners > 0);
+        // Two coordinates for the fine vertices on the cut: seam-aware midpoints, not one shared per edge.
+        let split = uvs.split_seams(fine.n_vertices(), fine.triangles());
+        assert!(split.source.len() > fine.n_vertices());
     }
 
     #[test]

@@ -4,7 +4,9 @@
 //! connectivity (the dual graph used by the space-time weight solve, vertex rings, connected components used to
 //! pin the positioning solve) is computed once here and shared by all frames.
 
+use super::uv::UvSet;
 use crate::error::{Error, Result};
+use std::sync::Arc;
 
 /// Marker for "no neighbour" (a boundary edge) in [`Topology::tri_adj`].
 pub const NONE: u32 = u32::MAX;
@@ -22,6 +24,8 @@ pub struct Topology {
     /// Connected component id of every vertex (isolated vertices get their own component).
     vertex_component: Vec<u32>,
     n_components: usize,
+    /// Texture coordinates when the input has them; shared like the connectivity by every frame.
+    uvs: Option<Arc<UvSet>>,
 }
 
 impl Topology {
@@ -64,7 +68,28 @@ impl Topology {
             vt_tris,
             vertex_component,
             n_components,
+            uvs: None,
         })
+    }
+
+    /// Attaches texture coordinates (one corner triple per triangle, checked), or removes them with `None`.
+    pub fn with_uvs(mut self, uvs: Option<UvSet>) -> Result<Self> {
+        if let Some(u) = &uvs {
+            if u.corners().len() != self.tris.len() {
+                return Err(Error::mesh(format!(
+                    "the UV set has corners for {} triangles, the mesh has {}",
+                    u.corners().len(),
+                    self.tris.len()
+                )));
+            }
+        }
+        self.uvs = uvs.map(Arc::new);
+        Ok(self)
+    }
+
+    /// The texture coordinates, when the input has them.
+    pub fn uvs(&self) -> Option<&UvSet> {
+        self.uvs.as_deref()
     }
 
     pub fn n_vertices(&self) -> usize {

@@ -1,5 +1,5 @@
 """Drives the crease dashboard in headless Chromium (Debian's /usr/bin/chromium through Playwright) against a
-real coordinator and worker that cli/tests/dashboard_browser.rs started on 127.0.0.1.
+real coordinator and worker that tests/tests/dashboard_browser.rs started on 127.0.0.1.
 
 Steps, each an assertion: sign in through the login form; submit a job (with `crease submit`) and watch its
 row's stacked progress bar move to done without the page polling; open the job and see preview.png load

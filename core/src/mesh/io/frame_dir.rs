@@ -68,16 +68,26 @@ impl FrameReference {
     /// Parses the first frame and builds its topology (validated by [`Topology::new`]); `path` names it in
     /// errors.
     pub fn from_first_frame(format: FrameFormat, path: &Path, bytes: &[u8]) -> Result<Self> {
-        let (positions, faces0) = parse_mesh(format, path, bytes)?;
-        if format == FrameFormat::Obj {
-            obj_blame::check_faces(path, &faces0, bytes)?;
-        }
-        let topology = Topology::new(positions.len(), faces0.triangulate()).map_err(|e| {
-            explain_triangle_numbers(
-                e.at(Some(path.to_path_buf()), Some(0)),
-                faces0.has_polygons(),
-            )
-        })?;
+        // The first frame's texture coordinates hold for the sequence (PLY frames carry none).
+        let (positions, faces0, uvs) = match format {
+            FrameFormat::Obj => {
+                let m = obj::parse_obj_with_uvs(path, bytes)?;
+                obj_blame::check_faces(path, &m.faces, bytes)?;
+                (m.positions, m.faces, m.uvs)
+            }
+            FrameFormat::Ply => {
+                let (p, f) = parse_mesh(format, path, bytes)?;
+                (p, f, None)
+            }
+        };
+        let topology = Topology::new(positions.len(), faces0.triangulate())
+            .and_then(|t| t.with_uvs(uvs))
+            .map_err(|e| {
+                explain_triangle_numbers(
+                    e.at(Some(path.to_path_buf()), Some(0)),
+                    faces0.has_polygons(),
+                )
+            })?;
         Ok(FrameReference {
             format,
             first: file_name(path),

@@ -34,7 +34,8 @@ impl Pc2Reference {
         pc2_path: &Path,
         header: Pc2Header,
     ) -> Result<Self> {
-        let mesh = obj::parse_obj(obj_path, obj_bytes)?;
+        // The topology OBJ's texture coordinates hold for every sample (the cache holds points only).
+        let mesh = obj::parse_obj_with_uvs(obj_path, obj_bytes)?;
         if header.num_points != mesh.positions.len() {
             return Err(Error::format(
                 pc2_path,
@@ -47,8 +48,9 @@ impl Pc2Reference {
                 ),
             ));
         }
-        let topology =
-            Topology::new(mesh.positions.len(), mesh.faces.triangulate()).map_err(|e| {
+        let topology = Topology::new(mesh.positions.len(), mesh.faces.triangulate())
+            .and_then(|t| t.with_uvs(mesh.uvs.clone()))
+            .map_err(|e| {
                 explain_triangle_numbers(
                     e.at(Some(obj_path.to_path_buf()), None),
                     mesh.faces.has_polygons(),

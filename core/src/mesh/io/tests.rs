@@ -916,7 +916,7 @@ fn corrupted_inputs_never_panic() {
     let body = "0 0 0 1 0 0 1\n1 0 0 1 0 0 1\n1 1 0 1 0 0 1\n0 1 0 1 0 0 1\n3 0 1 2\n3 0 2 3\n7\n";
     seeds.push((false, format!("{ASCII_NORMALS_PLY}{body}").into_bytes()));
     let obj =
-        "# c\nv 0 0 0 1 1 1\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2//1 -2/1 4\n";
+        "# c\nv 0 0 0 1 1 1\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf 1/1/1 2/1/1 -2/1\nf 1//1 3//1 4\n";
     seeds.push((true, obj.as_bytes().to_vec()));
     let mut state = 0x2545_f491_4f6c_dd1du64;
     let mut rng = move || {
@@ -944,6 +944,7 @@ fn corrupted_inputs_never_panic() {
                 }
             }
             if *is_obj {
+                let _ = super::obj::parse_obj_with_uvs(path, &bytes);
                 if let Ok(m) = super::obj::parse_obj(path, &bytes) {
                     let _ = m.faces.triangulate();
                     let _ = super::obj::rewrite_obj(path, &bytes, &m.positions);

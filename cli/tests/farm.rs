@@ -173,12 +173,15 @@ fn detected_folds_run_through_block_slots_to_the_same_bytes() {
         format!(
             "name = \"detected\"\ninput = \"{}\"\noutput = \"{}\"\n[folds]\nkind = \"stretch\"\n\
              [deform]\nmode = \"per-anchor\"\nwindow = 3\nshift = 2\n[partition]\nanchor_block = 8\n\
-             frames_per_chunk = 2\n[preview]\nsize = 64\n",
+             frames_per_chunk = 2\nstretch_frames_per_chunk = 1\nstretch_warm_up = 0\n\
+             [preview]\nsize = 64\n",
             input.display(),
             out.display()
         ),
     )
     .unwrap();
+    // Stretch detection in one-frame tracing chunks without warm-up (the merge reconciles them), against
+    // `crease run`'s default chunking.
     openjd_export_check_run(dir.path(), &job, &["--block-slots", "2"]);
     assert_complete_and_identical(&reference, &out);
     assert_eq!(

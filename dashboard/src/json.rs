@@ -69,7 +69,9 @@ pub fn job_summary(s: &pb::JobStatus) -> Value {
 }
 
 /// Stages of the task graph in the order they run; a kind not listed here sorts after them.
-const STAGES: [(&str, &str); 7] = [
+const STAGES: [(&str, &str); 9] = [
+    ("fold-steps", "fold steps (stretch)"),
+    ("fold-phases", "fold phases (stretch)"),
     ("fold-detect", "fold detection"),
     ("fold-merge", "fold merge"),
     ("weight-block", "weights (anchor blocks)"),

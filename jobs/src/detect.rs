@@ -64,12 +64,7 @@ pub fn detector(
 ) -> Result<Option<Box<dyn FoldDetector>>, JobError> {
     let d: Box<dyn FoldDetector> = match &job.folds {
         FoldSpec::None | FoldSpec::Anchors { .. } => return Ok(None),
-        FoldSpec::Stretch { params, .. } => Box::new(StretchDetector {
-            params: params.clone(),
-            // folds.png shows the frames preview.png shows, as `crease run` always drew them.
-            overlay_frames: preview_frames(job, n_frames),
-            overlay_size: job.preview.size,
-        }),
+        FoldSpec::Stretch { .. } => Box::new(stretch_detector(job, n_frames).expect("stretch")),
         FoldSpec::Video {
             cameras,
             params,
@@ -105,6 +100,19 @@ pub fn detector(
     };
     debug_assert_eq!(Some(d.granularity()), granularity(&job.folds));
     Ok(Some(d))
+}
+
+/// The stretch detector of `job` (`None` for other fold kinds).
+pub fn stretch_detector(job: &JobSpec, n_frames: usize) -> Option<StretchDetector> {
+    match &job.folds {
+        FoldSpec::Stretch { params, .. } => Some(StretchDetector {
+            params: params.clone(),
+            // folds.png shows the frames preview.png shows, as `crease run` always drew them.
+            overlay_frames: preview_frames(job, n_frames),
+            overlay_size: job.preview.size,
+        }),
+        _ => None,
+    }
 }
 
 /// The frames `preview.png` shows: the job's, or four spread over the sequence.

@@ -22,6 +22,10 @@ pub fn fold_detect_task(first_frame: usize) -> String {
     format!("folds/f{first_frame:06}")
 }
 pub const FOLD_MERGE_TASK: &str = "folds/merge";
+pub fn fold_steps_task(first_frame: usize) -> String {
+    format!("folds/steps/f{first_frame:06}")
+}
+pub const FOLD_PHASES_TASK: &str = "folds/phases";
 pub fn weight_window_task(window: usize) -> String {
     format!("weights/w{window:04}")
 }
@@ -44,6 +48,19 @@ pub fn fold_chunk(first_frame: usize) -> String {
 /// Seconds the detection of the chunk starting at `first_frame` took (sidecar; differs between runs).
 pub fn fold_chunk_timing(first_frame: usize) -> String {
     format!("{WORK_DIR}/folds/f{first_frame:06}.timings.json")
+}
+/// Stretch detector: step records of frame `frame`, (n_triangles, 4) f64 (forward value and angle, backward
+/// value and angle).
+pub fn fold_steps(frame: usize) -> String {
+    format!("{WORK_DIR}/folds/steps/f{frame:06}.npy")
+}
+/// Stretch detector: phase codes of frame `frame` in one pass (`fwd` or `bwd`), (n_triangles,) u32.
+pub fn fold_phases(pass: &str, frame: usize) -> String {
+    format!("{WORK_DIR}/folds/phases/{pass}/f{frame:06}.npy")
+}
+/// Stretch detector: the tracing chunk starting at `first_frame` (JSON `TracedChunk`).
+pub fn fold_trace_chunk(first_frame: usize) -> String {
+    format!("{WORK_DIR}/folds/trace/f{first_frame:06}.json")
 }
 /// Partial blend of one anchor block: (n, 4) f64 rows `node, x, y, z`.
 pub fn block_partial(window: usize, block: usize) -> String {

@@ -34,6 +34,8 @@
 //! anchor_block = 256                       # anchor columns per weight task (per-anchor mode)
 //! frames_per_chunk = 4                     # frames per positioning task
 //! fold_frames_per_chunk = 8                # frames per fold-detection task (per-frame detectors)
+//! stretch_frames_per_chunk = 0             # frames per stretch tracing task (0: from the mesh size)
+//! stretch_warm_up = 3                      # frames a stretch tracing task traces ahead (same output)
 //!
 //! [preview]
 //! frames = [5, 20]                         # default: four spread over the sequence
@@ -124,6 +126,7 @@ pub mod spec;
 pub mod stale;
 pub mod storage;
 pub mod storage_errors;
+pub mod stretch_tasks;
 pub mod task;
 
 pub use confine::StorageRoots;

@@ -1,7 +1,8 @@
 //! The planner: a job becomes a graph of tasks (DESIGN §8).
 //!
 //! ```text
-//!   fold-detect (per frame chunk, or one)  ─► fold-merge ─┐            (only when folds are detected)
+//!   fold-detect (per frame chunk, or one)  ─► fold-merge ─┐            (only when folds are detected;
+//!                                                         │             stretch: see `stretch_tasks`)
 //!                                                         ▼ expand
 //!   weight-block (window, anchor block) ─► reduce (window) ─┐          (per-anchor mode)
 //!   weight-window (window) ─────────────────────────────────┤          (fused mode)
@@ -46,6 +47,9 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
             job.folds.kind()
         ))
     })?;
+    if matches!(job.folds, crate::spec::FoldSpec::Stretch { .. }) {
+        return Ok(crate::stretch_tasks::tasks(job, info));
+    }
     let chunks = detect::detection_chunks(granularity, n, job.partition.fold_frames_per_chunk);
     let mut tasks: Vec<TaskDef> = chunks
         .iter()

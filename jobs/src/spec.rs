@@ -146,6 +146,12 @@ pub struct Partition {
     pub frames_per_chunk: usize,
     /// Frames per fold-detection task (per-frame detectors only).
     pub fold_frames_per_chunk: usize,
+    /// Stretch detector: frames per tracing task (step tasks take four times as many); 0 = from the frame and
+    /// triangle counts ([`crate::stretch_tasks::trace_frames_per_chunk`]).
+    pub stretch_frames_per_chunk: usize,
+    /// Stretch detector: frames a tracing task traces before its first one to warm its seed memory up
+    /// (any value gives the same output; more costs each task more, fewer leaves more to the merge).
+    pub stretch_warm_up: usize,
 }
 
 impl Default for Partition {
@@ -154,6 +160,8 @@ impl Default for Partition {
             anchor_block: 256,
             frames_per_chunk: 4,
             fold_frames_per_chunk: 8,
+            stretch_frames_per_chunk: 0,
+            stretch_warm_up: crate::stretch_tasks::DEFAULT_WARM_UP,
         }
     }
 }

@@ -16,6 +16,11 @@ pub enum TaskSpec {
     /// Detect the folds of `frames` (per-frame detectors: one task per chunk; whole-sequence detectors: one
     /// task over all frames).
     FoldDetect { job: JobSpec, frames: Range<usize> },
+    /// Stretch detector: the step records of `frames` (both directions of time), before the phase test.
+    FoldSteps { job: JobSpec, frames: Range<usize> },
+    /// Stretch detector: the phase test over the whole sequence from the step records (the tracing chunks are
+    /// `FoldDetect` tasks after it).
+    FoldPhases { job: JobSpec },
     /// Gather the detected anchors into `anchors.json`; its success expands the graph with the weight tasks.
     FoldMerge { job: JobSpec },
     /// Per-anchor mode: the anchor columns of block `block` of window `window` → partial blend.
@@ -39,6 +44,8 @@ impl TaskSpec {
     pub fn kind(&self) -> &'static str {
         match self {
             TaskSpec::FoldDetect { .. } => "fold-detect",
+            TaskSpec::FoldSteps { .. } => "fold-steps",
+            TaskSpec::FoldPhases { .. } => "fold-phases",
             TaskSpec::FoldMerge { .. } => "fold-merge",
             TaskSpec::WeightBlock { .. } => "weight-block",
             TaskSpec::WeightWindow { .. } => "weight-window",
@@ -52,6 +59,8 @@ impl TaskSpec {
     pub fn job(&self) -> &JobSpec {
         match self {
             TaskSpec::FoldDetect { job, .. }
+            | TaskSpec::FoldSteps { job, .. }
+            | TaskSpec::FoldPhases { job }
             | TaskSpec::FoldMerge { job }
             | TaskSpec::WeightBlock { job, .. }
             | TaskSpec::WeightWindow { job, .. }

@@ -120,12 +120,14 @@ fn farm_graph_mirrors_the_planner_and_slots_cover_detected_blocks() {
         [Stage::Reduce]
     );
 
-    // Detected: detection, merge, then 4 slots per window feeding each reduce.
+    // Detected: stretch steps, phases, tracing, merge, then 4 slots per window feeding each reduce.
     let g = farm_graph(&job(STRETCH, "per-anchor"), &info(None), 4).unwrap();
     let names: Vec<&str> = g.stages.iter().map(|s| s.stage.name()).collect();
     assert_eq!(
         names,
         [
+            "fold-steps",
+            "fold-phases",
             "fold-detect",
             "fold-merge",
             "weights",
@@ -134,6 +136,21 @@ fn farm_graph_mirrors_the_planner_and_slots_cover_detected_blocks() {
             "finalize"
         ]
     );
+    assert_eq!(
+        g.stage(Stage::FoldPhases).unwrap().depends_on,
+        [Stage::FoldSteps]
+    );
+    assert_eq!(
+        g.stage(Stage::FoldDetect).unwrap().depends_on,
+        [Stage::FoldPhases]
+    );
+    assert_eq!(
+        g.stage(Stage::FoldMerge).unwrap().depends_on,
+        [Stage::FoldDetect]
+    );
+    // 9 frames at 180 triangles: tracing chunks of 5 frames (half the sequence), step chunks of 20.
+    assert_eq!(g.stage(Stage::FoldDetect).unwrap().tasks.len(), 2);
+    assert_eq!(g.stage(Stage::FoldSteps).unwrap().tasks.len(), 1);
     let weights = g.stage(Stage::Weights).unwrap();
     assert_eq!(weights.tasks.len(), 4 * 4);
     assert_eq!(weights.depends_on, [Stage::FoldMerge]);

@@ -7,6 +7,7 @@ use super::env::TaskEnv;
 use crate::detect::{detection_chunks, detector, granularity};
 use crate::error::TaskError;
 use crate::keys;
+use crate::spec::FoldSpec;
 use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors};
 use crease_core::mesh::io::OpenedSequence;
 use serde_json::{json, Value};
@@ -35,6 +36,9 @@ fn chunks(env: &TaskEnv, n: usize) -> Vec<Range<usize>> {
 }
 
 pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
+    if matches!(env.job.folds, FoldSpec::Stretch { .. }) {
+        return super::stretch::trace(env, frames);
+    }
     let opened = env.open_input()?;
     let d = job_detector(env, &opened)?;
     let n = opened.source.n_frames();
@@ -85,9 +89,72 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let d = job_detector(env, &opened)?;
     let n = opened.source.n_frames();
     let n_tri = opened.source.topology().n_triangles();
+    let mut written = Vec::new();
+    let (frames, mut summary_extra) = if matches!(env.job.folds, FoldSpec::Stretch { .. }) {
+        let g = super::stretch::gather(env, &opened)?;
+        for a in g.artifacts {
+            env.put(&a.key, a.bytes)?;
+            written.push(a.key);
+        }
+        (
+            g.frames,
+            json!({ "per_frame": g.per_frame, "retraced_frames": g.retraced }),
+        )
+    } else {
+        let (frames, per_frame) = gather_chunks(env, opened.source.as_ref(), d.as_ref(), n)?;
+        (frames, json!({ "per_frame": per_frame }))
+    };
+    let set = AnchorSet::from_frame_anchors(frames, n_tri, None)
+        .map_err(|e| TaskError::from_core(&format!("{} fold merge", d.name()), e))?;
+    if set.n_frames() != n {
+        return Err(TaskError::fatal(format!(
+            "{} fold merge: anchors for {} frames, the input has {n}",
+            d.name(),
+            set.n_frames()
+        )));
+    }
+    // What the weight tasks will read back: count from the file's own parse, so planning and solving agree.
+    let text = set.to_json();
+    let label = std::path::PathBuf::from(env.out.describe(keys::ANCHORS));
+    let back = AnchorSet::parse(&text, Some(&label), n, n_tri)
+        .map_err(|e| TaskError::from_core("fold merge", e))?;
+    env.put(keys::ANCHORS, text)?;
+    // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
+    env.put(keys::CONTROL_LINES, back.control_lines_obj())?;
+    // What finalize puts into report.json as `fold_detection`.
+    let mut summary = json!({ "source": d.name(), "anchors": back.total() });
+    if let (Some(s), Some(extra)) = (summary.as_object_mut(), summary_extra.as_object_mut()) {
+        s.append(extra);
+    }
+    let extra = d
+        .summary(opened.source.as_ref())
+        .map_err(|e| TaskError::from_core("fold merge: detection summary", e))?;
+    if let (Some(s), Value::Object(extra)) = (summary.as_object_mut(), extra) {
+        s.extend(extra);
+    }
+    env.put_json(keys::FOLD_SUMMARY, &summary)?;
+    let counts: Vec<usize> = (0..n).map(|t| back.frame(t).len()).collect();
+    written.extend([
+        keys::ANCHORS.to_string(),
+        keys::CONTROL_LINES.to_string(),
+        keys::FOLD_SUMMARY.to_string(),
+    ]);
+    Ok((
+        json!({ "anchors_per_frame": counts, "anchors": back.total() }),
+        written,
+    ))
+}
+
+/// The anchors of every detection chunk in frame order, finished by the detector's [`FoldDetector::settle`],
+/// and per frame, for report.json: anchors, control lines and detection seconds (a chunk's time spread evenly
+/// over its frames).
+fn gather_chunks(
+    env: &TaskEnv,
+    source: &dyn crease_core::mesh::FrameSource,
+    d: &dyn FoldDetector,
+    n: usize,
+) -> Result<(Vec<FrameAnchors>, Vec<Value>), TaskError> {
     let mut frames: Vec<FrameAnchors> = Vec::with_capacity(n);
-    // Per frame, for report.json: anchors, control lines and detection seconds (a chunk's time spread evenly
-    // over its frames: a whole-sequence detector has one chunk, so that is its mean per frame).
     let mut per_frame: Vec<Value> = Vec::with_capacity(n);
     for r in chunks(env, n) {
         env.check_cancelled()?;
@@ -113,42 +180,7 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         frames.extend(chunk);
     }
     let frames = d
-        .settle(opened.source.as_ref(), frames)
+        .settle(source, frames)
         .map_err(|e| TaskError::from_core(&format!("{} fold merge", d.name()), e))?;
-    let set = AnchorSet::from_frame_anchors(frames, n_tri, None)
-        .map_err(|e| TaskError::from_core(&format!("{} fold merge", d.name()), e))?;
-    if set.n_frames() != n {
-        return Err(TaskError::fatal(format!(
-            "{} fold merge: anchors for {} frames, the input has {n}",
-            d.name(),
-            set.n_frames()
-        )));
-    }
-    // What the weight tasks will read back: count from the file's own parse, so planning and solving agree.
-    let text = set.to_json();
-    let label = std::path::PathBuf::from(env.out.describe(keys::ANCHORS));
-    let back = AnchorSet::parse(&text, Some(&label), n, n_tri)
-        .map_err(|e| TaskError::from_core("fold merge", e))?;
-    env.put(keys::ANCHORS, text)?;
-    // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
-    env.put(keys::CONTROL_LINES, back.control_lines_obj())?;
-    // What finalize puts into report.json as `fold_detection`.
-    let mut summary =
-        json!({ "source": d.name(), "anchors": back.total(), "per_frame": per_frame });
-    let extra = d
-        .summary(opened.source.as_ref())
-        .map_err(|e| TaskError::from_core("fold merge: detection summary", e))?;
-    if let (Some(s), Value::Object(extra)) = (summary.as_object_mut(), extra) {
-        s.extend(extra);
-    }
-    env.put_json(keys::FOLD_SUMMARY, &summary)?;
-    let counts: Vec<usize> = (0..n).map(|t| back.frame(t).len()).collect();
-    Ok((
-        json!({ "anchors_per_frame": counts, "anchors": back.total() }),
-        vec![
-            keys::ANCHORS.to_string(),
-            keys::CONTROL_LINES.to_string(),
-            keys::FOLD_SUMMARY.to_string(),
-        ],
-    ))
+    Ok((frames, per_frame))
 }

@@ -15,6 +15,7 @@ mod export;
 mod finalize;
 mod folds;
 mod position;
+mod stretch;
 mod weights;
 
 use crate::error::TaskError;
@@ -81,6 +82,8 @@ fn run_kind(
     let env = TaskEnv::new(task.job(), ctx, handle)?;
     let (summary, written) = match task {
         TaskSpec::FoldDetect { frames, .. } => folds::detect(&env, frames.clone())?,
+        TaskSpec::FoldSteps { frames, .. } => stretch::steps(&env, frames.clone())?,
+        TaskSpec::FoldPhases { .. } => stretch::phases(&env)?,
         TaskSpec::FoldMerge { .. } => folds::merge(&env)?,
         TaskSpec::WeightWindow { window, .. } => weights::fused_window(&env, *window)?,
         TaskSpec::WeightBlock { window, block, .. } => {

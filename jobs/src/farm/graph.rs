@@ -21,7 +21,9 @@ use serde_json::json;
 pub const DEFAULT_BLOCK_SLOTS: usize = 4;
 
 /// The stages, in graph order. Names are the farm's step names.
-pub const STAGES: [Stage; 6] = [
+pub const STAGES: [Stage; 8] = [
+    Stage::FoldSteps,
+    Stage::FoldPhases,
     Stage::FoldDetect,
     Stage::FoldMerge,
     Stage::Weights,
@@ -32,6 +34,10 @@ pub const STAGES: [Stage; 6] = [
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Stage {
+    /// Stretch detector: step records of frame chunks.
+    FoldSteps,
+    /// Stretch detector: the phase test (one task).
+    FoldPhases,
     FoldDetect,
     FoldMerge,
     Weights,
@@ -44,6 +50,8 @@ impl Stage {
     /// kebab-case name (`crease task run --stage`, Flamenco task types).
     pub fn name(self) -> &'static str {
         match self {
+            Stage::FoldSteps => "fold-steps",
+            Stage::FoldPhases => "fold-phases",
             Stage::FoldDetect => "fold-detect",
             Stage::FoldMerge => "fold-merge",
             Stage::Weights => "weights",
@@ -56,6 +64,8 @@ impl Stage {
     /// CamelCase name (OpenJD step and OpenCue layer names: no spaces or dashes needed).
     pub fn title(self) -> &'static str {
         match self {
+            Stage::FoldSteps => "FoldSteps",
+            Stage::FoldPhases => "FoldPhases",
             Stage::FoldDetect => "FoldDetect",
             Stage::FoldMerge => "FoldMerge",
             Stage::Weights => "Weights",
@@ -73,6 +83,8 @@ impl Stage {
 
     fn of(spec: &TaskSpec) -> Stage {
         match spec {
+            TaskSpec::FoldSteps { .. } => Stage::FoldSteps,
+            TaskSpec::FoldPhases { .. } => Stage::FoldPhases,
             TaskSpec::FoldDetect { .. } => Stage::FoldDetect,
             TaskSpec::FoldMerge { .. } => Stage::FoldMerge,
             TaskSpec::WeightBlock { .. } | TaskSpec::WeightWindow { .. } => Stage::Weights,

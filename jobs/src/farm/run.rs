@@ -72,8 +72,8 @@ pub async fn run_farm_task(
         } => {
             let st = Stage::parse(stage).ok_or_else(|| {
                 JobError::Plan(format!(
-                    "unknown stage `{stage}`; expected one of fold-detect, fold-merge, weights, reduce, \
-                     position, finalize"
+                    "unknown stage `{stage}`; expected one of fold-steps, fold-phases, fold-detect, \
+                     fold-merge, weights, reduce, position, finalize"
                 ))
             })?;
             farm_graph(job, &info, *block_slots)?

@@ -16,6 +16,7 @@ pub mod params;
 pub mod phases;
 pub mod realise;
 pub mod smooth;
+pub mod split;
 pub mod tensor;
 pub mod trace;
 
@@ -55,6 +56,27 @@ pub fn mean_edge_length(topo: &Topology, p: &[V3]) -> f64 {
 }
 
 const STAGE: &str = "stretch folds";
+
+/// The backward pass's signal of triangle `i` as it is kept until the forward pass reaches its frame:
+/// shrinkage and direction angle in the triangle's local frame, both f32 (8 bytes per triangle and frame).
+pub(crate) fn backward_record(sig: &Signal, geom: &FrameGeometry, i: usize) -> (f32, f32) {
+    let angle = tensor::axial_angle(sig.dir[i], geom.e1[i], geom.e2[i]) as f32;
+    (sig.shrink[i] as f32, angle)
+}
+
+/// The fold signal of triangle `i`: the forward pass's `sig`, or the backward pass's `record` where it shrank
+/// more.
+pub(crate) fn combine(sig: &mut Signal, geom: &FrameGeometry, i: usize, record: (f32, f32)) {
+    let s = record.0 as f64;
+    if s > sig.shrink[i] {
+        let a = record.1 as f64;
+        sig.shrink[i] = s;
+        sig.dir[i] = vec3::add(
+            vec3::scale(geom.e1[i], a.cos()),
+            vec3::scale(geom.e2[i], a.sin()),
+        );
+    }
+}
 
 impl StretchDetector {
     pub fn new(params: StretchParams) -> Self {
@@ -111,8 +133,8 @@ impl StretchDetector {
                 let geom = FrameGeometry::new(&topo, &cur);
                 let sig = tracker.step(&topo, &prev, &cur, &geom, params);
                 for i in 0..nt {
-                    let angle = tensor::axial_angle(sig.dir[i], geom.e1[i], geom.e2[i]) as f32;
-                    buf[8 * i..8 * i + 4].copy_from_slice(&(sig.shrink[i] as f32).to_le_bytes());
+                    let (shrink, angle) = backward_record(&sig, &geom, i);
+                    buf[8 * i..8 * i + 4].copy_from_slice(&shrink.to_le_bytes());
                     buf[8 * i + 4..8 * i + 8].copy_from_slice(&angle.to_le_bytes());
                 }
                 spill
@@ -153,18 +175,10 @@ impl StretchDetector {
                     .and_then(|_| spill.read_exact(&mut buf))
                     .map_err(spill_err)?;
                 for i in 0..nt {
-                    let s = f32::from_le_bytes(buf[8 * i..8 * i + 4].try_into().expect("4 bytes"))
-                        as f64;
-                    if s > sig.shrink[i] {
-                        let a = f32::from_le_bytes(
-                            buf[8 * i + 4..8 * i + 8].try_into().expect("4 bytes"),
-                        ) as f64;
-                        sig.shrink[i] = s;
-                        sig.dir[i] = vec3::add(
-                            vec3::scale(geom.e1[i], a.cos()),
-                            vec3::scale(geom.e2[i], a.sin()),
-                        );
-                    }
+                    let s = f32::from_le_bytes(buf[8 * i..8 * i + 4].try_into().expect("4 bytes"));
+                    let a =
+                        f32::from_le_bytes(buf[8 * i + 4..8 * i + 8].try_into().expect("4 bytes"));
+                    combine(&mut sig, &geom, i, (s, a));
                 }
             }
             let field = trace::FrameField {
@@ -182,6 +196,36 @@ impl StretchDetector {
         }
         progress.end(STAGE);
         Ok(())
+    }
+}
+
+impl StretchDetector {
+    /// The whole-sequence end of detection, shared by the streaming run and the split one ([`split`]):
+    /// temporal coherence over the traced frames `out` (all frames, in order), and `folds.png` from the
+    /// overlay frames `shown`.
+    pub fn finish(
+        &self,
+        source: &dyn FrameSource,
+        out: Vec<FrameAnchors>,
+        shown: &[OverlayFrame],
+    ) -> Result<(Vec<FrameAnchors>, Vec<Artifact>)> {
+        let out = crate::folds::temporal::settle(source, out, self.params.temporal_radius)?;
+        let mut artifacts = Vec::new();
+        if !shown.is_empty() && self.overlay_size > 0 {
+            // Drawn on the traced (input) mesh, with the anchors as traced there.
+            let traced_topo = split::traced_source(source).0.topology();
+            let img = overlay::overlay(
+                traced_topo,
+                shown,
+                self.overlay_size,
+                1.0 + 4.0 * self.params.min_shrink,
+            );
+            artifacts.push(Artifact {
+                key: "folds.png".into(),
+                bytes: crate::render::png_bytes(&img, std::path::Path::new("folds.png"))?,
+            });
+        }
+        Ok((out, artifacts))
     }
 }
 
@@ -234,10 +278,6 @@ impl FoldDetector for StretchDetector {
         let mut out = Vec::with_capacity(n);
         let mut shown: Vec<OverlayFrame> = Vec::new();
         let sub = source.subdivided_from().map(|(_, sub)| sub);
-        let traced_topo = source.subdivided_from().map_or_else(
-            || source.topology().clone(),
-            |(base, _)| base.topology().clone(),
-        );
         self.run(source, progress, |t, positions, shrink, folds| {
             if self.overlay_frames.contains(&t) {
                 shown.push(OverlayFrame {
@@ -258,23 +298,7 @@ impl FoldDetector for StretchDetector {
             });
             Ok(())
         })?;
-        // Whole sequence at hand: temporal coherence here, so detection is complete in one task.
-        let out = crate::folds::temporal::settle(source, out, self.params.temporal_radius)?;
-        let mut artifacts = Vec::new();
-        if !shown.is_empty() && self.overlay_size > 0 {
-            // Drawn on the traced (input) mesh, with the anchors as traced there.
-            let img = overlay::overlay(
-                &traced_topo,
-                &shown,
-                self.overlay_size,
-                1.0 + 4.0 * self.params.min_shrink,
-            );
-            artifacts.push(Artifact {
-                key: "folds.png".into(),
-                bytes: crate::render::png_bytes(&img, std::path::Path::new("folds.png"))?,
-            });
-        }
-        Ok((out, artifacts))
+        self.finish(source, out, &shown)
     }
 
     fn summary(&self, _source: &dyn FrameSource) -> Result<serde_json::Value> {

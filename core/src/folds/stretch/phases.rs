@@ -33,11 +33,7 @@ pub struct Signal {
 #[derive(Debug, Clone, Copy)]
 struct TriState {
     reference: Shape,
-    /// Angle of the last non-isometric step's dominant direction in the triangle's local frame.
-    last_dir: f64,
-    /// −1 shrinkage, +1 stretch, 0 no phase open.
-    state: i8,
-    hold: u16,
+    clock: PhaseClock,
 }
 
 /// One pass over the sequence (forward or backward in time).
@@ -71,15 +67,115 @@ pub fn smoothed_field(
     smooth(topo, geom, &field, params.smooth_iterations)
 }
 
+/// What one non-isometric-or-isometric step decides for a triangle's phase reference.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Restart {
+    /// The reference stays.
+    Keep,
+    /// The reference becomes the step's current frame (no phase open after an isometric step).
+    AtCurrent,
+    /// A new phase starts at the step's previous frame.
+    AtPrevious,
+}
+
+/// The phase bookkeeping of one triangle that does not need its geometry: last direction, state, hold counter.
+/// Shared by [`PhaseTracker`] (which keeps reference layouts) and the split detector's phase task (which keeps
+/// reference frame numbers), so both take the same decisions from the same step.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PhaseClock {
+    /// Angle of the last non-isometric step's dominant direction in the triangle's local frame.
+    pub last_dir: f64,
+    /// −1 shrinkage, +1 stretch, 0 no phase open.
+    pub state: i8,
+    pub hold: u16,
+}
+
+impl PhaseClock {
+    /// The continuity test (eq. 4.2) for one step whose smoothed dominant value is `v` at direction angle
+    /// `angle` (local frame of the current triangle); `theta0` in radians.
+    #[inline]
+    pub fn advance(&mut self, v: f64, angle: f64, theta0: f64, params: &StretchParams) -> Restart {
+        let change = absolute_change(v);
+        if change < 1.0 + params.isometry {
+            self.hold = self.hold.saturating_add(1);
+            if self.state != 0 && self.hold as usize > params.max_hold {
+                // Held too long: the phase is over; the next one starts from here.
+                self.state = 0;
+            }
+            return if self.state == 0 {
+                Restart::AtCurrent
+            } else {
+                Restart::Keep
+            };
+        }
+        let s: i8 = if v < 1.0 { -1 } else { 1 };
+        let continuous = self.state == s && axial_difference(angle, self.last_dir) < theta0;
+        self.last_dir = angle;
+        self.hold = 0;
+        if !continuous {
+            // Phase boundary: the new phase starts at the previous frame.
+            self.state = s;
+            Restart::AtPrevious
+        } else {
+            Restart::Keep
+        }
+    }
+}
+
+/// The dominant value and its direction angle (local frame of the current triangle) of every triangle's
+/// smoothed step tensor `prev → cur`: all the phase test needs from a step, independent of every other step.
+pub fn step_dominants(
+    topo: &Topology,
+    prev: &[V3],
+    cur: &[V3],
+    geom: &FrameGeometry,
+    params: &StretchParams,
+) -> Vec<(f64, f64)> {
+    let step = smoothed_field(topo, geom, |t| shape(triangle(topo, prev, t)), cur, params);
+    step.par_iter()
+        .with_min_len(2048)
+        .enumerate()
+        .map(|(t, ten)| {
+            let (v, d) = ten.dominant(geom.normals[t]);
+            (v, axial_angle(d, geom.e1[t], geom.e2[t]))
+        })
+        .collect()
+}
+
+/// Integrated shrinkage at `cur` against each triangle's phase reference `reference(t)`; `shrinking(t)` says
+/// whether the triangle's open phase is one of shrinkage (only shrinkage is a fold signal).
+pub fn integrated_signal(
+    topo: &Topology,
+    geom: &FrameGeometry,
+    reference: impl Fn(usize) -> Shape + Sync,
+    shrinking: impl Fn(usize) -> bool + Sync,
+    cur: &[V3],
+    params: &StretchParams,
+) -> Signal {
+    let integrated = smoothed_field(topo, geom, reference, cur, params);
+    let (shrink, dir) = integrated
+        .par_iter()
+        .with_min_len(2048)
+        .enumerate()
+        .map(|(t, ten)| {
+            let (v, d) = ten.dominant(geom.normals[t]);
+            if shrinking(t) && v < 1.0 {
+                (1.0 / v, d)
+            } else {
+                (1.0, d)
+            }
+        })
+        .unzip();
+    Signal { shrink, dir }
+}
+
 impl PhaseTracker {
     /// Starts a pass at `first` (the first frame in the pass's time order): no phase is open.
     pub fn new(topo: &Topology, first: &[V3]) -> Self {
         let tris = (0..topo.n_triangles())
             .map(|t| TriState {
                 reference: shape(triangle(topo, first, t)),
-                last_dir: 0.0,
-                state: 0,
-                hold: 0,
+                clock: PhaseClock::default(),
             })
             .collect();
         PhaseTracker { tris }
@@ -95,53 +191,28 @@ impl PhaseTracker {
         params: &StretchParams,
     ) -> Signal {
         let theta0 = params.theta0_deg.to_radians();
-        let step = smoothed_field(topo, geom, |t| shape(triangle(topo, prev, t)), cur, params);
+        let step = step_dominants(topo, prev, cur, geom, params);
         // Continuity test (eq. 4.2) and reference update, per triangle.
         self.tris
             .par_iter_mut()
             .with_min_len(2048)
             .enumerate()
-            .for_each(|(t, st)| {
-                let (v, d) = step[t].dominant(geom.normals[t]);
-                let change = absolute_change(v);
-                if change < 1.0 + params.isometry {
-                    st.hold = st.hold.saturating_add(1);
-                    if st.state != 0 && st.hold as usize > params.max_hold {
-                        // Held too long: the phase is over; the next one starts from here.
-                        st.state = 0;
-                    }
-                    if st.state == 0 {
-                        st.reference = shape(triangle(topo, cur, t));
-                    }
-                    return;
-                }
-                let s: i8 = if v < 1.0 { -1 } else { 1 };
-                let angle = axial_angle(d, geom.e1[t], geom.e2[t]);
-                let continuous = st.state == s && axial_difference(angle, st.last_dir) < theta0;
-                if !continuous {
-                    // Phase boundary: the new phase starts at the previous frame.
-                    st.reference = shape(triangle(topo, prev, t));
-                    st.state = s;
-                }
-                st.last_dir = angle;
-                st.hold = 0;
-            });
+            .for_each(
+                |(t, st)| match st.clock.advance(step[t].0, step[t].1, theta0, params) {
+                    Restart::Keep => {}
+                    Restart::AtCurrent => st.reference = shape(triangle(topo, cur, t)),
+                    Restart::AtPrevious => st.reference = shape(triangle(topo, prev, t)),
+                },
+            );
         // Integrated tensor: the current triangle against its phase's first frame.
         let tris = &self.tris;
-        let integrated = smoothed_field(topo, geom, |t| tris[t].reference, cur, params);
-        let (shrink, dir) = integrated
-            .par_iter()
-            .with_min_len(2048)
-            .enumerate()
-            .map(|(t, ten)| {
-                let (v, d) = ten.dominant(geom.normals[t]);
-                if tris[t].state == -1 && v < 1.0 {
-                    (1.0 / v, d)
-                } else {
-                    (1.0, d)
-                }
-            })
-            .unzip();
-        Signal { shrink, dir }
+        integrated_signal(
+            topo,
+            geom,
+            |t| tris[t].reference,
+            |t| tris[t].clock.state == -1,
+            cur,
+            params,
+        )
     }
 }

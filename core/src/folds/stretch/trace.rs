@@ -172,6 +172,24 @@ impl FoldTracer {
         }
     }
 
+    /// The seed memory: the seeds that gave folds in the last traced frame, in increasing order.
+    pub fn seeds(&self) -> Vec<u32> {
+        (0..self.prev_seed.len() as u32)
+            .filter(|&t| self.prev_seed[t as usize])
+            .collect()
+    }
+
+    /// Replaces the seed memory (as if the last traced frame's folds came from `seeds`); out-of-range
+    /// triangles are ignored.
+    pub fn set_seeds(&mut self, seeds: &[u32]) {
+        self.prev_seed.fill(false);
+        for &t in seeds {
+            if let Some(s) = self.prev_seed.get_mut(t as usize) {
+                *s = true;
+            }
+        }
+    }
+
     /// Traces the folds of one frame.
     pub fn trace(&mut self, f: &FrameField, params: &StretchParams) -> FrameFolds {
         let n_tri = f.topo.n_triangles();

@@ -1,0 +1,101 @@
+//! The stretch detector's part of the task graph (issue 14): step chunks → one phase task → tracing chunks →
+//! the usual `fold-merge`, which reconciles the tracing chunks' seed memories
+//! ([`crease_core::folds::stretch::split`]).
+//!
+//! ```text
+//!   fold-steps (4·k frames each) ─► fold-phases ─► fold-detect (tracing, k frames each) ─► fold-merge
+//! ```
+//!
+//! Tracing dominates (it flattens a patch per seed), so the chunk size `k` is set from the triangle count for
+//! tasks of some seconds each; step chunks do about a quarter of the work per frame, so they take four times
+//! as many frames.
+
+use crate::inspect::InputInfo;
+use crate::keys;
+use crate::plan::chunk_ranges;
+use crate::spec::JobSpec;
+use crate::task::{TaskDef, TaskSpec};
+use std::ops::Range;
+
+/// Frames each tracing task traces ahead of its chunk by default.
+pub const DEFAULT_WARM_UP: usize = 3;
+
+/// Triangle-frames per tracing task when the job does not say: about 20 frames at 100K triangles.
+const TRIANGLE_FRAMES_PER_TASK: usize = 2_000_000;
+
+/// Frames per tracing chunk: the job's `partition.stretch_frames_per_chunk`, or (0) from the triangle count
+/// (4..=64 frames), no more than half the sequence so that two workers share even a short one.
+pub fn trace_frames_per_chunk(job: &JobSpec, n_frames: usize, n_triangles: usize) -> usize {
+    match job.partition.stretch_frames_per_chunk {
+        0 => (TRIANGLE_FRAMES_PER_TASK / n_triangles.max(1))
+            .clamp(4, 64)
+            .min(n_frames.div_ceil(2))
+            .max(1),
+        k => k,
+    }
+}
+
+/// The tracing chunks of the job.
+pub fn trace_chunks(job: &JobSpec, n_frames: usize, n_triangles: usize) -> Vec<Range<usize>> {
+    chunk_ranges(n_frames, trace_frames_per_chunk(job, n_frames, n_triangles))
+}
+
+/// The step chunks of the job.
+pub fn step_chunks(job: &JobSpec, n_frames: usize, n_triangles: usize) -> Vec<Range<usize>> {
+    chunk_ranges(
+        n_frames,
+        4 * trace_frames_per_chunk(job, n_frames, n_triangles),
+    )
+}
+
+/// The detection tasks and the merge (marked `expands`) of a stretch job. `n_triangles` is the traced
+/// (input) mesh's, whatever the subdivision.
+pub fn tasks(job: &JobSpec, info: &InputInfo) -> Vec<TaskDef> {
+    let n = info.n_frames;
+    let nt = traced_triangles(job, info);
+    let mut tasks: Vec<TaskDef> = step_chunks(job, n, nt)
+        .into_iter()
+        .map(|r| TaskDef {
+            key: keys::fold_steps_task(r.start),
+            spec: TaskSpec::FoldSteps {
+                job: job.clone(),
+                frames: r,
+            },
+            deps: vec![],
+            expands: false,
+        })
+        .collect();
+    tasks.push(TaskDef {
+        key: keys::FOLD_PHASES_TASK.to_string(),
+        spec: TaskSpec::FoldPhases { job: job.clone() },
+        deps: tasks.iter().map(|t| t.key.clone()).collect(),
+        expands: false,
+    });
+    let trace: Vec<TaskDef> = trace_chunks(job, n, nt)
+        .into_iter()
+        .map(|r| TaskDef {
+            key: keys::fold_detect_task(r.start),
+            spec: TaskSpec::FoldDetect {
+                job: job.clone(),
+                frames: r,
+            },
+            deps: vec![keys::FOLD_PHASES_TASK.to_string()],
+            expands: false,
+        })
+        .collect();
+    tasks.push(TaskDef {
+        key: keys::FOLD_MERGE_TASK.to_string(),
+        spec: TaskSpec::FoldMerge { job: job.clone() },
+        deps: trace.iter().map(|t| t.key.clone()).collect(),
+        expands: true,
+    });
+    let merge = tasks.pop().expect("merge");
+    tasks.extend(trace);
+    tasks.push(merge);
+    tasks
+}
+
+/// Triangles of the mesh the detector traces: the input's (subdivision multiplies by 4 per level).
+pub fn traced_triangles(job: &JobSpec, info: &InputInfo) -> usize {
+    info.n_triangles >> (2 * job.folds.subdivide().min(8))
+}

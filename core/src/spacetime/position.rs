@@ -362,6 +362,12 @@ impl FramePositioner<'_> {
         if super::factor_solve::solve3_supernodal(&sys.symbolic, &self.l_values, rhs) {
             return;
         }
+        self.solve_in_place_faer(rhs);
+    }
+
+    /// faer's general supernodal solve (any number of columns); the reference for the three-column sweep.
+    pub fn solve_in_place_faer(&self, rhs: &mut Mat<f64>) {
+        let sys = self.sys;
         let llt = LltRef::<usize, f64>::new(&sys.symbolic, &self.l_values);
         let mut buf = MemBuffer::new(
             sys.symbolic

@@ -82,12 +82,25 @@ impl<'a> LeanOperator<'a> {
         self.class.len()
     }
 
-    /// (M v)[n] in f64 from f32 storage.
+    /// (frame, triangle) of the first node of a chunk; callers step it with [`Self::next`] instead of dividing
+    /// per node (an integer division per node costs as much as the rest of the stencil).
+    fn locate(&self, n: usize) -> (usize, usize) {
+        (n / self.n_tri, n % self.n_tri)
+    }
+
     #[inline(always)]
-    fn row(&self, v: &[V3f], n: usize) -> [f64; 3] {
-        let lt = n / self.n_tri;
-        let i = n - lt * self.n_tri;
-        let base = lt * self.n_tri;
+    fn next(&self, (lt, i): (usize, usize)) -> (usize, usize) {
+        if i + 1 == self.n_tri {
+            (lt + 1, 0)
+        } else {
+            (lt, i + 1)
+        }
+    }
+
+    /// (M v)[n] in f64 from f32 storage; n = lt · n_tri + i.
+    #[inline(always)]
+    fn row(&self, v: &[V3f], n: usize, (lt, i): (usize, usize)) -> [f64; 3] {
+        let base = n - i;
         let d = self.diag[self.class[n] as usize];
         let vn = v[n];
         let mut s = [0.0f64; 3];
@@ -207,9 +220,11 @@ pub fn solve3_lean(
                 .enumerate()
                 .map(|(c, qs)| {
                     let mut acc = 0.0;
+                    let mut at = lean.locate(c * CHUNK);
                     for (k, qk) in qs.iter_mut().enumerate() {
                         let nd = c * CHUNK + k;
-                        let mv = to32(lean.row(&p, nd));
+                        let mv = to32(lean.row(&p, nd, at));
+                        at = lean.next(at);
                         let pv = p[nd];
                         acc += pv[0] as f64 * mv[0] as f64
                             + pv[1] as f64 * mv[1] as f64
@@ -304,8 +319,10 @@ fn true_residual(lean: &LeanOperator, x: &[V3f], b: &[[f64; 3]]) -> f64 {
             .enumerate()
             .map(|(c, bs)| {
                 let mut acc = 0.0;
+                let mut at = lean.locate(c * CHUNK);
                 for (k, bk) in bs.iter().enumerate() {
-                    let m = lean.row(x, c * CHUNK + k);
+                    let m = lean.row(x, c * CHUNK + k, at);
+                    at = lean.next(at);
                     let e = [bk[0] - m[0], bk[1] - m[1], bk[2] - m[2]];
                     acc += e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
                 }

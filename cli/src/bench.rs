@@ -63,7 +63,8 @@ pub struct BenchArgs {
     /// Run only the stretch-folds stage (geometric fold estimation, Chen 2011).
     #[arg(long)]
     pub stretch_folds_only: bool,
-    /// Image for the video edge stage (default: a 640x480 render of the demo with the synthetic-video shading).
+    /// Image for the video edge stage (default: a 640x480 render of the demo's folded ground truth with the
+    /// synthetic-video shading, which has folds to pair).
     #[arg(long)]
     pub edges_image: Option<PathBuf>,
     /// Run only the video edge stage.
@@ -366,23 +367,12 @@ fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
 /// and quadric fits alone, and with orientation, merging, pairing and the union over radii.
 fn edges_stage(a: &BenchArgs) -> Result<serde_json::Value> {
     use crease_core::folds::video::{edges, image_pairs, Photo, VideoParams};
+    use rayon::prelude::*;
     let img = match &a.edges_image {
         Some(p) => image::open(p)
             .with_context(|| format!("reading {}", p.display()))?
             .to_rgba8(),
-        None => {
-            let spec = DemoSpec {
-                triangles: 40_000,
-                frames: 20,
-                ..Default::default()
-            };
-            let (seq, _) = synth::demo(&spec)?;
-            let f = &seq.frames[10];
-            let (lo, hi) = crease_core::mesh::geometry::bounding_box(f);
-            let cam = &crease_core::synth_video::ring_cameras(lo, hi, 1, 640, 480)[0].camera;
-            let occ = crease_core::synth_video::occlusion(&seq.topology, f);
-            crease_core::synth_video::render_frame(&seq.topology, f, &occ, cam)
-        }
+        None => crease_core::synth_video::folded_demo_image(40_000, 640, 480)?,
     };
     let photo = Photo::from_rgba(&img);
     let params = VideoParams::default();
@@ -393,8 +383,9 @@ fn edges_stage(a: &BenchArgs) -> Result<serde_json::Value> {
         (0..runs)
             .map(|_| {
                 let t = Instant::now();
+                // In parallel over levels, as `image_pairs` runs them.
                 n_edges = edges::levels(&params)
-                    .into_iter()
+                    .into_par_iter()
                     .map(|l| edges::extract(&photo, &mask, l, &params).edges.len())
                     .sum();
                 t.elapsed().as_secs_f64()

@@ -107,6 +107,51 @@ pub fn render_frame(
     out
 }
 
+/// One image of folds the video detector actually pairs, for benchmarks and tests: the demo's ground-truth
+/// folded sequence (its anchors' full effect, made without the shape screen, as the folds_video test makes
+/// its truth) of a `triangles`-triangle tube, frame 1, seen by the first ring camera at `width x height`.
+/// The demo's own frames are the smoothed capture, which has no folds to pair.
+pub fn folded_demo_image(triangles: usize, width: u32, height: u32) -> Result<RgbaImage> {
+    use crate::spacetime::{deform, DeformParams};
+    let spec = crate::synth::DemoSpec {
+        triangles,
+        frames: 4,
+        ..Default::default()
+    };
+    let (seq, anchors) = crate::synth::demo(&spec)?;
+    let truth = DeformParams {
+        shape_cutoff: 0.0,
+        ..DeformParams::default()
+    };
+    let mut sink = crate::mesh::MemorySink::default();
+    deform(
+        &seq,
+        &anchors,
+        &truth,
+        &mut sink,
+        &crate::progress::NoProgress,
+        &[],
+    )?;
+    let gt: Vec<Vec<V3>> = sink.frames.into_values().collect();
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for f in &gt {
+        let (a, b) = geometry::bounding_box(f);
+        for k in 0..3 {
+            lo[k] = lo[k].min(a[k]);
+            hi[k] = hi[k].max(b[k]);
+        }
+    }
+    let cam = &ring_cameras(lo, hi, 1, width, height)[0].camera;
+    let f = &gt[1];
+    Ok(render_frame(
+        &seq.topology,
+        f,
+        &occlusion(&seq.topology, f),
+        cam,
+    ))
+}
+
 /// Writes `cameras.json` and `images/<camera>/frame_NNNN.png` (NNNN = `first_number + t`) for `frames` into
 /// `dir`, from a ring of `n_cameras` cameras. Returns the rig.
 pub fn write_video(
@@ -162,4 +207,22 @@ pub fn write_video(
             Ok(())
         })?;
     Ok(rig)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::folds::video::{image_pairs, Photo, VideoParams};
+
+    /// The video benchmark's image must exercise pairing, not only edge extraction.
+    #[test]
+    fn the_folded_benchmark_image_yields_pairs() {
+        // The same image `crease bench` times.
+        let img = folded_demo_image(40_000, 640, 480).unwrap();
+        assert_eq!((img.width(), img.height()), (640, 480));
+        let (levels, pairs) = image_pairs(&Photo::from_rgba(&img), &VideoParams::default());
+        let edges: usize = levels.iter().map(|l| l.edges.len()).sum();
+        assert!(edges > 0, "no edges");
+        assert!(pairs.len() >= 3, "{} pairs from {edges} edges", pairs.len());
+    }
 }

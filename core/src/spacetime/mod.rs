@@ -3,7 +3,9 @@
 
 pub mod blend;
 pub mod deform;
+pub mod factor_solve;
 pub mod fused;
+pub mod lean_cg;
 pub mod operator;
 pub mod params;
 pub mod per_anchor;

@@ -355,8 +355,18 @@ impl FramePositioner<'_> {
         rhs
     }
 
-    /// Overwrites `rhs` with K⁻¹ rhs using the frame's factor.
+    /// Overwrites `rhs` with K⁻¹ rhs using the frame's factor (three columns in one sweep over the factor,
+    /// [`super::factor_solve`]; faer's general solve otherwise).
     pub fn solve_in_place(&self, rhs: &mut Mat<f64>) {
+        let sys = self.sys;
+        if super::factor_solve::solve3_supernodal(&sys.symbolic, &self.l_values, rhs) {
+            return;
+        }
+        self.solve_in_place_faer(rhs);
+    }
+
+    /// faer's general supernodal solve (any number of columns); the reference for the three-column sweep.
+    pub fn solve_in_place_faer(&self, rhs: &mut Mat<f64>) {
         let sys = self.sys;
         let llt = LltRef::<usize, f64>::new(&sys.symbolic, &self.l_values);
         let mut buf = MemBuffer::new(

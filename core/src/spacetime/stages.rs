@@ -12,7 +12,8 @@
 //! order, as these functions do.
 
 use super::blend::{self, fade_into};
-use super::fused::{self, CgStats};
+use super::fused::CgStats;
+use super::lean_cg;
 use super::params::DeformParams;
 use super::per_anchor::{self, BlockWorkspace, PartialBlend};
 use super::position::PositionSystem;
@@ -26,13 +27,13 @@ use std::ops::Range;
 use std::time::Instant;
 
 /// Fused mode: the window's blended rotation-vector field X (one 3-vector per node, frame-major) from the
-/// 3-right-hand-side solve M X = c_a E Φ.
+/// 3-right-hand-side solve M X = c_a E Φ (the bandwidth-lean kernel, [`lean_cg`]).
 pub fn fused_window_field(
     problem: &WindowProblem,
     params: &DeformParams,
 ) -> Result<(Vec<V3>, CgStats)> {
     let b = problem.fused_rhs();
-    fused::solve3(
+    lean_cg::solve3_lean(
         &problem.op,
         &b,
         params.cg_tolerance,

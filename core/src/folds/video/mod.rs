@@ -98,29 +98,35 @@ pub fn image_pairs(photo: &Photo, params: &VideoParams) -> (Vec<LevelResult>, Ve
     } else {
         photo.mask.clone()
     };
-    let mut results = Vec::new();
-    for (li, level) in edges::levels(params).into_iter().enumerate() {
-        let le: LevelEdges = edges::extract(photo, &mask, level, params);
-        let oriented: Vec<Edge> = le
-            .edges
-            .iter()
-            .filter_map(|e| orient::orient(e, &le, photo, params).ok())
-            .collect();
-        let merged = merge::merge(
-            oriented,
-            params.merge_gap,
-            // `fit_tolerance` is in pixels of the level's resolution; merged edges are in full-resolution pixels.
-            params.fit_tolerance / level.scale,
-            params.max_curvature,
-        );
-        let pairs = pairing::pair_edges(&merged, params, li);
-        results.push(LevelResult {
-            level,
-            chains: le.chains,
-            edges: merged,
-            pairs,
-        });
-    }
+    // Levels are independent until the union; they run in parallel and are collected in level order, so the
+    // result is the same as a sequential loop.
+    let levels: Vec<Level> = edges::levels(params);
+    let results: Vec<LevelResult> = levels
+        .into_par_iter()
+        .enumerate()
+        .map(|(li, level)| {
+            let le: LevelEdges = edges::extract(photo, &mask, level, params);
+            let oriented: Vec<Edge> = le
+                .edges
+                .iter()
+                .filter_map(|e| orient::orient(e, &le, photo, params).ok())
+                .collect();
+            let merged = merge::merge(
+                oriented,
+                params.merge_gap,
+                // `fit_tolerance` is in pixels of the level's resolution; merged edges are in full-resolution pixels.
+                params.fit_tolerance / level.scale,
+                params.max_curvature,
+            );
+            let pairs = pairing::pair_edges(&merged, params, li);
+            LevelResult {
+                level,
+                chains: le.chains,
+                edges: merged,
+                pairs,
+            }
+        })
+        .collect();
     let union = pairing::union(results.iter().map(|r| r.pairs.clone()).collect());
     (results, union)
 }

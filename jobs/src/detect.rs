@@ -194,7 +194,7 @@ pub(crate) mod test_detector {
                     Ok(FrameAnchors {
                         frame: t,
                         anchors,
-                        control_lines: vec![],
+                        ..Default::default()
                     })
                 })
                 .collect()

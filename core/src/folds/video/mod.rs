@@ -276,6 +276,10 @@ impl VideoFolds {
             frame: t,
             anchors,
             control_lines,
+            detection: Some(super::FrameDetection {
+                folds: all.len(),
+                seeds_tried: None,
+            }),
         }
     }
 }

@@ -52,9 +52,10 @@ pub struct DeformArgs {
     /// Stretch-reduction passes (each reuses the frame's factor).
     #[arg(long, default_value_t = 2)]
     pub stretch_passes: usize,
-    /// Rotation of each stretch pass: `polar` (closest to the triangle's deformation) or `normal` (the paper's
+    /// Rotation of each stretch pass: `anchored` (halfway between `polar` and the folds' blended rotation, so
+    /// the passes keep the folds), `polar` (closest to the triangle's deformation) or `normal` (the paper's
     /// original-to-new normal).
-    #[arg(long, default_value = "polar")]
+    #[arg(long, default_value = "anchored")]
     pub stretch_rotation: StretchRotation,
     /// Shape screen cutoff wavelength in mean edge lengths: longer displacements keep the captured shape,
     /// shorter ones (folds) are free. `off` (or 0): the unscreened system, with --pinning.

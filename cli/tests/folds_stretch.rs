@@ -74,6 +74,24 @@ fn stretch_folds_on_the_captured_sleeve_fixture() {
     assert_eq!(report["complete"], true);
     assert_eq!(report["fold_detection"]["source"], "stretch");
     assert_eq!(report["fold_detection"]["anchors"], n_anchors);
+    // Per frame: the folds traced and the seeds tried to find them (issue 11, item 4). Every fold took a
+    // seed; a frame with anchors has folds; the anchors file itself does not carry these figures.
+    let per_frame = report["fold_detection"]["per_frame"].as_array().unwrap();
+    assert_eq!(per_frame.len(), ins.len());
+    let mut total_folds = 0;
+    for f in per_frame {
+        let folds = f["folds"].as_u64().expect("folds per frame");
+        let seeds = f["seeds_tried"].as_u64().expect("seeds tried per frame");
+        assert!(seeds >= folds, "{f}");
+        if f["anchors"].as_u64().unwrap() > 0 {
+            assert!(folds > 0, "{f}");
+        }
+        total_folds += folds;
+    }
+    assert!(total_folds > 0);
+    assert!(!std::fs::read_to_string(out.join("anchors.json"))
+        .unwrap()
+        .contains("seeds_tried"));
     // The written anchors drive a plain anchors run to the same kind of output.
     let out2 = dir.path().join("again");
     let o = crease(&[

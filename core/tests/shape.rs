@@ -107,7 +107,7 @@ fn rotated(anchors: &AnchorSet, n_tri: usize, q: &[[f64; 3]; 3]) -> AnchorSet {
                     ..*a
                 })
                 .collect(),
-            control_lines: Vec::new(),
+            ..Default::default()
         })
         .collect();
     AnchorSet::from_frame_anchors(frames, n_tri, None).unwrap()

@@ -202,7 +202,7 @@ pub(crate) mod test_detector {
                     Ok(FrameAnchors {
                         frame: t,
                         anchors,
-                        control_lines: vec![],
+                        ..Default::default()
                     })
                 })
                 .collect()

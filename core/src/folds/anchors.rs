@@ -45,6 +45,22 @@ pub struct FrameAnchors {
     /// Polylines on the surface that produced the anchors, kept only for inspection and overlays.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub control_lines: Vec<Vec<V3>>,
+    /// What the detector did on this frame, for report.json (`fold_detection.per_frame`). It travels with the
+    /// anchors from a detection task to the merge, but anchors files never hold it: [`AnchorSet`] drops it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub detection: Option<FrameDetection>,
+}
+
+/// Per-frame detection figures: how many folds were found and, for detectors that search seeds, how many seeds
+/// were tried to find them.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FrameDetection {
+    /// Folds traced (stretch) or edge pairs projected onto the mesh (video) in this frame.
+    pub folds: usize,
+    /// Seeds taken from the queue, folds or not (stretch); none for detectors without seeds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seeds_tried: Option<usize>,
 }
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -85,7 +101,7 @@ impl AnchorSet {
             .map(|(frame, anchors)| FrameAnchors {
                 frame,
                 anchors,
-                control_lines: Vec::new(),
+                ..Default::default()
             })
             .collect();
         let mut set = AnchorSet { frames };
@@ -109,7 +125,15 @@ impl AnchorSet {
                 ),
             });
         }
-        let mut set = AnchorSet { frames };
+        let mut set = AnchorSet {
+            frames: frames
+                .into_iter()
+                .map(|f| FrameAnchors {
+                    detection: None,
+                    ..f
+                })
+                .collect(),
+        };
         set.validate(n_triangles, path)?;
         Ok(set)
     }

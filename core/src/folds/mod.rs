@@ -9,7 +9,7 @@ pub mod stretch;
 pub mod temporal;
 pub mod video;
 
-pub use anchors::{Anchor, AnchorSet, FrameAnchors};
+pub use anchors::{Anchor, AnchorSet, FrameAnchors, FrameDetection};
 
 use crate::mesh::FrameSource;
 use crate::progress::Progress;

@@ -164,6 +164,7 @@ pub fn settle(
             frame: fa.frame,
             anchors,
             control_lines: fa.control_lines.clone(),
+            detection: fa.detection,
         });
     }
     Ok(out)

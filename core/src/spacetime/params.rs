@@ -85,7 +85,7 @@ impl Default for DeformParams {
             mode: WeightMode::Fused,
             anchor_block: 256,
             stretch_passes: 2,
-            stretch_rotation: StretchRotation::Polar,
+            stretch_rotation: StretchRotation::Anchored,
             shape_cutoff: DEFAULT_SHAPE_CUTOFF,
             pinning: Pinning::Centroid,
         }

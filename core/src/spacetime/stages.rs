@@ -207,7 +207,7 @@ pub fn position_frame(
     for _ in 0..passes {
         let clock = Instant::now();
         if moved {
-            out = super::stretch::pass(&fp, &out, rotation);
+            out = super::stretch::pass(&fp, &out, rotation, &rotations);
         }
         pass_times.push(clock.elapsed().as_secs_f64());
         measure(&out, &mut metrics);

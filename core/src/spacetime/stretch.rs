@@ -11,6 +11,11 @@
 //!   factor: the new normal and the in-plane turn). This is the local step of as-rigid-as-possible modelling
 //!   (Sorkine & Alexa 2007) on the positioning's energy, so every pass lowers Σ A ‖F − R‖² (plus the shape
 //!   screen), which is the area-weighted stretch itself.
+//! - [`StretchRotation::Anchored`] (default): the geodesic midpoint between the polar rotation and the blended
+//!   rotation the folds asked for. Plain polar passes forget the anchors: the captured surface (d = 0) is a
+//!   fixed point of zero stretch, so every pass trades fold amplitude for stretch and the folds fade. This is
+//!   the alternating minimisation of Σ A (‖F − R‖² + ‖R − B‖²) with B the blend: the passes still lower the
+//!   stretch, but the folds stay pinned to what the anchors asked for (docs/fidelity.md, "Anchored passes").
 
 use super::position::FramePositioner;
 use super::so3;
@@ -25,8 +30,11 @@ pub enum StretchRotation {
     /// Original normal to current normal (Popa et al. 2009 §5.5).
     Normal,
     /// Closest rotation to the current deformation gradient (as-rigid-as-possible local step).
-    #[default]
     Polar,
+    /// Halfway (on SO(3)) between the polar rotation and the blended rotation: stretch reduction that keeps
+    /// the folds.
+    #[default]
+    Anchored,
 }
 
 impl std::str::FromStr for StretchRotation {
@@ -35,9 +43,10 @@ impl std::str::FromStr for StretchRotation {
         match s {
             "normal" => Ok(StretchRotation::Normal),
             "polar" => Ok(StretchRotation::Polar),
+            "anchored" => Ok(StretchRotation::Anchored),
             _ => Err(crate::Error::param(
                 "stretch_rotation",
-                format!("`{s}` is not one of: normal, polar"),
+                format!("`{s}` is not one of: normal, polar, anchored"),
             )),
         }
     }
@@ -74,6 +83,24 @@ pub fn polar_rotations(fp: &FramePositioner, current: &[V3]) -> Vec<M3> {
             closest_rotation([r0, r1, r2], n0, [o0, o1, o2]).unwrap_or(vec3::IDENTITY)
         })
         .collect()
+}
+
+/// For each triangle, the midpoint on SO(3) of its polar rotation `P` in `current` and its blended rotation
+/// `B`: `P · exp(½ log(Pᵀ B))`. For rotations this is the minimiser of ‖P − R‖² + ‖R − B‖² (the geodesic
+/// mean), so a pass pulls each triangle halfway back to what the folds asked for instead of letting the
+/// surface it got erase them.
+pub fn anchored_rotations(fp: &FramePositioner, current: &[V3], blended: &[M3]) -> Vec<M3> {
+    polar_rotations(fp, current)
+        .iter()
+        .zip(blended)
+        .map(|(p, b)| midpoint(p, b))
+        .collect()
+}
+
+/// The geodesic midpoint of two rotations.
+fn midpoint(p: &M3, b: &M3) -> M3 {
+    let rel = so3::log(&vec3::mat_mul(&vec3::transpose(p), b));
+    vec3::mat_mul(p, &so3::exp(vec3::scale(rel, 0.5)))
 }
 
 /// The rotation nearest (Frobenius) to the map taking triangle `r` (unit normal `n0`) to triangle `o`, with the
@@ -115,11 +142,13 @@ fn closest_rotation(r: [V3; 3], n0: V3, o: [V3; 3]) -> Option<M3> {
     Some(m)
 }
 
-/// One stretch-reduction pass on `current`, reusing the frame's factorisation.
-pub fn pass(fp: &FramePositioner, current: &[V3], kind: StretchRotation) -> Frame {
+/// One stretch-reduction pass on `current`, reusing the frame's factorisation; `blended` are the rotations
+/// the first positioning was given (read by [`StretchRotation::Anchored`] only).
+pub fn pass(fp: &FramePositioner, current: &[V3], kind: StretchRotation, blended: &[M3]) -> Frame {
     let r = match kind {
         StretchRotation::Normal => normal_rotations(fp, current),
         StretchRotation::Polar => polar_rotations(fp, current),
+        StretchRotation::Anchored => anchored_rotations(fp, current, blended),
     };
     fp.solve(&r)
 }
@@ -150,5 +179,22 @@ mod tests {
         }
         // A collapsed triangle has no rotation.
         assert!(closest_rotation(r, n0, [[0.0; 3]; 3]).is_none());
+    }
+
+    /// The midpoint lies on the geodesic, at the same angle from both ends, and fixes equal rotations.
+    #[test]
+    fn midpoint_is_halfway_on_the_geodesic() {
+        let p = so3::exp([0.1, 0.7, -0.2]);
+        let b = so3::exp([-0.4, 0.2, 0.9]);
+        let m = midpoint(&p, &b);
+        let (dp, db) = (so3::angle_between(&m, &p), so3::angle_between(&m, &b));
+        assert!((dp - db).abs() < 1e-12, "{dp} vs {db}");
+        assert!((dp + db - so3::angle_between(&p, &b)).abs() < 1e-12);
+        let same = midpoint(&p, &p);
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((same[i][j] - p[i][j]).abs() < 1e-12);
+            }
+        }
     }
 }

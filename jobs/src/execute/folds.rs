@@ -155,6 +155,9 @@ fn gather_chunks(
     n: usize,
 ) -> Result<(Vec<FrameAnchors>, Vec<Value>), TaskError> {
     let mut frames: Vec<FrameAnchors> = Vec::with_capacity(n);
+    // Per frame, for report.json: anchors, control lines, folds found, seeds tried (detectors that search seeds)
+    // and detection seconds (a chunk's time spread evenly over its frames: a whole-sequence detector has one
+    // chunk, so that is its mean per frame).
     let mut per_frame: Vec<Value> = Vec::with_capacity(n);
     for r in chunks(env, n) {
         env.check_cancelled()?;
@@ -174,6 +177,8 @@ fn gather_chunks(
                 "frame": f.frame,
                 "anchors": f.anchors.len(),
                 "control_lines": f.control_lines.len(),
+                "folds": f.detection.map(|d| d.folds),
+                "seeds_tried": f.detection.and_then(|d| d.seeds_tried),
                 "detection_seconds": seconds / r.len().max(1) as f64,
             }));
         }

@@ -281,6 +281,8 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
                 "frame": f.frame,
                 "anchors": f.anchors.len(),
                 "control_lines": f.control_lines.len(),
+                "folds": f.detection.map(|d| d.folds),
+                "seeds_tried": f.detection.and_then(|d| d.seeds_tried),
                 "detection_seconds": s,
             })
         })

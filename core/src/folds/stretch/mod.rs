@@ -294,6 +294,10 @@ impl FoldDetector for StretchDetector {
                     Some(sub) => realise::anchors(&folds.folds, Some(sub)),
                     None => folds.anchors,
                 },
+                detection: Some(super::FrameDetection {
+                    folds: folds.folds.len(),
+                    seeds_tried: Some(folds.seeds_tried),
+                }),
                 control_lines: folds.folds.into_iter().flat_map(|f| f.lines).collect(),
             });
             Ok(())

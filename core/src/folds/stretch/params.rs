@@ -44,9 +44,10 @@ pub struct StretchParams {
     pub patch_radius: f64,
     /// Positive (default 4): the linear law, angle = gain · (|v| − 1) radians. 0: anchor angles from the
     /// material — the angle at which the fold gives back the length its region of influence lost to the
-    /// measured shrinkage ([`super::trace::fold_angle`]); measured on the public cases it overshoots (larger
-    /// angles, more fold area and a larger normal error than the linear law), so it is not the default. Either
-    /// way capped by `max_angle_deg`.
+    /// measured shrinkage ([`super::trace::fold_angle`]). Measured with the shape screen and anchored stretch
+    /// passes it raises κ but lowers the correlation and puts the normal error above the captured input's
+    /// (the extra amplitude lands on folds only partly in the right place), so it is not the default
+    /// (docs/fidelity-folds.md). Either way capped by `max_angle_deg`.
     pub angle_gain: f64,
     /// Cap of the anchor rotation, degrees (Popa et al. use 30°–60°).
     #[serde(alias = "max_angle")]

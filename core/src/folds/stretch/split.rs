@@ -404,6 +404,10 @@ impl<'a> ChunkTracer<'a> {
             .overlay_frames
             .contains(&t)
             .then(|| (folds.anchors.clone(), folds.folds.len()));
+        let detection = Some(super::super::FrameDetection {
+            folds: folds.folds.len(),
+            seeds_tried: Some(folds.seeds_tried),
+        });
         Ok(ChunkFrame {
             anchors: FrameAnchors {
                 frame: t,
@@ -411,6 +415,7 @@ impl<'a> ChunkTracer<'a> {
                     Some(sub) => realise::anchors(&folds.folds, Some(sub)),
                     None => folds.anchors,
                 },
+                detection,
                 control_lines: folds.folds.into_iter().flat_map(|f| f.lines).collect(),
             },
             seeds: self.tracer.seeds(),

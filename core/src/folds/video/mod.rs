@@ -282,6 +282,10 @@ impl VideoFolds {
             frame: t,
             anchors,
             control_lines,
+            detection: Some(super::FrameDetection {
+                folds: all.len(),
+                seeds_tried: None,
+            }),
         }
     }
 }

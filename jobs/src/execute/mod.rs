@@ -16,6 +16,7 @@ mod finalize;
 mod folds;
 mod position;
 mod weights;
+pub mod window_cache;
 
 use crate::error::TaskError;
 use crate::failure::FailureKind;

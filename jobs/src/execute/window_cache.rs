@@ -111,12 +111,14 @@ impl WindowEntry {
         spare.unwrap_or_else(|| BlockWorkspace::new(self.problem.op.n_nodes()))
     }
 
-    /// Gives back the workspace of a block that succeeded (it is clean again; see the module docs).
+    /// Gives back the workspace of a block that succeeded (it is clean again; see the module docs), then trims
+    /// the cache, which this workspace may have pushed over its budget.
     pub fn give_back(&self, ws: BlockWorkspace) {
         self.spare
             .lock()
             .unwrap_or_else(|p| p.into_inner())
             .push(ws);
+        trim(&mut lock(), budget());
     }
 
     /// Approximate heap bytes held: operator diagonal, anchor list and the spare workspaces.

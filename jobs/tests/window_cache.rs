@@ -10,10 +10,13 @@ use crease_core::synth::{self, DemoSpec};
 use crease_jobs::window_cache;
 use std::path::Path;
 
+/// Columns of each weight-block task of the last [`run_and_check`], in the order it returns the tasks.
+static COLUMNS: std::sync::Mutex<Vec<u64>> = std::sync::Mutex::new(Vec::new());
+
 const DEFORM: &str =
     "[deform]\nmode = \"per-anchor\"\nwindow = 6\nshift = 4\n[partition]\nanchor_block = 40\n";
 
-/// Runs `spec` and returns, in execution order, (window, block, "hit"/"miss") of its weight-block tasks; also
+/// Runs `spec` and returns, in execution order, (task key, "hit"/"miss") of its weight-block tasks; also
 /// checks that every task succeeded and that the output equals the single-machine run of the same inputs.
 async fn run_and_check(
     input: &Path,
@@ -23,6 +26,7 @@ async fn run_and_check(
     what: &str,
 ) -> Vec<(String, String)> {
     let spec = job(input, Some(anchors), out, DEFORM);
+    COLUMNS.lock().unwrap().clear();
     let run = run_job(&spec, &root.join("cache"), PLAN_ORDER).await;
     for (k, r) in &run.outcomes {
         assert!(r.is_ok(), "{what}: task {k} failed: {:?}", r.as_ref().err());
@@ -44,6 +48,10 @@ async fn run_and_check(
         .filter(|k| k.starts_with("weights/") && k.contains("/b"))
         .map(|k| {
             let summary = &run.outcomes[k].as_ref().unwrap().summary;
+            COLUMNS
+                .lock()
+                .unwrap()
+                .push(summary["columns"].as_u64().unwrap_or(u64::MAX));
             let state = summary["window_cache"]
                 .as_str()
                 .unwrap_or("absent")
@@ -76,6 +84,19 @@ fn assert_first_misses_then_hits(blocks: &[(String, String)], what: &str) {
     );
 }
 
+/// Blocks are sized from their window's anchor count: at most `anchor_block` (40) columns, and the blocks of a
+/// window differ by at most one column (no ragged last block).
+fn assert_even_blocks(blocks: &[(String, String)], columns: &[u64]) {
+    let mut per_window: std::collections::BTreeMap<&str, Vec<u64>> = Default::default();
+    for ((k, _), &c) in blocks.iter().zip(columns) {
+        per_window.entry(window_of(k)).or_default().push(c);
+    }
+    for (w, cols) in &per_window {
+        let (lo, hi) = (cols.iter().min().unwrap(), cols.iter().max().unwrap());
+        assert!(*hi <= 40 && hi - lo <= 1, "{w}: block columns {cols:?}");
+    }
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn blocks_share_their_window_and_changed_inputs_are_not_served_stale() {
     let root = tempfile::tempdir().unwrap();
@@ -86,6 +107,7 @@ async fn blocks_share_their_window_and_changed_inputs_are_not_served_stale() {
     // 1. Fresh cache: one miss per window, hits after, output equal to the reference.
     let first = run_and_check(&input, &anchors, root, &out, "first").await;
     assert_first_misses_then_hits(&first, "first run");
+    assert_even_blocks(&first, &COLUMNS.lock().unwrap());
     let (entries, bytes) = window_cache::usage();
     assert!(entries >= 2, "the windows stay cached ({entries} entries)");
     assert!(bytes <= window_cache::budget());

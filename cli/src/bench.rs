@@ -70,6 +70,24 @@ pub struct BenchArgs {
     /// Run only the video edge stage.
     #[arg(long)]
     pub edges_only: bool,
+    /// Detection (stretch and video) + deformation end to end through the local cluster (bench_pipeline.rs).
+    #[arg(long)]
+    pub pipeline: bool,
+    /// Workers of the pipeline benchmark (one task each).
+    #[arg(long, default_value_t = 2)]
+    pub pipeline_workers: usize,
+    /// Coordinator dispatch rate with many tiny tasks (bench_dispatch.rs).
+    #[arg(long)]
+    pub dispatch: bool,
+    /// Worker configurations of the dispatch benchmark, WORKERSxCAPACITY each.
+    #[arg(long, value_delimiter = ',', default_value = "1x1,2x4,4x8")]
+    pub dispatch_slots: Vec<String>,
+    /// Mesh size (triangles) of the dispatch benchmark.
+    #[arg(long, default_value_t = 2000)]
+    pub dispatch_triangles: usize,
+    /// Anchors per frame of the dispatch benchmark (one weight-block task each).
+    #[arg(long, default_value_t = 40)]
+    pub dispatch_anchors: usize,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -116,6 +134,12 @@ pub(crate) fn case_input(
 pub fn bench(a: BenchArgs) -> Result<()> {
     if a.cluster {
         return crate::bench_cluster::bench_cluster(&a);
+    }
+    if a.pipeline {
+        return crate::bench_pipeline::bench_pipeline(&a);
+    }
+    if a.dispatch {
+        return crate::bench_dispatch::bench_dispatch(&a);
     }
     if a.edges_only {
         let edges = edges_stage(&a)?;

@@ -182,6 +182,10 @@ pub struct WorkerArgs {
     /// Cache for remote inputs (default: a directory under the system temp dir).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
+    /// Memory (MiB) for the window cache: what the weight-block tasks of one window share (its operator,
+    /// anchors and block workspaces), kept between tasks; least recently used windows go first; 0 turns it off.
+    #[arg(long, default_value_t = crease_jobs::window_cache::DEFAULT_BUDGET_BYTES >> 20)]
+    pub window_cache_mb: u64,
     /// On SIGTERM, seconds running tasks may take to finish before they are handed back.
     #[arg(long, default_value_t = 30.0)]
     pub drain_secs: f64,
@@ -206,6 +210,7 @@ pub fn worker(a: WorkerArgs) -> Result<()> {
             a.drain_secs
         );
     }
+    crease_jobs::window_cache::set_budget(a.window_cache_mb.saturating_mul(1 << 20));
     let name = a
         .name
         .unwrap_or_else(|| format!("worker-{}", std::process::id()));

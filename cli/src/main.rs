@@ -3,6 +3,9 @@
 mod arg_errors;
 mod bench;
 mod bench_cluster;
+mod bench_dispatch;
+mod bench_jobs;
+mod bench_pipeline;
 mod certs;
 mod cluster;
 mod deep;

@@ -131,7 +131,7 @@ pub mod task;
 
 pub use confine::StorageRoots;
 pub use error::{JobError, TaskError};
-pub use execute::{execute, ExecContext};
+pub use execute::{execute, window_cache, ExecContext};
 pub use failure::{FailureKind, Policy};
 pub use inspect::{inspect_input, InputInfo};
 pub use limits::JobLimits;

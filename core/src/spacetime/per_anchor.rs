@@ -36,11 +36,13 @@ pub struct PartialBlend {
     pub node_updates: u64,
 }
 
-/// Splits `n_anchors` anchor columns into consecutive blocks of at most `block_size`.
+/// Splits `n_anchors` anchor columns into as few consecutive blocks of at most `block_size` as possible, sized
+/// from the window's anchor count so that they differ by at most one column: each block is a task with a fixed
+/// cost, and a ragged last block (a few columns) would pay that cost for little work and finish early.
 pub fn plan_blocks(n_anchors: usize, block_size: usize) -> Vec<Range<usize>> {
-    let bs = block_size.max(1);
-    (0..n_anchors.div_ceil(bs))
-        .map(|b| b * bs..((b + 1) * bs).min(n_anchors))
+    let n_blocks = n_anchors.div_ceil(block_size.max(1));
+    (0..n_blocks)
+        .map(|b| b * n_anchors / n_blocks..(b + 1) * n_anchors / n_blocks)
         .collect()
 }
 
@@ -283,4 +285,33 @@ pub fn accumulate(field: &mut [V3], partial: &PartialBlend) {
 pub fn merge_stats(stats: &mut CgStats, p: &PartialBlend) {
     stats.iterations += p.iterations;
     stats.relative_residual = stats.relative_residual.max(p.max_relative_residual);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::plan_blocks;
+
+    #[test]
+    fn blocks_cover_the_anchors_in_order_with_even_sizes() {
+        for n in 0..120 {
+            for bs in 1..30 {
+                let blocks = plan_blocks(n, bs);
+                assert_eq!(blocks.len(), n.div_ceil(bs), "n {n} bs {bs}: block count");
+                let mut next = 0;
+                for b in &blocks {
+                    assert_eq!(b.start, next, "n {n} bs {bs}: contiguous");
+                    assert!(!b.is_empty() && b.len() <= bs, "n {n} bs {bs}: size {b:?}");
+                    next = b.end;
+                }
+                assert_eq!(next, n, "n {n} bs {bs}: every anchor");
+                let (lo, hi) = blocks.iter().fold((usize::MAX, 0), |(lo, hi), b| {
+                    (lo.min(b.len()), hi.max(b.len()))
+                });
+                assert!(
+                    blocks.is_empty() || hi - lo <= 1,
+                    "n {n} bs {bs}: sizes {lo}..{hi}"
+                );
+            }
+        }
+    }
 }

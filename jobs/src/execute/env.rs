@@ -206,6 +206,22 @@ impl<'a> TaskEnv<'a> {
         }
     }
 
+    /// A fingerprint of the job's anchors as they are now: the anchors file's size and modification time, or
+    /// the bytes of the detected `anchors.json` (what the window cache keys on besides the spec and input).
+    pub fn anchors_fingerprint(&self) -> Result<u64, TaskError> {
+        match &self.job.folds {
+            FoldSpec::None => Ok(0),
+            FoldSpec::Anchors { uri } => {
+                let path = self
+                    .block_on(fetch_input_to_cache(uri, &self.ctx.cache_dir))
+                    .map_err(storage_err)?;
+                Ok(file_stamp(&path))
+            }
+            #[allow(unreachable_patterns)]
+            _ => Ok(fnv(&self.get(keys::ANCHORS)?)),
+        }
+    }
+
     /// The job's time windows over `n` frames.
     pub fn windows(&self, n: usize) -> Vec<Window> {
         crate::plan::job_windows(self.job, n)

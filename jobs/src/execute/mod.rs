@@ -17,6 +17,7 @@ mod folds;
 mod position;
 mod stretch;
 mod weights;
+pub mod window_cache;
 
 use crate::error::TaskError;
 use crate::failure::FailureKind;

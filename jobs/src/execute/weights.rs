@@ -4,10 +4,11 @@
 
 use super::env::TaskEnv;
 use super::exact;
+use super::window_cache::{self, WindowEntry};
 use crate::error::TaskError;
 use crate::keys;
 use crease_core::spacetime::fused::CgStats;
-use crease_core::spacetime::per_anchor::{plan_blocks, BlockWorkspace, PartialBlend};
+use crease_core::spacetime::per_anchor::{plan_blocks, PartialBlend};
 use crease_core::spacetime::stages;
 use crease_core::spacetime::weights::{WindowProblem, WindowStats};
 use crease_core::spacetime::windows::Window;
@@ -88,17 +89,34 @@ pub fn fused_window(env: &TaskEnv, k: usize) -> Result<(Value, Vec<String>), Tas
     write_window(env, k, w, topo.n_triangles(), &field, &record)
 }
 
-/// Per-anchor mode: block `b` of window `k` → its partial blend.
+/// Per-anchor mode: block `b` of window `k` → its partial blend. The window's problem and block workspaces
+/// come from the worker's [`window_cache`] when an earlier block of the same window left them there.
 pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<String>), TaskError> {
     let opened = env.open_input()?;
-    let topo = opened.source.topology().clone();
     let n = opened.source.n_frames();
-    let anchors = env.anchors(n, topo.n_triangles())?;
+    let n_tri = opened.source.topology().n_triangles();
     let (_, w) = env.window(n, k)?;
+    let spec = serde_json::to_vec(env.job).unwrap_or_default();
+    let key = window_cache::fingerprint(&[
+        &spec,
+        &env.anchors_fingerprint()?.to_le_bytes(),
+        &(k as u64).to_le_bytes(),
+    ]);
     env.check_cancelled()?;
     let clock = Instant::now();
-    let problem = WindowProblem::new(&topo, &anchors, w, env.params.coefficients);
-    let blocks = stages::anchor_blocks(&problem, &env.params);
+    let (entry, hit) = window_cache::get_or_build(key, &opened, || {
+        let anchors = env.anchors(n, n_tri)?;
+        WindowEntry::build(opened.clone(), |topo| {
+            Ok::<_, TaskError>(WindowProblem::new(
+                topo,
+                &anchors,
+                w,
+                env.params.coefficients,
+            ))
+        })
+    })?;
+    let problem = entry.problem();
+    let blocks = stages::anchor_blocks(problem, &env.params);
     let range = blocks.get(b).cloned().ok_or_else(|| {
         TaskError::fatal(format!(
             "{}: block {b} does not exist ({} anchors make {} blocks of {})",
@@ -108,9 +126,10 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
             env.params.anchor_block
         ))
     })?;
-    let mut ws = BlockWorkspace::new(problem.op.n_nodes());
-    let partial = stages::anchor_block(&problem, range.clone(), &env.params, &mut ws)
+    let mut ws = entry.take_workspace();
+    let partial = stages::anchor_block(problem, range.clone(), &env.params, &mut ws)
         .map_err(|e| TaskError::from_core(&format!("{} block {b}", label(k, &w)), e))?;
+    entry.give_back(ws);
     let seconds = clock.elapsed().as_secs_f64();
     let mut rows = Vec::with_capacity(partial.nodes.len() * 4);
     for (&g, v) in partial.nodes.iter().zip(&partial.values) {
@@ -126,10 +145,14 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
     let (pk, sk) = (keys::block_partial(k, b), keys::block_stats(k, b));
     env.put_npy(&pk, &[partial.nodes.len(), 4], &rows)?;
     env.put_json(&sk, &stats)?;
-    Ok((
-        serde_json::to_value(&stats).unwrap_or_default(),
-        vec![pk, sk],
-    ))
+    let mut summary = serde_json::to_value(&stats).unwrap_or_default();
+    if let Some(o) = summary.as_object_mut() {
+        o.insert(
+            "window_cache".into(),
+            Value::from(if hit { "hit" } else { "miss" }),
+        );
+    }
+    Ok((summary, vec![pk, sk]))
 }
 
 /// Per-anchor mode: window `k`'s field as the sum of its blocks' partial blends, in block order.

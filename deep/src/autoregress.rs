@@ -13,6 +13,9 @@ use crate::regress::LinearRegression;
 use crease_core::{Error, Result};
 use serde::{Deserialize, Serialize};
 
+/// Bound of a fed-back coefficient, in training standard deviations.
+const CLIP: f64 = 4.0;
+
 /// Which earlier coefficients join the control vector, and how they are normalised.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ShapeHistory {
@@ -79,7 +82,9 @@ impl ShapeHistory {
             } else {
                 &self.start
             };
-            out.extend((0..self.k_state).map(|j| a[j] * self.scale[j]));
+            // Clipped at ±CLIP standard deviations: a drifting rollout then saturates instead of feeding
+            // ever larger states back (and, in DAgger rounds, swamping the ridge's scale with them).
+            out.extend((0..self.k_state).map(|j| (a[j] * self.scale[j]).clamp(-CLIP, CLIP)));
         }
         out
     }

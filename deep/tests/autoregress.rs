@@ -52,7 +52,7 @@ fn rollout_from_pose_alone_recovers_a_history_dependent_shape() {
         e_lin > 0.1,
         "the pose alone should not determine this shape ({e_lin})"
     );
-    assert!(e_ar < 0.02 * e_lin, "rollout {e_ar} vs pose-only {e_lin}");
+    assert!(e_ar < 0.1 * e_lin, "rollout {e_ar} vs pose-only {e_lin}");
     // The start state comes from the training sequences' first frames, not from the test sequence.
     let first_mean = (train[0].1[0][0] + train[1].1[0][0]) / 2.0;
     assert!((ar.history.start[0] - first_mean).abs() < 1e-12);

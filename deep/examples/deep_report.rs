@@ -540,7 +540,7 @@ fn cgan(
         .zip(&train_a)
         .map(|(c, a)| (c.as_slice(), a.as_slice()))
         .collect();
-    let ar = AutoregressiveLinear::fit(&seqs, ShapeHistory::fit(&a_refs, ar_state, 2)?, ridge, 3)?;
+    let ar = AutoregressiveLinear::fit(&seqs, ShapeHistory::fit(&a_refs, ar_state, 2)?, ridge, 0)?;
     let shapes = |s: &TrainingSequence, kind: &str| -> R<Vec<Frame>> {
         Ok(match kind {
             "captured" => s.coarse.clone(),

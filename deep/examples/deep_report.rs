@@ -2,8 +2,8 @@
 //!
 //! ```text
 //! cargo run --release -p crease-deep --example deep_report -- subspace   DATA OUT [held-out]
-//! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT [held-out] [epochs] [layers] [hidden]
-//! cargo run --release -p crease-deep --example deep_report -- cgan       DATA OUT [held-out] [epochs] [res] [filters]
+//! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT [held-out] [epochs] [layers] [hidden] [ridge] [AR states, e.g. 10,25,50]
+//! cargo run --release -p crease-deep --example deep_report -- cgan       DATA OUT [held-out] [epochs] [res] [filters] [ridge] [AR state]
 //! cargo run --release -p crease-deep --example deep_report -- register   DATA OUT [frames]
 //! cargo run --release -p crease-deep --example deep_report -- score      APPLY_OUT GT CAPTURED
 //! ```
@@ -15,6 +15,7 @@ use crease_core::mesh::geometry::vertex_normals;
 use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::{Frame, Sequence, Topology};
 use crease_core::vec3::{self, V3};
+use crease_deep::autoregress::{AutoregressiveLinear, ShapeHistory};
 use crease_deep::bake::{map_normal_error, mesh_normal_error};
 use crease_deep::cgan::{Cgan, CganConfig, Sample};
 use crease_deep::cgan_data::{map_pairs, samples};
@@ -49,6 +50,12 @@ fn main() -> R<()> {
             arg(4).map_or(Ok(300), |s| s.parse())?,
             arg(5).map_or(Ok(4), |s| s.parse())?,
             arg(6).map_or(Ok(256), |s| s.parse())?,
+            arg(7).map_or(Ok(1e-3), |s| s.parse())?,
+            &arg(8)
+                .unwrap_or("10,25,50".into())
+                .split(',')
+                .map(|s| s.parse())
+                .collect::<Result<Vec<usize>, _>>()?,
         ),
         "cgan" => cgan(
             &arg(1).ok_or("DATA")?,
@@ -57,6 +64,8 @@ fn main() -> R<()> {
             arg(4).map_or(Ok(3), |s| s.parse())?,
             arg(5).map_or(Ok(64), |s| s.parse())?,
             arg(6).map_or(Ok(16), |s| s.parse())?,
+            arg(7).map_or(Ok(1e-3), |s| s.parse())?,
+            arg(8).map_or(Ok(25), |s| s.parse())?,
         ),
         "register" => register(
             &arg(1).ok_or("DATA")?,
@@ -151,6 +160,8 @@ fn regression(
     epochs: usize,
     layers: usize,
     hidden: usize,
+    ridge: f64,
+    ar_states: &[usize],
 ) -> R<()> {
     let (train, test) = split(data, held)?;
     let frames: Vec<&[V3]> = train
@@ -213,7 +224,7 @@ fn regression(
             t.extend(s.fine.iter().map(|f| sub.project(f, k)));
         }
         let t0 = Instant::now();
-        let reg = LinearRegression::fit(&c, &t, 1e-3)?;
+        let reg = LinearRegression::fit(&c, &t, ridge)?;
         let secs = t0.elapsed().as_secs_f64();
         let pred: Vec<Vec<f64>> = spec
             .controls(&test.poses)?
@@ -222,19 +233,64 @@ fn regression(
             .collect();
         report(name, pred, secs, &mut rows);
     }
-    // LSTM on the lagged controls.
+    // Autoregressive linear (§3.3 with α_{t−1}, α_{t−2} in the control vector), rolled out from the first
+    // frame; one-step (teacher-forced) rows show how much of the error the rollout adds.
     let spec = ControlSpec::fit(&pose_refs, vec![1, 2, 4, 8, 16, 32])?;
-    let mut data_w = Vec::new();
-    let mut all_t = Vec::new();
-    for s in &train {
-        let c = spec.controls(&s.poses)?;
-        let t: Vec<Vec<f64>> = s.fine.iter().map(|f| sub.project(f, k)).collect();
-        all_t.extend(t.iter().cloned());
-        data_w.extend(windows(&c, &t, 3));
+    let train_c: Vec<Vec<Vec<f64>>> = train
+        .iter()
+        .map(|s| spec.controls(&s.poses))
+        .collect::<Result<_, _>>()?;
+    let train_a: Vec<Vec<Vec<f64>>> = train
+        .iter()
+        .map(|s| s.fine.iter().map(|f| sub.project(f, k)).collect())
+        .collect();
+    let tc = spec.controls(&test.poses)?;
+    let seqs: Vec<(&[Vec<f64>], &[Vec<f64>])> = train_c
+        .iter()
+        .zip(&train_a)
+        .map(|(c, a)| (c.as_slice(), a.as_slice()))
+        .collect();
+    let a_refs: Vec<&[Vec<f64>]> = train_a.iter().map(|a| a.as_slice()).collect();
+    let mut best: Option<(f64, usize, usize)> = None;
+    for k_state in ar_states.iter().copied() {
+        for dagger in [0usize, 3] {
+            let hist = ShapeHistory::fit(&a_refs, k_state.min(k), 2)?;
+            let t0 = Instant::now();
+            let ar = AutoregressiveLinear::fit(&seqs, hist, ridge, dagger)?;
+            let secs = t0.elapsed().as_secs_f64();
+            if dagger == 0 {
+                report(
+                    &format!(
+                        "AR linear, state {k_state}, one step (teacher-forced, not a forecast)"
+                    ),
+                    ar.one_step(&tc, &truth),
+                    secs,
+                    &mut rows,
+                );
+            }
+            let pred = ar.rollout(&tc);
+            let e = mean_err(
+                &pred.iter().map(|c| sub.reconstruct(c)).collect::<Vec<_>>(),
+                &test.fine,
+            )
+            .0;
+            if best.is_none_or(|b| e < b.0) {
+                best = Some((e, k_state, dagger));
+            }
+            report(
+                &format!("AR linear, state {k_state}, DAgger {dagger}, rollout"),
+                pred,
+                secs,
+                &mut rows,
+            );
+        }
     }
+    // LSTMs: inputs standardised, outputs in units of each coefficient's standard deviation, cosine learning
+    // rate decay; pose-only and autoregressive (teacher-forced training, one DAgger round, rollout).
     let scale: Vec<f64> = (0..k)
         .map(|j| {
-            (all_t.iter().map(|t| t[j] * t[j]).sum::<f64>() / all_t.len() as f64)
+            let n = train_a.iter().map(|a| a.len()).sum::<usize>() as f64;
+            (train_a.iter().flatten().map(|t| t[j] * t[j]).sum::<f64>() / n)
                 .sqrt()
                 .max(1e-9)
         })
@@ -244,37 +300,170 @@ fn regression(
         hidden,
         seq_len: 3,
         epochs,
-        batch: 32,
-        lr: 1e-3,
+        batch: 16,
+        lr: 2e-3,
         seed: 1,
     };
-    let mut net = LstmRegressor::new(cfg, spec.len(), k, scale)?;
-    let t0 = Instant::now();
-    let losses = net.train(&data_w, |e, l| {
-        if (e + 1) % 25 == 0 {
-            eprintln!("lstm epoch {}: {l:.5}", e + 1)
+    let schedule = |e: usize| {
+        let x = e as f64 / epochs.max(1) as f64;
+        1e-5 + 0.5 * (2e-3 - 1e-5) * (1.0 + (std::f64::consts::PI * x).cos())
+    };
+    let log = |name: &'static str| {
+        move |e: usize, l: f64| {
+            if (e + 1) % 25 == 0 {
+                eprintln!("{name} epoch {}: {l:.5}", e + 1)
+            }
         }
-    })?;
-    let secs = t0.elapsed().as_secs_f64();
-    let tc = spec.controls(&test.poses)?;
-    let pred = net.predict(&windows(&tc, &truth, 3))?;
-    report(
-        &format!("LSTM {layers}x{hidden}, seq 3, {epochs} epochs"),
-        pred,
-        secs,
-        &mut rows,
-    );
-    println!(
-        "LSTM: {:.2} s per epoch; loss {:.4} -> {:.4}",
-        secs / epochs.max(1) as f64,
-        losses[0],
-        losses[losses.len() - 1]
-    );
+    };
+    let mut lstm_notes = Vec::new();
+    // epochs = 0 skips the LSTMs (the linear rows take seconds, the LSTMs minutes).
+    if epochs > 0 {
+        let norm = Standardizer::fit(train_c.iter().flatten());
+        let mut data_w = Vec::new();
+        for (c, a) in train_c.iter().zip(&train_a) {
+            data_w.extend(windows(&norm.apply_all(c), a, 3));
+        }
+        let mut net = LstmRegressor::new(cfg.clone(), spec.len(), k, scale.clone())?;
+        let t0 = Instant::now();
+        let losses = net.train_scheduled(&data_w, schedule, log("lstm pose-only"))?;
+        let secs = t0.elapsed().as_secs_f64();
+        let pred = net.predict(&windows(&norm.apply_all(&tc), &truth, 3))?;
+        report(
+            &format!("LSTM {layers}x{hidden}, pose only, seq 3, {epochs} epochs"),
+            pred,
+            secs,
+            &mut rows,
+        );
+        lstm_notes.push(serde_json::json!({"net": "pose only", "s_per_epoch": secs / epochs.max(1) as f64, "losses": losses}));
+        eprintln!(
+            "LSTM pose-only: {:.2} s/epoch; loss {:.4} -> {:.4}",
+            secs / epochs.max(1) as f64,
+            losses[0],
+            losses[losses.len() - 1]
+        );
+    }
+    if let Some((_, k_state, _)) = best.filter(|_| epochs > 0) {
+        let hist = ShapeHistory::fit(&a_refs, k_state.min(k), 2)?;
+        let aug: Vec<Vec<Vec<f64>>> = train_c
+            .iter()
+            .zip(&train_a)
+            .map(|(c, a)| {
+                (0..c.len())
+                    .map(|t| [c[t].clone(), hist.features(a, t)].concat())
+                    .collect()
+            })
+            .collect();
+        let norm = Standardizer::fit(aug.iter().flatten());
+        let in_dim = aug[0][0].len();
+        let teacher = |hists: &[Vec<Vec<f64>>]| -> Vec<crease_deep::lstm::Window> {
+            let mut w = Vec::new();
+            for ((c, a), h) in train_c.iter().zip(&train_a).zip(hists) {
+                let x: Vec<Vec<f64>> = (0..c.len())
+                    .map(|t| norm.apply(&[c[t].clone(), hist.features(h, t)].concat()))
+                    .collect();
+                w.extend(windows(&x, a, 3));
+            }
+            w
+        };
+        let mut data_w = teacher(&train_a);
+        let mut net = LstmRegressor::new(cfg.clone(), in_dim, k, scale.clone())?;
+        let t0 = Instant::now();
+        let mut losses = net.train_scheduled(&data_w, schedule, log("lstm AR"))?;
+        // One DAgger round: add the histories of the network's own rollouts and fine-tune.
+        let rolled: Vec<Vec<Vec<f64>>> = train_c
+            .iter()
+            .map(|c| lstm_ar_rollout(&net, &hist, &norm, c))
+            .collect::<Result<_, _>>()?;
+        data_w.extend(teacher(&rolled));
+        net.config.epochs = (epochs / 3).max(1);
+        let tail = epochs / 3;
+        let tail_lr = move |e: usize| {
+            let x = e as f64 / tail.max(1) as f64;
+            1e-5 + 0.5 * (5e-4 - 1e-5) * (1.0 + (std::f64::consts::PI * x).cos())
+        };
+        losses.extend(net.train_scheduled(&data_w, tail_lr, log("lstm AR dagger"))?);
+        let secs = t0.elapsed().as_secs_f64();
+        let pred = lstm_ar_rollout(&net, &hist, &norm, &tc)?;
+        report(
+            &format!("LSTM {layers}x{hidden}, AR state {k_state}, DAgger 1, rollout, {epochs}+{tail} epochs"),
+            pred,
+            secs,
+            &mut rows,
+        );
+        lstm_notes.push(serde_json::json!({"net": "autoregressive", "k_state": k_state, "s_per_epoch": secs / (epochs + tail).max(1) as f64, "losses": losses}));
+        eprintln!(
+            "LSTM AR: {:.2} s/epoch; loss {:.4} -> {:.4}",
+            secs / (epochs + tail).max(1) as f64,
+            losses[0],
+            losses[losses.len() - 1]
+        );
+    }
     write_json(
         out,
         "regression.json",
-        &serde_json::json!({"held_out": held, "k": k, "rows": rows, "lstm_losses": losses, "lstm_s_per_epoch": secs / epochs.max(1) as f64}),
+        &serde_json::json!({"held_out": held, "k": k, "ridge": ridge, "rows": rows, "lstm": lstm_notes}),
     )
+}
+
+/// Per-dimension standardisation of the LSTM inputs (constant dimensions pass through centred).
+struct Standardizer {
+    mean: Vec<f64>,
+    inv_std: Vec<f64>,
+}
+
+impl Standardizer {
+    fn fit<'a>(rows: impl Iterator<Item = &'a Vec<f64>>) -> Self {
+        let rows: Vec<&Vec<f64>> = rows.collect();
+        let n = rows.len() as f64;
+        let d = rows[0].len();
+        let mean: Vec<f64> = (0..d)
+            .map(|j| rows.iter().map(|r| r[j]).sum::<f64>() / n)
+            .collect();
+        let inv_std = (0..d)
+            .map(|j| {
+                let v = rows.iter().map(|r| (r[j] - mean[j]).powi(2)).sum::<f64>() / n;
+                if v > 1e-18 {
+                    1.0 / v.sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        Standardizer { mean, inv_std }
+    }
+    fn apply(&self, r: &[f64]) -> Vec<f64> {
+        r.iter()
+            .zip(&self.mean)
+            .zip(&self.inv_std)
+            .map(|((x, m), s)| (x - m) * s)
+            .collect()
+    }
+    fn apply_all(&self, rs: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        rs.iter().map(|r| self.apply(r)).collect()
+    }
+}
+
+/// Rollout of an autoregressive LSTM whose inputs are standardised [controls, shape history].
+fn lstm_ar_rollout(
+    net: &LstmRegressor,
+    hist: &ShapeHistory,
+    norm: &Standardizer,
+    controls: &[Vec<f64>],
+) -> R<Vec<Vec<f64>>> {
+    let len = net.config.seq_len;
+    let mut out: Vec<Vec<f64>> = Vec::with_capacity(controls.len());
+    let mut xs: Vec<Vec<f64>> = Vec::with_capacity(controls.len());
+    for t in 0..controls.len() {
+        xs.push(norm.apply(&[controls[t].clone(), hist.features(&out, t)].concat()));
+        let w = crease_deep::lstm::Window {
+            controls: (0..len)
+                .map(|i| xs[(t + i + 1).saturating_sub(len)].clone())
+                .collect(),
+            targets: vec![vec![0.0; net.out_dim]; len],
+        };
+        out.extend(net.predict(std::slice::from_ref(&w))?);
+    }
+    Ok(out)
 }
 
 /// Pixel-wise errors of Eq. 4 on held-out frames: mean |G(x_t) − y_t| and |mean(G(x_t) − y_{t−1})| over
@@ -311,7 +500,17 @@ fn to_rgb(m: &NormalMap) -> image::RgbImage {
     })
 }
 
-fn cgan(data: &str, out: &str, held: &str, epochs: usize, res: usize, filters: usize) -> R<()> {
+#[allow(clippy::too_many_arguments)]
+fn cgan(
+    data: &str,
+    out: &str,
+    held: &str,
+    epochs: usize,
+    res: usize,
+    filters: usize,
+    ridge: f64,
+    ar_state: usize,
+) -> R<()> {
     let (train, test) = split(data, held)?;
     let topo = test.topology.clone();
     let frames: Vec<&[V3]> = train
@@ -325,13 +524,23 @@ fn cgan(data: &str, out: &str, held: &str, epochs: usize, res: usize, filters: u
     // Inputs of the variants: coarse shapes per sequence.
     let pose_refs: Vec<&[Vec<f64>]> = train.iter().map(|s| s.poses.as_slice()).collect();
     let spec = ControlSpec::fit(&pose_refs, vec![1, 2, 4, 8, 16, 32])?;
-    let mut c = Vec::new();
-    let mut t = Vec::new();
-    for s in &train {
-        c.extend(spec.controls(&s.poses)?);
-        t.extend(s.fine.iter().map(|f| sub.project(f, 200)));
-    }
-    let reg = LinearRegression::fit(&c, &t, 1e-3)?;
+    // The regression input is the autoregressive linear model rolled out from pose alone (the best pose-only
+    // regressor of the `regression` part).
+    let train_c: Vec<Vec<Vec<f64>>> = train
+        .iter()
+        .map(|s| spec.controls(&s.poses))
+        .collect::<Result<_, _>>()?;
+    let train_a: Vec<Vec<Vec<f64>>> = train
+        .iter()
+        .map(|s| s.fine.iter().map(|f| sub.project(f, 200)).collect())
+        .collect();
+    let a_refs: Vec<&[Vec<f64>]> = train_a.iter().map(|a| a.as_slice()).collect();
+    let seqs: Vec<(&[Vec<f64>], &[Vec<f64>])> = train_c
+        .iter()
+        .zip(&train_a)
+        .map(|(c, a)| (c.as_slice(), a.as_slice()))
+        .collect();
+    let ar = AutoregressiveLinear::fit(&seqs, ShapeHistory::fit(&a_refs, ar_state, 2)?, ridge, 0)?;
     let shapes = |s: &TrainingSequence, kind: &str| -> R<Vec<Frame>> {
         Ok(match kind {
             "captured" => s.coarse.clone(),
@@ -343,10 +552,10 @@ fn cgan(data: &str, out: &str, held: &str, epochs: usize, res: usize, filters: u
                     .map(|f| st.reconstruct(&st.project(f, k)))
                     .collect()
             }
-            _ => spec
-                .controls(&s.poses)?
+            _ => ar
+                .rollout(&spec.controls(&s.poses)?)
                 .iter()
-                .map(|c| sub.reconstruct(&reg.predict(c)))
+                .map(|c| sub.reconstruct(c))
                 .collect(),
         })
     };
@@ -355,7 +564,7 @@ fn cgan(data: &str, out: &str, held: &str, epochs: usize, res: usize, filters: u
         ("captured, no temporal", "captured", 0.0),
         ("subspace k=200", "subspace200", 50.0),
         ("subspace k=50", "subspace50", 50.0),
-        ("regression (linear)", "regression", 50.0),
+        ("regression (AR linear rollout)", "regression", 50.0),
     ];
     println!("held out: {held}; {res}x{res} maps, generator {filters} filters, {epochs} epochs per variant");
     println!("| input | data (L1) | temporal | map angle to target (°) | input's data (L1) | vertex normal error (°) | captured mesh normal error (°) | s/epoch |\n|---|---|---|---|---|---|---|---|");
@@ -388,6 +597,7 @@ fn cgan(data: &str, out: &str, held: &str, epochs: usize, res: usize, filters: u
             disc_filters: filters,
             w_temporal: w_temp,
             epochs,
+            batch: 4,
             ..Default::default()
         };
         let mut gan = Cgan::new(cfg)?;
@@ -425,6 +635,28 @@ fn cgan(data: &str, out: &str, held: &str, epochs: usize, res: usize, filters: u
             / preds.len() as f64;
         println!("| {name} | {d:.4} | {tmp:.4} | {angle:.2} | {d_in:.4} | {ne:.2} | {gt_ne:.2} | {per_epoch:.1} |");
         rows.push(serde_json::json!({"input": name, "data_l1": d, "temporal": tmp, "map_angle_deg": angle, "input_data_l1": d_in, "vertex_normal_error_deg": ne, "captured_normal_error_deg": gt_ne, "s_per_epoch": per_epoch, "history": hist}));
+        if kind == "captured" && w_temp > 0.0 {
+            // The same frames as `crease deep apply --coarse` writes them (DESIGN §7 contract), for `score`.
+            let dir = Path::new(out).join("apply_captured");
+            crease_deep::contract::prepare(&dir)?;
+            for (t, p) in preds.iter().enumerate() {
+                crease_deep::contract::write_frame(
+                    &dir,
+                    t,
+                    &topo,
+                    &test_shapes[t],
+                    &layout,
+                    &p.dilated(3),
+                )?;
+            }
+            crease_deep::contract::finish(
+                &dir,
+                preds.len(),
+                crease_deep::normal_map::Space::World,
+                res,
+                "deep_report cgan",
+            )?;
+        }
         // Fig. 11 row: input | prediction | target.
         let (w, h) = (res as u32, res as u32);
         let mut row = image::RgbImage::new(3 * w, h);

@@ -32,6 +32,41 @@ impl KdTree {
         Some(best)
     }
 
+    /// The `k` points nearest to `q`, nearest first, as (index, squared distance).
+    pub fn k_nearest(&self, q: V3, k: usize) -> Vec<(usize, f64)> {
+        let mut best = Vec::with_capacity(k + 1);
+        if k > 0 {
+            self.search_k(&self.order, 0, q, k, &mut best);
+        }
+        best
+    }
+
+    fn search_k(&self, slice: &[u32], depth: usize, q: V3, k: usize, best: &mut Vec<(usize, f64)>) {
+        if slice.is_empty() {
+            return;
+        }
+        let mid = slice.len() / 2;
+        let i = slice[mid] as usize;
+        let p = self.points[i];
+        let d2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+        if best.len() < k || d2 < best[best.len() - 1].1 {
+            let at = best.partition_point(|e| e.1 <= d2);
+            best.insert(at, (i, d2));
+            best.truncate(k);
+        }
+        let axis = depth % 3;
+        let diff = q[axis] - p[axis];
+        let (near, far) = if diff < 0.0 {
+            (&slice[..mid], &slice[mid + 1..])
+        } else {
+            (&slice[mid + 1..], &slice[..mid])
+        };
+        self.search_k(near, depth + 1, q, k, best);
+        if best.len() < k || diff * diff < best[best.len() - 1].1 {
+            self.search_k(far, depth + 1, q, k, best);
+        }
+    }
+
     fn search(&self, slice: &[u32], depth: usize, q: V3, best: &mut (usize, f64)) {
         if slice.is_empty() {
             return;

@@ -8,6 +8,7 @@
 
 pub mod adam;
 pub mod apply;
+pub mod autoregress;
 pub mod bake;
 pub mod cgan;
 pub mod cgan_data;
@@ -17,6 +18,7 @@ pub mod kdtree;
 pub mod lstm;
 pub mod model;
 pub mod normal_map;
+pub mod point_normals;
 pub mod pose;
 pub mod raster;
 pub mod register;

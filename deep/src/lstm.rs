@@ -174,9 +174,17 @@ impl LstmRegressor {
 
     /// Trains with AdamW on shuffled mini-batches; `on_epoch(epoch, mean loss)` after each epoch. Returns the
     /// per-epoch losses.
-    pub fn train(
+    pub fn train(&mut self, data: &[Window], on_epoch: impl FnMut(usize, f64)) -> Result<Vec<f64>> {
+        let lr = self.config.lr;
+        self.train_scheduled(data, |_| lr, on_epoch)
+    }
+
+    /// [`LstmRegressor::train`] with the learning rate of each epoch from `lr(epoch)`: a constant rate that
+    /// is large enough to make progress early keeps the loss bouncing late, so long runs decay it.
+    pub fn train_scheduled(
         &mut self,
         data: &[Window],
+        lr: impl Fn(usize) -> f64,
         mut on_epoch: impl FnMut(usize, f64),
     ) -> Result<Vec<f64>> {
         if data.is_empty() {
@@ -195,6 +203,7 @@ impl LstmRegressor {
         let mut order: Vec<usize> = (0..data.len()).collect();
         let mut losses = Vec::with_capacity(self.config.epochs);
         for epoch in 0..self.config.epochs {
+            opt.set_learning_rate(lr(epoch));
             rng.shuffle(&mut order);
             let (mut sum, mut count) = (0.0, 0usize);
             for chunk in order.chunks(self.config.batch) {

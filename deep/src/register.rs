@@ -13,6 +13,8 @@
 //!   so the fit starts stiff and ends detailed.
 
 use crate::kdtree::KdTree;
+use crate::point_normals::estimate_normals;
+use crease_core::mesh::geometry::vertex_normals;
 use crease_core::mesh::{Topology, NONE};
 use crease_core::vec3::{self, V3};
 use crease_core::{Error, Result};
@@ -32,8 +34,17 @@ pub struct RegisterParams {
     pub node_spacing: f64,
     /// Nodes influencing each vertex.
     pub k_nodes: usize,
-    /// ICP iterations (one Gauss–Newton step each) per scan.
+    /// ICP iterations (correspondence updates) per scan.
     pub iterations: usize,
+    /// Gauss–Newton steps per correspondence update: the pairs are fixed, so a few steps converge the
+    /// non-linear rigidity term before new pairs are searched.
+    pub gn_steps: usize,
+    /// Weight of the point-to-plane data term (distance along the scan normal).
+    pub w_plane: f64,
+    /// Weight of the point-to-point data term; small, it only keeps vertices from sliding freely.
+    pub w_point: f64,
+    /// Pairs whose template and scan normals differ by more than this (degrees, unoriented) are rejected.
+    pub max_normal_angle: f64,
     /// Pairs farther than this (edge lengths) are ignored; it shrinks to a third over the iterations.
     pub max_pair_dist: f64,
     /// Lower bound of the relaxed ω_r and ω_s.
@@ -48,7 +59,14 @@ impl Default for RegisterParams {
             w_bound: 10.0,
             node_spacing: 2.5,
             k_nodes: 4,
+            // The point-to-plane term, normal rejection and extra Gauss–Newton steps are available but off:
+            // on the synthetic tube and the sleeve they measured worse than this schedule
+            // (docs/deepwrinkles.md, "Measured").
             iterations: 40,
+            gn_steps: 1,
+            w_plane: 0.0,
+            w_point: 1.0,
+            max_normal_angle: 90.0,
             max_pair_dist: 6.0,
             min_weight: 1.0,
         }
@@ -62,6 +80,9 @@ impl RegisterParams {
             ("w-smooth", self.w_smooth),
             ("w-bound", self.w_bound),
             ("min-weight", self.min_weight),
+            ("w-plane", self.w_plane),
+            ("w-point", self.w_point),
+            ("max-normal-angle", self.max_normal_angle),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(Error::param(n, "must be a non-negative number"));
@@ -73,8 +94,11 @@ impl RegisterParams {
         if !(self.max_pair_dist.is_finite() && self.max_pair_dist > 0.0) {
             return Err(Error::param("max-pair-dist", "must be positive"));
         }
-        if self.k_nodes < 1 || self.iterations < 1 {
-            return Err(Error::param("k-nodes/iterations", "must be at least 1"));
+        if self.k_nodes < 1 || self.iterations < 1 || self.gn_steps < 1 {
+            return Err(Error::param(
+                "k-nodes/iterations/gn-steps",
+                "must be at least 1",
+            ));
         }
         Ok(())
     }
@@ -132,6 +156,7 @@ pub fn write_scan(path: &Path, scan: &Scan) -> Result<()> {
 /// The deformation graph of a template, reused for every scan of a sequence.
 pub struct Registration {
     params: RegisterParams,
+    topo: std::sync::Arc<Topology>,
     rest: Vec<V3>,
     scale: f64,
     nodes: Vec<V3>,
@@ -207,6 +232,7 @@ impl Registration {
         }
         Ok(Registration {
             params,
+            topo,
             rest,
             scale,
             nodes,
@@ -262,12 +288,19 @@ impl Registration {
             .map(|p| vec3::scale(*p, self.scale))
             .collect();
         let tree = KdTree::new(&pts);
+        let use_normals = self.params.w_plane > 0.0 || self.params.max_normal_angle < 90.0;
+        let normals = if use_normals {
+            estimate_normals(&pts, &tree, 10)
+        } else {
+            vec![[0.0; 3]; pts.len()]
+        };
         let bpts: Vec<V3> = pts
             .iter()
             .zip(&scan.boundary)
             .filter(|(_, &b)| b)
             .map(|(p, _)| *p)
             .collect();
+        let cos_max = self.params.max_normal_angle.to_radians().cos();
         let (mut wr, mut ws) = (self.params.w_rigid, self.params.w_smooth);
         let mut prev_energy = f64::INFINITY;
         let iters = self.params.iterations;
@@ -275,16 +308,29 @@ impl Registration {
             let frac = it as f64 / (iters.max(2) - 1) as f64;
             let max_d = self.params.max_pair_dist * (1.0 - 2.0 / 3.0 * frac);
             let cur = self.deformed();
-            let pairs: Vec<Option<V3>> = cur
+            let cur_n = vertex_normals(&self.topo, &cur);
+            let pairs: Vec<Option<Pair>> = cur
                 .iter()
-                .map(|p| {
-                    tree.nearest(*p)
-                        .filter(|&(_, d2)| d2 <= max_d * max_d)
-                        .map(|(i, _)| pts[i])
+                .zip(&cur_n)
+                .map(|(p, n)| {
+                    let (i, d2) = tree.nearest(*p)?;
+                    let m = normals[i];
+                    let compatible =
+                        !use_normals || vec3::dot(vec3::normalize(*n), m).abs() >= cos_max;
+                    (d2 <= max_d * max_d && compatible).then_some(Pair {
+                        target: pts[i],
+                        normal: m,
+                    })
                 })
                 .collect();
             let bound = boundary_pairs(&self.boundary_vertices, &cur, &bpts);
-            let energy = self.gauss_newton_step(&pairs, &bound, wr, ws)?;
+            let mut energy = 0.0;
+            for step in 0..self.params.gn_steps {
+                let e = self.gauss_newton_step(&pairs, &bound, wr, ws)?;
+                if step == 0 {
+                    energy = e;
+                }
+            }
             if std::env::var_os("CREASE_DEEP_DEBUG").is_some() {
                 let paired = pairs.iter().filter(|p| p.is_some()).count();
                 eprintln!(
@@ -308,7 +354,7 @@ impl Registration {
     /// One Gauss–Newton step of Eq. 1 at the current transforms; returns the energy before the step.
     fn gauss_newton_step(
         &mut self,
-        pairs: &[Option<V3>],
+        pairs: &[Option<Pair>],
         bound: &[(u32, V3)],
         wr: f64,
         ws: f64,
@@ -316,39 +362,57 @@ impl Registration {
         let n = self.nodes.len() * NV;
         let mut sys = NormalEq::new(n);
         let mut energy = 0.0;
-        // Data and boundary: per vertex coordinate c, v'_c = Σ_j w (Σ_d A_j[c][d] (v − g_j)_d + g_j[c] + t_j[c]).
-        let vertex_rows =
+        // Data and boundary. Per vertex coordinate c, v'_c = Σ_j w (Σ_d A_j[c][d] (v − g_j)_d + g_j[c] + t_j[c]):
+        // the Jacobian rows of the three coordinates, and the current position.
+        let coord_rows = |v: usize| -> ([Vec<(usize, f64)>; 3], V3) {
+            let p = self.rest[v];
+            let mut cur = [0.0; 3];
+            for &(j, w) in &self.influence[v] {
+                cur = vec3::add(cur, vec3::scale(self.apply_node(j as usize, p), w));
+            }
+            let rows = std::array::from_fn(|c| {
+                let mut row: Vec<(usize, f64)> = Vec::with_capacity(16);
+                for &(j, w) in &self.influence[v] {
+                    let base = j as usize * NV;
+                    let d = vec3::sub(p, self.nodes[j as usize]);
+                    for (dd, dv) in d.iter().enumerate() {
+                        row.push((base + 3 * c + dd, w * dv));
+                    }
+                    row.push((base + 9 + c, w));
+                }
+                row
+            });
+            (rows, cur)
+        };
+        let point_rows =
             |sys: &mut NormalEq, energy: &mut f64, v: usize, target: V3, weight: f64| {
-                let p = self.rest[v];
-                let cur = {
-                    let mut o = [0.0; 3];
-                    for &(j, w) in &self.influence[v] {
-                        o = vec3::add(o, vec3::scale(self.apply_node(j as usize, p), w));
-                    }
-                    o
-                };
+                let (rows, cur) = coord_rows(v);
                 for c in 0..3 {
-                    let mut row: Vec<(usize, f64)> = Vec::with_capacity(16);
-                    for &(j, w) in &self.influence[v] {
-                        let base = j as usize * NV;
-                        let d = vec3::sub(p, self.nodes[j as usize]);
-                        for (dd, dv) in d.iter().enumerate() {
-                            row.push((base + 3 * c + dd, w * dv));
-                        }
-                        row.push((base + 9 + c, w));
-                    }
                     let r = cur[c] - target[c];
                     *energy += weight * r * r;
-                    sys.add_row(&row, r, weight);
+                    sys.add_row(&rows[c], r, weight);
                 }
             };
-        for (v, t) in pairs.iter().enumerate() {
-            if let Some(t) = t {
-                vertex_rows(&mut sys, &mut energy, v, *t, 1.0);
+        for (v, pair) in pairs.iter().enumerate() {
+            let Some(pair) = pair else { continue };
+            if self.params.w_point > 0.0 {
+                point_rows(&mut sys, &mut energy, v, pair.target, self.params.w_point);
+            }
+            if self.params.w_plane > 0.0 {
+                // Point-to-plane: n · (v' − s), one row combining the coordinate rows.
+                let (rows, cur) = coord_rows(v);
+                let n = pair.normal;
+                let r = vec3::dot(n, vec3::sub(cur, pair.target));
+                let mut row: Vec<(usize, f64)> = Vec::with_capacity(48);
+                for c in 0..3 {
+                    row.extend(rows[c].iter().map(|&(i, a)| (i, a * n[c])));
+                }
+                energy += self.params.w_plane * r * r;
+                sys.add_row(&row, r, self.params.w_plane);
             }
         }
         for &(v, t) in bound {
-            vertex_rows(&mut sys, &mut energy, v as usize, t, self.params.w_bound);
+            point_rows(&mut sys, &mut energy, v as usize, t, self.params.w_bound);
         }
         // Rigidity: columns of A orthonormal.
         for j in 0..self.nodes.len() {
@@ -402,6 +466,13 @@ impl Registration {
         }
         Ok(energy)
     }
+}
+
+/// A data pair: the scan point a vertex is pulled to and the scan's (unoriented) normal there.
+#[derive(Debug, Clone, Copy)]
+struct Pair {
+    target: V3,
+    normal: V3,
 }
 
 fn dist2(a: V3, b: V3) -> f64 {
@@ -474,12 +545,24 @@ impl NormalEq {
     }
 
     fn add_row(&mut self, row: &[(usize, f64)], r: f64, w: f64) {
+        // Group the row's entries by node block once, so each block pair costs one map lookup.
+        let mut groups: Vec<(u32, Vec<(usize, f64)>)> = Vec::with_capacity(4);
         for &(i, a) in row {
             self.rhs[i] += w * a * r;
-            for &(j, b) in row {
-                let key = ((i / NV) as u32, (j / NV) as u32);
-                let blk = self.blocks.entry(key).or_insert([0.0; NV * NV]);
-                blk[(i % NV) * NV + j % NV] += w * a * b;
+            let b = (i / NV) as u32;
+            match groups.iter_mut().find(|g| g.0 == b) {
+                Some(g) => g.1.push((i % NV, a)),
+                None => groups.push((b, vec![(i % NV, a)])),
+            }
+        }
+        for (bi, ei) in &groups {
+            for (bj, ej) in &groups {
+                let blk = self.blocks.entry((*bi, *bj)).or_insert([0.0; NV * NV]);
+                for &(i, a) in ei {
+                    for &(j, b) in ej {
+                        blk[i * NV + j] += w * a * b;
+                    }
+                }
             }
         }
     }

@@ -69,6 +69,26 @@ pub struct BenchArgs {
     /// Run only the video edge stage.
     #[arg(long)]
     pub edges_only: bool,
+    /// DeepWrinkles instead: inference per frame (map rasterisation, generator forward) and cGAN training
+    /// time per epoch (see `bench_deep`).
+    #[arg(long)]
+    pub deep: bool,
+    /// Normal map resolution of `--deep`.
+    #[arg(long, default_value_t = 256)]
+    pub deep_resolution: usize,
+    /// Filters of the generator's (and discriminator's) first layer in `--deep` (paper: 64).
+    #[arg(long, default_value_t = 64)]
+    pub deep_filters: usize,
+    /// A training directory (captured/, gt/) whose first frames `--deep` uses; default: a synthetic tube of the
+    /// sleeve's size.
+    #[arg(long)]
+    pub deep_data: Option<PathBuf>,
+    /// Timed cGAN training steps in `--deep`.
+    #[arg(long, default_value_t = 3)]
+    pub deep_train_steps: usize,
+    /// Frames of the epoch whose training time `--deep` reports (sleeve-train: 240 in two sequences).
+    #[arg(long, default_value_t = 240)]
+    pub deep_epoch_frames: usize,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -115,6 +135,9 @@ pub(crate) fn case_input(
 pub fn bench(a: BenchArgs) -> Result<()> {
     if a.cluster {
         return crate::bench_cluster::bench_cluster(&a);
+    }
+    if a.deep {
+        return crate::bench_deep::bench_deep(&a);
     }
     if a.edges_only {
         let edges = edges_stage(&a)?;

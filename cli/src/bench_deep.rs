@@ -127,7 +127,10 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
         }
     }
     let (raster_ms, forward_ms) = (median_ms(raster), median_ms(forward));
-    println!("  texel map set-up (once per model): {texel_setup_ms:.1} ms");
+    println!(
+        "  texel map set-up (once per model): {texel_setup_ms:.1} ms; the surface covers {:.0}% of the texels",
+        100.0 * texels.coverage()
+    );
     println!("  per frame: rasterise coarse normal map {raster_ms:.1} ms + generator forward {forward_ms:.1} ms = {:.1} ms (target ≤ 50 ms at 256² on one core)", raster_ms + forward_ms);
 
     // Training: one step (discriminator + generator, batch 1) per training frame.
@@ -163,6 +166,7 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
             "threads": threads,
             "repeats": a.repeats,
             "texel_setup_ms": texel_setup_ms,
+            "coverage": texels.coverage(),
             "raster_ms": raster_ms,
             "forward_ms": forward_ms,
             "per_frame_ms": raster_ms + forward_ms,

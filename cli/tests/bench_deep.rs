@@ -50,6 +50,8 @@ fn bench_deep_reports_rasterisation_forward_and_training_times() {
         let v = d[key].as_f64().unwrap_or(f64::NAN);
         assert!(v.is_finite() && v > 0.0, "{key} = {v}");
     }
+    let coverage = d["coverage"].as_f64().unwrap();
+    assert!(coverage > 0.1 && coverage <= 1.0, "coverage {coverage}");
     let sum = d["raster_ms"].as_f64().unwrap() + d["forward_ms"].as_f64().unwrap();
     assert!((d["per_frame_ms"].as_f64().unwrap() - sum).abs() < 1e-9);
 

@@ -45,8 +45,11 @@ fn tube(na: usize, nr: usize, ripple: f64) -> (Topology, Vec<V3>) {
     )
 }
 
+/// Two consecutive frames of one mesh.
+type FramePair = [Vec<V3>; 2];
+
 /// Frames 0 and 1 of `dir/captured` and `dir/gt` (coarse, fine).
-fn training_frames(dir: &Path) -> Result<(Topology, [Vec<V3>; 2], [Vec<V3>; 2])> {
+fn training_frames(dir: &Path) -> Result<(Topology, FramePair, FramePair)> {
     let c = open_sequence(&dir.join("captured"))?.source;
     let f = open_sequence(&dir.join("gt"))?.source;
     if c.n_frames() < 2 || f.n_frames() < 2 {

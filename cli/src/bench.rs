@@ -88,6 +88,26 @@ pub struct BenchArgs {
     /// Anchors per frame of the dispatch benchmark (one weight-block task each).
     #[arg(long, default_value_t = 40)]
     pub dispatch_anchors: usize,
+    /// DeepWrinkles instead: inference per frame (map rasterisation, generator forward) and cGAN training
+    /// time per epoch (see `bench_deep`).
+    #[arg(long)]
+    pub deep: bool,
+    /// Normal map resolution of `--deep`.
+    #[arg(long, default_value_t = 256)]
+    pub deep_resolution: usize,
+    /// Filters of the generator's (and discriminator's) first layer in `--deep` (paper: 64).
+    #[arg(long, default_value_t = 64)]
+    pub deep_filters: usize,
+    /// A training directory (captured/, gt/) whose first frames `--deep` uses; default: a synthetic tube of the
+    /// sleeve's size.
+    #[arg(long)]
+    pub deep_data: Option<PathBuf>,
+    /// Timed cGAN training steps in `--deep`.
+    #[arg(long, default_value_t = 3)]
+    pub deep_train_steps: usize,
+    /// Frames of the epoch whose training time `--deep` reports (sleeve-train: 240 in two sequences).
+    #[arg(long, default_value_t = 240)]
+    pub deep_epoch_frames: usize,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -140,6 +160,9 @@ pub fn bench(a: BenchArgs) -> Result<()> {
     }
     if a.dispatch {
         return crate::bench_dispatch::bench_dispatch(&a);
+    }
+    if a.deep {
+        return crate::bench_deep::bench_deep(&a);
     }
     if a.edges_only {
         let edges = edges_stage(&a)?;

@@ -3,6 +3,7 @@
 mod arg_errors;
 mod bench;
 mod bench_cluster;
+mod bench_deep;
 mod bench_dispatch;
 mod bench_jobs;
 mod bench_pipeline;

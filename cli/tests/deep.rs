@@ -165,7 +165,9 @@ fn train_apply_writes_the_output_contract_deterministically() {
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
     assert_eq!(manifest["version"], 1);
-    assert_eq!(manifest["k"], 6);
+    // The synthetic shapes are affine in the two pose numbers that move (a, b): the subspace keeps only
+    // components with non-negligible variance, so k is capped at that rank.
+    assert_eq!(manifest["k"], 2);
     assert!(manifest["files"]["cgan.safetensors"].is_object());
     assert!(manifest["files"]["lstm.safetensors"].is_object());
     // Retraining with the same seed gives the same model files.

@@ -165,6 +165,9 @@ pub fn spec_uris(spec: &JobSpec) -> Vec<(&'static str, &str)> {
         }
         _ => {}
     }
+    if let Some(deep) = &spec.deep {
+        v.extend(deep.uris());
+    }
     v
 }
 

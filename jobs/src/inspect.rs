@@ -33,17 +33,10 @@ pub struct InputInfo {
 pub async fn inspect_input(spec: &JobSpec) -> Result<InputInfo, JobError> {
     spec.validate()?;
     let cache = std::env::temp_dir().join("crease-cache");
-    let input = fetch_input_to_cache(&spec.input, &cache).await?;
-    let anchors = match &spec.folds {
-        FoldSpec::Anchors { uri } => Some((uri.clone(), fetch_input_to_cache(uri, &cache).await?)),
-        _ => None,
+    let info = match &spec.deep {
+        Some(deep) => crate::deep::inspect::inspect(spec, deep, &cache).await?,
+        None => inspect_deformation(spec, &cache).await?,
     };
-    let fold_inputs = crate::detect::fetch_fold_inputs(&spec.folds, &cache).await?;
-    let spec2 = spec.clone();
-    let info =
-        tokio::task::spawn_blocking(move || inspect_local(&spec2, &input, anchors, &fold_inputs))
-            .await
-            .map_err(|e| JobError::input(&spec.input, format!("inspection panicked: {e}")))??;
     // Output: usable, and not the input directory (the output files have the input's names).
     let storage =
         Storage::open(&spec.output).map_err(|e| JobError::spec("output", e.to_string()))?;
@@ -69,6 +62,20 @@ pub async fn inspect_input(spec: &JobSpec) -> Result<InputInfo, JobError> {
         .map_err(|e| JobError::spec("output", format!("not writable: {e}")))?;
     storage.delete(&probe).await?;
     Ok(info)
+}
+
+/// The input of a deformation job: the sequence, the anchors file, the detector's inputs.
+async fn inspect_deformation(spec: &JobSpec, cache: &Path) -> Result<InputInfo, JobError> {
+    let input = fetch_input_to_cache(&spec.input, cache).await?;
+    let anchors = match &spec.folds {
+        FoldSpec::Anchors { uri } => Some((uri.clone(), fetch_input_to_cache(uri, cache).await?)),
+        _ => None,
+    };
+    let fold_inputs = crate::detect::fetch_fold_inputs(&spec.folds, cache).await?;
+    let spec2 = spec.clone();
+    tokio::task::spawn_blocking(move || inspect_local(&spec2, &input, anchors, &fold_inputs))
+        .await
+        .map_err(|e| JobError::input(&spec.input, format!("inspection panicked: {e}")))?
 }
 
 fn same_dir(a: &Path, b: &Path) -> bool {

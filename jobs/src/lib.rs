@@ -111,6 +111,7 @@
 //! `jobs/tests/pipeline.rs` checks this.
 
 pub mod confine;
+pub mod deep;
 pub mod detect;
 pub mod error;
 pub mod execute;

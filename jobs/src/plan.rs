@@ -28,6 +28,9 @@ use crease_core::spacetime::WeightMode;
 /// The initial task graph of a job.
 pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
     job.validate()?;
+    if let Some(deep) = &job.deep {
+        return Ok(crate::deep::plan::plan(job, deep, info));
+    }
     let n = info.n_frames;
     if n == 0 {
         return Err(JobError::Plan("the input has no frames".into()));
@@ -110,6 +113,9 @@ pub fn expand(
 
 /// Storage keys (relative to the job's output) that must all exist before the job may be marked done.
 pub fn final_outputs(job: &JobSpec, info: &InputInfo) -> Vec<String> {
+    if job.deep.is_some() {
+        return crate::deep::plan::final_outputs(info);
+    }
     let mut out = info.output_files.clone();
     if info.anchors_per_frame.is_none() {
         out.push(keys::ANCHORS.to_string());

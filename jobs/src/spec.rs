@@ -49,6 +49,9 @@ pub struct JobSpec {
     /// Formats finalize also writes (`[export]`, see [`crate::export_spec`]).
     #[serde(default)]
     pub export: crate::export_spec::ExportSpec,
+    /// DeepWrinkles training or inference instead of a deformation ([`crate::deep`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deep: Option<crate::deep::DeepSpec>,
 }
 
 fn default_max_task_attempts() -> u32 {
@@ -218,6 +221,9 @@ impl JobSpec {
         parse_location(&self.output, "output")?;
         for (field, uri) in crate::confine::spec_uris(self) {
             crate::confine::check_remote_uri(field, uri)?;
+        }
+        if let Some(deep) = &self.deep {
+            deep.validate(self)?;
         }
         // The detectors name parameters as their CLI flags do (`fold-width`, `theta0`); the spec names fields.
         let param_err = |e: crease_core::Error| match e {

@@ -37,6 +37,12 @@ pub enum TaskSpec {
     Position { job: JobSpec, frames: Range<usize> },
     /// Write the output sequence, previews and `report.json` (last).
     Finalize { job: JobSpec },
+    /// Train a DeepWrinkles model and publish it under `model/` ([`crate::deep`]).
+    DeepTrain { job: JobSpec },
+    /// Apply a DeepWrinkles model to `frames`.
+    DeepApply { job: JobSpec, frames: Range<usize> },
+    /// Write `done.json` and `report.json` once all `frames` frames of a deep apply are stored.
+    DeepFinish { job: JobSpec, frames: usize },
 }
 
 impl TaskSpec {
@@ -52,6 +58,9 @@ impl TaskSpec {
             TaskSpec::Reduce { .. } => "reduce",
             TaskSpec::Position { .. } => "position",
             TaskSpec::Finalize { .. } => "finalize",
+            TaskSpec::DeepTrain { .. } => "deep-train",
+            TaskSpec::DeepApply { .. } => "deep-apply",
+            TaskSpec::DeepFinish { .. } => "deep-finish",
         }
     }
 
@@ -66,7 +75,10 @@ impl TaskSpec {
             | TaskSpec::WeightWindow { job, .. }
             | TaskSpec::Reduce { job, .. }
             | TaskSpec::Position { job, .. }
-            | TaskSpec::Finalize { job } => job,
+            | TaskSpec::Finalize { job }
+            | TaskSpec::DeepTrain { job }
+            | TaskSpec::DeepApply { job, .. }
+            | TaskSpec::DeepFinish { job, .. } => job,
         }
     }
 

@@ -9,6 +9,7 @@
 //! [`crease_core::spacetime::stages`] functions in a fixed order, so what it writes does not depend on the
 //! worker, the number of workers, or how many times it ran.
 
+mod deep;
 mod env;
 mod exact;
 mod export;
@@ -93,6 +94,9 @@ fn run_kind(
         TaskSpec::Reduce { window, .. } => weights::reduce(&env, *window)?,
         TaskSpec::Position { frames, .. } => position::position(&env, frames.clone())?,
         TaskSpec::Finalize { .. } => finalize::finalize(&env)?,
+        TaskSpec::DeepTrain { .. } => deep::train(&env)?,
+        TaskSpec::DeepApply { frames, .. } => deep::apply(&env, frames.clone())?,
+        TaskSpec::DeepFinish { frames, .. } => deep::finish(&env, *frames)?,
     };
     Ok(TaskOutput {
         summary,

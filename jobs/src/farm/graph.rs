@@ -91,6 +91,9 @@ impl Stage {
             TaskSpec::Reduce { .. } => Stage::Reduce,
             TaskSpec::Position { .. } => Stage::Position,
             TaskSpec::Finalize { .. } => Stage::Finalize,
+            // Refused by `farm_graph` before any stage is asked for.
+            TaskSpec::DeepTrain { .. } | TaskSpec::DeepApply { .. } => Stage::Position,
+            TaskSpec::DeepFinish { .. } => Stage::Finalize,
         }
     }
 }
@@ -168,6 +171,13 @@ pub fn farm_graph(
     if block_slots == 0 || block_slots > 4096 {
         return Err(JobError::Plan(format!(
             "block slots must be in 1..=4096, got {block_slots}"
+        )));
+    }
+    if let Some(deep) = &job.deep {
+        return Err(JobError::Plan(format!(
+            "a [deep] job ({}) cannot be exported to a render farm: its tasks run only in crease's own \
+             workers (the farm export expresses deformation jobs); submit it to a coordinator or use `crease deep`",
+            deep.kind()
         )));
     }
     let mut tasks: Vec<TaskDef> = plan(job, info)?;

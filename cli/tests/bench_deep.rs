@@ -1,0 +1,73 @@
+//! `crease bench --deep` at a tiny size: it runs, reports both inference steps and the training step, and
+//! refuses nonsense. Timings are only checked to be measured (positive, finite), never against a bound.
+
+use std::process::Command;
+
+const BIN: &str = env!("CARGO_BIN_EXE_crease");
+
+#[test]
+fn bench_deep_reports_rasterisation_forward_and_training_times() {
+    let tmp = tempfile::tempdir().unwrap();
+    let json = tmp.path().join("deep.json");
+    let o = Command::new(BIN)
+        .args([
+            "bench",
+            "--deep",
+            "--threads",
+            "1",
+            "--deep-resolution",
+            "32",
+        ])
+        .args([
+            "--deep-filters",
+            "4",
+            "--repeats",
+            "2",
+            "--deep-train-steps",
+            "1",
+        ])
+        .args([
+            "--deep-epoch-frames",
+            "10",
+            "--json",
+            json.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(out.contains("generator forward"), "{out}");
+    let doc: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let d = &doc["deep"];
+    assert_eq!(d["resolution"], 32);
+    assert_eq!(d["threads"], 1);
+    assert_eq!(d["vertices"], 80 * 92, "the sleeve-sized tube");
+    for key in ["raster_ms", "forward_ms", "train_step_ms", "epoch_s"] {
+        let v = d[key].as_f64().unwrap_or(f64::NAN);
+        assert!(v.is_finite() && v > 0.0, "{key} = {v}");
+    }
+    let coverage = d["coverage"].as_f64().unwrap();
+    assert!(coverage > 0.1 && coverage <= 1.0, "coverage {coverage}");
+    let sum = d["raster_ms"].as_f64().unwrap() + d["forward_ms"].as_f64().unwrap();
+    assert!((d["per_frame_ms"].as_f64().unwrap() - sum).abs() < 1e-9);
+
+    // A resolution the generator cannot take is a clear error, not a panic.
+    let o = Command::new(BIN)
+        .args([
+            "bench",
+            "--deep",
+            "--deep-resolution",
+            "48",
+            "--repeats",
+            "1",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("resolution") && err.contains("48"), "{err}");
+}

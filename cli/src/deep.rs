@@ -42,6 +42,7 @@ pub struct RegisterArgs {
     /// Directory of numbered scans: OBJ `v x y z [r g b]` points, boundary points coloured red.
     #[arg(long)]
     pub scans: PathBuf,
+    /// Directory for the registered meshes, OUT/frame_NNNN.obj in the scans' order.
     #[arg(long)]
     pub out: PathBuf,
     /// Rigidity weight ω_r (paper: 500).
@@ -59,6 +60,7 @@ pub struct RegisterArgs {
     /// ICP iterations per scan.
     #[arg(long, default_value_t = 30)]
     pub iterations: usize,
+    /// No progress bar or summary lines (errors are still printed).
     #[arg(long)]
     pub quiet: bool,
 }
@@ -83,14 +85,19 @@ pub struct TrainArgs {
     /// Ridge weight of the linear regression (relative).
     #[arg(long, default_value_t = 1e-3)]
     pub ridge: f64,
+    /// LSTM layers of the encoder and of the decoder (paper: 4).
     #[arg(long, default_value_t = 4)]
     pub lstm_layers: usize,
+    /// LSTM hidden units per layer (paper: 256).
     #[arg(long, default_value_t = 256)]
     pub lstm_hidden: usize,
+    /// Frames per LSTM input sequence (paper: 3).
     #[arg(long, default_value_t = 3)]
     pub lstm_seq: usize,
+    /// LSTM training epochs (with --regressor lstm).
     #[arg(long, default_value_t = 300)]
     pub lstm_epochs: usize,
+    /// LSTM learning rate (Adam).
     #[arg(long, default_value_t = 1e-3)]
     pub lstm_lr: f64,
     /// Seed of every random choice (weights, batches): the same seed gives the same model.
@@ -117,12 +124,14 @@ pub struct TrainArgs {
     /// cGAN checkpoint directory, written after every epoch and resumed when present.
     #[arg(long)]
     pub checkpoint: Option<PathBuf>,
+    /// No progress bar or summary lines (errors are still printed).
     #[arg(long)]
     pub quiet: bool,
 }
 
 #[derive(Args, Debug)]
 pub struct ApplyArgs {
+    /// Model directory written by `crease deep train` (checked against its manifest).
     #[arg(long)]
     pub model: PathBuf,
     /// Pose file (pose.json): shapes come from the model's regression.
@@ -131,6 +140,7 @@ pub struct ApplyArgs {
     /// Coarse mesh sequence in the model's topology (e.g. a capture).
     #[arg(long)]
     pub coarse: Option<PathBuf>,
+    /// Output directory: mesh/frame_NNNN.obj (with vt) and normals/frame_NNNN.png per frame, done.json last.
     #[arg(long)]
     pub out: PathBuf,
     /// Normal map space: world (default) or tangent.
@@ -142,6 +152,7 @@ pub struct ApplyArgs {
     /// Write the coarse maps without the cGAN.
     #[arg(long)]
     pub no_cgan: bool,
+    /// No progress bar or summary lines (errors are still printed).
     #[arg(long)]
     pub quiet: bool,
 }
@@ -154,10 +165,13 @@ pub struct BakeArgs {
     /// Detailed sequence (any mode's output, or gt), same frame count; may have another topology.
     #[arg(long)]
     pub detailed: PathBuf,
+    /// Output directory, laid out as `crease deep apply` writes it (mesh/, normals/, done.json).
     #[arg(long)]
     pub out: PathBuf,
+    /// Normal map space: world (default) or tangent.
     #[arg(long, default_value = "world")]
     pub space: Space,
+    /// Normal map resolution (square, texels per side).
     #[arg(long, default_value_t = 256)]
     pub resolution: usize,
     /// OBJ with the UV layout to use (required to have `vt`); default: the coarse input's own `vt`, else
@@ -167,6 +181,7 @@ pub struct BakeArgs {
     /// How far a texel's ray may reach for the detailed surface, in coarse edge lengths.
     #[arg(long, default_value_t = 8.0)]
     pub max_dist: f64,
+    /// No progress bar or summary lines (errors are still printed).
     #[arg(long)]
     pub quiet: bool,
 }

@@ -15,7 +15,7 @@ use crease_core::mesh::geometry::vertex_normals;
 use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::{Frame, Sequence, Topology};
 use crease_core::vec3::{self, V3};
-use crease_deep::autoregress::{AutoregressiveLinear, ShapeHistory};
+use crease_deep::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
 use crease_deep::bake::{map_normal_error, mesh_normal_error};
 use crease_deep::cgan::{Cgan, CganConfig, Sample};
 use crease_deep::cgan_data::{map_pairs, samples};
@@ -47,9 +47,11 @@ fn main() -> R<()> {
             &arg(1).ok_or("DATA")?,
             &arg(2).ok_or("OUT")?,
             &arg(3).unwrap_or("seed_3".into()),
-            arg(4).map_or(Ok(300), |s| s.parse())?,
-            arg(5).map_or(Ok(4), |s| s.parse())?,
-            arg(6).map_or(Ok(256), |s| s.parse())?,
+            LstmShape {
+                epochs: arg(4).map_or(Ok(300), |s| s.parse())?,
+                layers: arg(5).map_or(Ok(4), |s| s.parse())?,
+                hidden: arg(6).map_or(Ok(256), |s| s.parse())?,
+            },
             arg(7).map_or(Ok(1e-3), |s| s.parse())?,
             &arg(8)
                 .unwrap_or("10,25,50".into())
@@ -153,16 +155,26 @@ fn subspace(data: &str, out: &str, held: &str) -> R<()> {
     )
 }
 
+/// The LSTM rows of `regression`: training epochs (0 skips them), layers and hidden units.
+struct LstmShape {
+    epochs: usize,
+    layers: usize,
+    hidden: usize,
+}
+
 fn regression(
     data: &str,
     out: &str,
     held: &str,
-    epochs: usize,
-    layers: usize,
-    hidden: usize,
+    lstm: LstmShape,
     ridge: f64,
     ar_states: &[usize],
 ) -> R<()> {
+    let LstmShape {
+        epochs,
+        layers,
+        hidden,
+    } = lstm;
     let (train, test) = split(data, held)?;
     let frames: Vec<&[V3]> = train
         .iter()
@@ -245,7 +257,7 @@ fn regression(
         .map(|s| s.fine.iter().map(|f| sub.project(f, k)).collect())
         .collect();
     let tc = spec.controls(&test.poses)?;
-    let seqs: Vec<(&[Vec<f64>], &[Vec<f64>])> = train_c
+    let seqs: Vec<ControlsAndCoefficients> = train_c
         .iter()
         .zip(&train_a)
         .map(|(c, a)| (c.as_slice(), a.as_slice()))
@@ -310,7 +322,7 @@ fn regression(
     };
     let log = |name: &'static str| {
         move |e: usize, l: f64| {
-            if (e + 1) % 25 == 0 {
+            if (e + 1).is_multiple_of(25) {
                 eprintln!("{name} epoch {}: {l:.5}", e + 1)
             }
         }
@@ -535,7 +547,7 @@ fn cgan(
         .map(|s| s.fine.iter().map(|f| sub.project(f, 200)).collect())
         .collect();
     let a_refs: Vec<&[Vec<f64>]> = train_a.iter().map(|a| a.as_slice()).collect();
-    let seqs: Vec<(&[Vec<f64>], &[Vec<f64>])> = train_c
+    let seqs: Vec<ControlsAndCoefficients> = train_c
         .iter()
         .zip(&train_a)
         .map(|(c, a)| (c.as_slice(), a.as_slice()))

@@ -96,6 +96,9 @@ impl ShapeHistory {
     }
 }
 
+/// One training sequence: its control vectors and its true subspace coefficients, frame by frame.
+pub type ControlsAndCoefficients<'a> = (&'a [Vec<f64>], &'a [Vec<f64>]);
+
 /// Ridge regression on [pose controls, earlier coefficients], rolled out frame by frame.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct AutoregressiveLinear {
@@ -108,7 +111,7 @@ impl AutoregressiveLinear {
     /// forcing); each of the `dagger_rounds` further rounds adds the histories of a rollout over every training
     /// sequence, paired with the true coefficients, and refits.
     pub fn fit(
-        sequences: &[(&[Vec<f64>], &[Vec<f64>])],
+        sequences: &[ControlsAndCoefficients<'_>],
         history: ShapeHistory,
         alpha: f64,
         dagger_rounds: usize,

@@ -645,9 +645,9 @@ fn enhance_with(gen: &Generator, input: &NormalMap) -> Result<NormalMap> {
     let y = y.broadcast_div(&(norm + 1e-8).map_err(ce)?).map_err(ce)?;
     let planes: Vec<Vec<f32>> = y.flatten_from(1).map_err(ce)?.to_vec2().map_err(ce)?;
     let mut out = input.clone();
-    for k in 0..out.n.len() {
-        if out.covered[k] {
-            out.n[k] = [planes[0][k], planes[1][k], planes[2][k]];
+    for (k, (n, &covered)) in out.n.iter_mut().zip(&out.covered).enumerate() {
+        if covered {
+            *n = [planes[0][k], planes[1][k], planes[2][k]];
         }
     }
     Ok(out)

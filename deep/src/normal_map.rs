@@ -138,8 +138,8 @@ impl NormalMap {
                         if xx >= 0 && yy >= 0 && xx < w && yy < h {
                             let j = (yy * w + xx) as usize;
                             if prev.covered[j] {
-                                for c in 0..3 {
-                                    acc[c] += prev.n[j][c];
+                                for (a, v) in acc.iter_mut().zip(prev.n[j]) {
+                                    *a += v;
                                 }
                                 any = true;
                             }
@@ -174,8 +174,8 @@ impl NormalMap {
             let yi = (y0 as i64 + dy).clamp(0, self.height as i64 - 1) as usize;
             let k = yi * self.width + xi;
             if self.covered[k] && wt > 0.0 {
-                for c in 0..3 {
-                    acc[c] += wt * self.n[k][c] as f64;
+                for (a, v) in acc.iter_mut().zip(self.n[k]) {
+                    *a += wt * v as f64;
                 }
                 wsum += wt;
             }

@@ -229,9 +229,9 @@ pub fn auto_atlas(topo: &Topology, positions: &[V3], gutter: f64) -> Result<UvLa
         .map(|n| {
             let mut best = 0u8;
             let mut best_d = f64::NEG_INFINITY;
-            for axis in 0..3 {
+            for (axis, component) in n.iter().enumerate() {
                 for (s, sign) in [1.0, -1.0].iter().enumerate() {
-                    let d = n[axis] * sign;
+                    let d = component * sign;
                     if d > best_d {
                         best_d = d;
                         best = (2 * axis + s) as u8;

@@ -1,7 +1,7 @@
 //! Autoregressive regression (§3.3 with the previous shape coefficients in the control vector): on a system
 //! whose state is its history, the rollout from pose alone recovers what a pose-only map cannot.
 
-use crease_deep::autoregress::{AutoregressiveLinear, ShapeHistory};
+use crease_deep::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
 use crease_deep::regress::LinearRegression;
 
 /// A leaky integrator of the pose: a_t = 0.8 a_{t−1} + 0.5 pose_t, two coefficients (the second a copy scaled
@@ -32,7 +32,7 @@ fn rms(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
 fn rollout_from_pose_alone_recovers_a_history_dependent_shape() {
     let train = [sequence(0.21, 0.0, 150), sequence(0.13, 1.0, 150)];
     let test = sequence(0.17, 2.0, 150);
-    let seqs: Vec<(&[Vec<f64>], &[Vec<f64>])> = train
+    let seqs: Vec<ControlsAndCoefficients> = train
         .iter()
         .map(|(c, a)| (c.as_slice(), a.as_slice()))
         .collect();

@@ -62,10 +62,7 @@ fn pose_files_with_nan_wrong_count_or_wrong_length_are_named() {
     assert!(e.contains("frame 2") && e.contains("2 numbers"), "{e}");
     std::fs::write(&p, r#"{"frames": []}"#).unwrap();
     assert!(err(read_pose_file(&p, None)).contains("pose_vectors"));
-    assert_eq!(
-        read_pose_file(&p.with_file_name("ok.json"), None).is_err(),
-        true
-    );
+    assert!(read_pose_file(&p.with_file_name("ok.json"), None).is_err());
 }
 
 #[test]

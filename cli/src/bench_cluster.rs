@@ -7,11 +7,8 @@
 //! wall time minus the worker-reported work time, averaged over tasks.
 
 use crate::bench::BenchArgs;
-use crate::local::LocalCluster;
 use anyhow::{bail, Context, Result};
-use crease_coordinator::JobClient;
 use serde_json::json;
-use std::time::Instant;
 
 pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
     let triangles = a.cluster_triangles;
@@ -63,28 +60,8 @@ pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
             "partition": { "anchor_block": a.cluster_anchor_block },
             "preview": { "size": 64 },
         });
-        let cache = dir.join("cache");
-        let (status, wall) = rt.block_on(async {
-            let cluster = LocalCluster::start(n, 1, cache).await?;
-            let result = async {
-                let t0 = Instant::now();
-                let (id, _) = cluster.client.submit(spec.to_string(), "json").await?;
-                crate::cluster::follow(&cluster.client, &id, None).await?;
-                let wall = t0.elapsed().as_secs_f64();
-                let s = cluster.client.status(&id, true).await?;
-                anyhow::Ok((s, wall))
-            }
-            .await;
-            cluster.stop().await;
-            result
-        })?;
-        if status.state != "done" {
-            bail!(
-                "bench job with {n} workers {}: {}",
-                status.state,
-                status.message
-            );
-        }
+        let crate::bench_jobs::JobRun { status, wall } =
+            crate::bench_jobs::run_job(&rt, &spec, n, 1, dir.join("cache"))?;
         let tasks = status.tasks.len().max(1) as f64;
         let work: f64 = status.tasks.iter().map(|t| t.work_seconds).sum();
         let overhead: f64 = status

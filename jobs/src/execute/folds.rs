@@ -162,16 +162,7 @@ fn gather_chunks(
     for r in chunks(env, n) {
         env.check_cancelled()?;
         let chunk: Vec<FrameAnchors> = env.get_json(&keys::fold_chunk(r.start))?;
-        let timing: Value = env.get_json(&keys::fold_chunk_timing(r.start))?;
-        let seconds = timing
-            .get("seconds")
-            .and_then(Value::as_f64)
-            .ok_or_else(|| {
-                TaskError::fatal(format!(
-                    "{}: no `seconds`",
-                    env.out.describe(&keys::fold_chunk_timing(r.start))
-                ))
-            })?;
+        let seconds = chunk_seconds(env, r.start)?;
         for f in &chunk {
             per_frame.push(json!({
                 "frame": f.frame,
@@ -188,4 +179,14 @@ fn gather_chunks(
         .settle(source, frames)
         .map_err(|e| TaskError::from_core(&format!("{} fold merge", d.name()), e))?;
     Ok((frames, per_frame))
+}
+
+/// The detection seconds a chunk starting at frame `first` recorded beside its anchors.
+pub(super) fn chunk_seconds(env: &TaskEnv, first: usize) -> Result<f64, TaskError> {
+    let key = keys::fold_chunk_timing(first);
+    let timing: Value = env.get_json(&key)?;
+    timing
+        .get("seconds")
+        .and_then(Value::as_f64)
+        .ok_or_else(|| TaskError::fatal(format!("{}: no `seconds`", env.out.describe(&key))))
 }

@@ -219,16 +219,7 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
         let mut read_chunk = |r: &Range<usize>| -> Result<TracedChunk, TaskError> {
             env.check_cancelled()?;
             let chunk: TracedChunk = env.get_json(&keys::fold_trace_chunk(r.start))?;
-            let timing: Value = env.get_json(&keys::fold_chunk_timing(r.start))?;
-            let seconds = timing
-                .get("seconds")
-                .and_then(Value::as_f64)
-                .ok_or_else(|| {
-                    TaskError::fatal(format!(
-                        "{}: no `seconds`",
-                        env.out.describe(&keys::fold_chunk_timing(r.start))
-                    ))
-                })?;
+            let seconds = super::folds::chunk_seconds(env, r.start)?;
             if chunk.first != r.start || chunk.frames.len() != r.len() {
                 return Err(TaskError::fatal(format!(
                     "{}: holds {} frames from {}, expected frames {}..{}",

@@ -242,6 +242,9 @@ fn write_demo_video(a: &DemoArgs) -> Result<()> {
     // reconstruction from a capture, not of the cloth, so the truth is made without it.
     let truth = DeformParams {
         shape_cutoff: 0.0,
+        // Popa's stretch passes, not crease's fold-keeping default: the truth stays what it was whatever the
+        // reconstruction's defaults become.
+        stretch_rotation: StretchRotation::Polar,
         ..DeformParams::default()
     };
     deform(

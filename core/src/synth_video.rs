@@ -121,6 +121,9 @@ pub fn folded_demo_image(triangles: usize, width: u32, height: u32) -> Result<Rg
     let (seq, anchors) = crate::synth::demo(&spec)?;
     let truth = DeformParams {
         shape_cutoff: 0.0,
+        // Popa's stretch passes, not crease's fold-keeping default: the truth stays what it was whatever the
+        // reconstruction's defaults become.
+        stretch_rotation: crate::spacetime::stretch::StretchRotation::Polar,
         ..DeformParams::default()
     };
     let mut sink = crate::mesh::MemorySink::default();

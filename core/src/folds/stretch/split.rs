@@ -85,6 +85,7 @@ pub fn steps(
         a => Some(source.read_frame(a - 1)?),
     };
     let mut cur = source.read_frame(frames.start)?;
+    progress.begin("stretch steps", frames.len() as u64);
     for t in frames.clone() {
         if progress.cancelled() {
             return Err(Error::Cancelled);
@@ -118,6 +119,7 @@ pub fn steps(
         progress.advance("stretch steps", 1);
         prev = Some(std::mem::replace(&mut cur, next.unwrap_or_default()));
     }
+    progress.end("stretch steps");
     Ok(out)
 }
 
@@ -173,6 +175,8 @@ impl Phases<'_> {
             ));
         }
         let theta0 = self.params.theta0_deg.to_radians();
+        // One unit per frame step of each pass, as the single detector counts its two passes.
+        progress.begin("stretch phases", 2 * n.saturating_sub(1) as u64);
         for pass in [Pass::Backward, Pass::Forward] {
             let (first, order): (usize, Vec<usize>) = match pass {
                 Pass::Backward => (
@@ -219,6 +223,7 @@ impl Phases<'_> {
                 progress.advance("stretch phases", 1);
             }
         }
+        progress.end("stretch phases");
         Ok(())
     }
 }
@@ -442,7 +447,9 @@ pub fn trace_chunk(
     tracer.set_seeds(&[]);
     let mut out = Vec::with_capacity(frames.len());
     let mut entry_seeds = Vec::new();
-    for t in warm_up_start(&frames, warm_up)..frames.end {
+    let start = warm_up_start(&frames, warm_up);
+    progress.begin("stretch tracing", (frames.end - start) as u64);
+    for t in start..frames.end {
         if progress.cancelled() {
             return Err(Error::Cancelled);
         }
@@ -456,6 +463,7 @@ pub fn trace_chunk(
         }
         progress.advance("stretch tracing", 1);
     }
+    progress.end("stretch tracing");
     Ok(TracedChunk {
         first: frames.start,
         entry_seeds,

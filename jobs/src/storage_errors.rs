@@ -72,6 +72,11 @@ pub fn kind(e: &(dyn Error + 'static)) -> Kind {
         {
             return Kind::Full;
         }
+        // reqwest's words for a request that never got a response (refused or dropped connection). Some
+        // object_store paths (a PUT after its retries) keep only this text, not the typed connect error.
+        if text.contains("error sending request") {
+            return Kind::Unreachable;
+        }
         next = err.source();
     }
     Kind::Other
@@ -166,6 +171,18 @@ mod tests {
             source: "missing".into(),
         };
         assert_eq!(kind(&e), Kind::Other);
+    }
+
+    #[test]
+    fn a_request_that_was_never_answered_is_unreachable() {
+        let e = std::io::Error::other(
+            "Error performing PUT http://127.0.0.1:9/b/k after 2 retries - HTTP error: error sending request",
+        );
+        let msg = classify("s3://b/out", &e).to_string();
+        assert!(
+            msg.starts_with("storage unreachable at s3://b/out"),
+            "{msg}"
+        );
     }
 
     #[test]

@@ -10,7 +10,9 @@
 //! Each frame is processed on its own, so any frame range gives the same per-frame answer
 //! ([`Granularity::PerFrame`]); the automatic front/back vertices always come from frame 0 of the sequence.
 
+pub mod blur;
 pub mod cameras;
+pub mod canny;
 pub mod edges;
 pub mod merge;
 pub mod orient;
@@ -19,6 +21,7 @@ pub mod pairing;
 pub mod params;
 pub mod project;
 pub mod quadric;
+pub mod resample;
 pub mod shading;
 pub mod views;
 

@@ -8,6 +8,8 @@
 //! the same products in the same order as imageproc does (`acc = acc + pixel * tap`, taps in kernel order, from
 //! 0), so the rounding is the same.
 
+use super::scratch::Scratch;
+
 /// The normalised kernel imageproc uses for `sigma` (radius `⌈2σ⌉`), computed with the same expressions.
 pub fn gaussian_kernel(sigma: f32) -> Vec<f32> {
     let radius = (2.0 * sigma).ceil() as usize;
@@ -44,22 +46,22 @@ fn store(v: f32, s: Store) -> f32 {
     }
 }
 
-/// Correlates the `w x h` row-major image `src` with `kernel` along rows and then along columns, padding by
-/// continuity (the nearest border pixel), storing each pass as `mode` says. With `Store::U8`, `src` must hold
-/// whole numbers in 0–255 (a `u8` image) and so does the result.
-pub fn separable(src: &[f32], w: usize, h: usize, kernel: &[f32], mode: Store) -> Vec<f32> {
+/// Correlates the `w x h` row-major image `src` with `kernel` along rows and then along columns into `out`,
+/// padding by continuity (the nearest border pixel), storing each pass as `mode` says. With `Store::U8`, `src`
+/// must hold whole numbers in 0–255 (a `u8` image) and so does the result.
+pub fn separable(src: &[f32], w: usize, h: usize, kernel: &[f32], mode: Store, out: &mut [f32]) {
     assert_eq!(src.len(), w * h, "image buffer matches its size");
+    assert_eq!(out.len(), w * h, "output buffer matches the image size");
     assert!(kernel.len() % 2 == 1, "kernel has a centre tap");
     if w == 0 || h == 0 {
-        return Vec::new();
+        return;
     }
     let r = kernel.len() / 2;
     // Rows: pad each row by r copies of its end pixels, then every output pixel is a plain dot product.
-    let mut tmp = vec![0.0f32; w * h];
+    let mut tmp = Scratch::filled(w * h, 0.0f32);
     let mut padded = vec![0.0f32; w + 2 * r];
     let mut acc = vec![0.0f32; w];
-    for y in 0..h {
-        let row = &src[y * w..(y + 1) * w];
+    for (row, o) in src.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
         padded[..r].fill(row[0]);
         padded[r..r + w].copy_from_slice(row);
         padded[r + w..].fill(row[w - 1]);
@@ -69,13 +71,12 @@ pub fn separable(src: &[f32], w: usize, h: usize, kernel: &[f32], mode: Store) -
                 *a += p * k;
             }
         }
-        for (o, &a) in tmp[y * w..(y + 1) * w].iter_mut().zip(&acc) {
+        for (o, &a) in o.iter_mut().zip(&acc) {
             *o = store(a, mode);
         }
     }
     // Columns: the taps of output row y are the rows y + i - r, clamped into the image.
-    let mut out = vec![0.0f32; w * h];
-    for y in 0..h {
+    for (y, o) in out.chunks_exact_mut(w).enumerate() {
         acc.fill(0.0);
         for (i, &k) in kernel.iter().enumerate() {
             let sy = (y + i).saturating_sub(r).min(h - 1);
@@ -83,17 +84,22 @@ pub fn separable(src: &[f32], w: usize, h: usize, kernel: &[f32], mode: Store) -
                 *a += p * k;
             }
         }
-        for (o, &a) in out[y * w..(y + 1) * w].iter_mut().zip(&acc) {
+        for (o, &a) in o.iter_mut().zip(&acc) {
             *o = store(a, mode);
         }
     }
-    out
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use image::{GrayImage, ImageBuffer, Luma};
+
+    fn separable_vec(src: &[f32], w: usize, h: usize, kernel: &[f32], mode: Store) -> Vec<f32> {
+        let mut out = vec![0.0; w * h];
+        separable(src, w, h, kernel, mode, &mut out);
+        out
+    }
 
     /// A deterministic test image with smooth parts, steps and noise.
     fn pattern(w: usize, h: usize, seed: u64) -> Vec<f32> {
@@ -127,7 +133,7 @@ mod tests {
                 let buf: ImageBuffer<Luma<f32>, Vec<f32>> =
                     ImageBuffer::from_raw(w as u32, h as u32, unit.clone()).unwrap();
                 let want = imageproc::filter::gaussian_blur_f32(&buf, sigma).into_raw();
-                let got = separable(&unit, w, h, &k, Store::F32);
+                let got = separable_vec(&unit, w, h, &k, Store::F32);
                 assert_eq!(
                     got.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
                     want.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
@@ -137,7 +143,7 @@ mod tests {
                 let bytes: Vec<u8> = img.iter().map(|&v| v as u8).collect();
                 let gray = GrayImage::from_raw(w as u32, h as u32, bytes).unwrap();
                 let want = imageproc::filter::gaussian_blur_f32(&gray, sigma).into_raw();
-                let got = separable(&img, w, h, &k, Store::U8);
+                let got = separable_vec(&img, w, h, &k, Store::U8);
                 assert_eq!(
                     got.iter().map(|&v| v as u8).collect::<Vec<_>>(),
                     want,
@@ -155,7 +161,7 @@ mod tests {
         let img: Vec<f32> = pattern(w, h, 3).iter().map(|v| v / 255.0).collect();
         let k = gaussian_kernel(2.07);
         let r = (k.len() / 2) as i64;
-        let got = separable(&img, w, h, &k, Store::F32);
+        let got = separable_vec(&img, w, h, &k, Store::F32);
         let clampi = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize;
         for y in 0..h as i64 {
             for x in 0..w as i64 {
@@ -172,7 +178,7 @@ mod tests {
             }
         }
         // A constant image stays constant (the kernel sums to 1).
-        let flat = separable(&vec![0.25f32; 12 * 7], 12, 7, &k, Store::F32);
+        let flat = separable_vec(&[0.25f32; 12 * 7], 12, 7, &k, Store::F32);
         assert!(flat.iter().all(|&v| (v - 0.25).abs() < 1e-6));
     }
 }

@@ -3,7 +3,8 @@
 //!
 //! imageproc blurs through generic per-pixel accessors, runs Sobel as a 3x3 correlation with a clamp per tap,
 //! and calls `atan2` at every pixel to pick the non-maximum-suppression direction. Here the blur is the
-//! vectorised [`blur::separable`], Sobel reads clamped neighbour rows once per row, and the direction is found
+//! vectorised [`blur::separable`], Sobel works row by row on a ring of three gradient rows (no image-sized
+//! gradient buffers), and the direction is found
 //! by comparing the gradient with tan 22.5° and tan 67.5° — only a gradient within 0.1 % of those lines (where
 //! the rounding of `atan2` could decide) falls back to imageproc's `atan2` expression. Suppression only runs
 //! where the magnitude reaches the low threshold (a suppressed or weaker pixel can never be an edge), and
@@ -15,6 +16,7 @@
 //! square root is imageproc's `f32::hypot` (a unit test checks every gradient pair).
 
 use super::blur::{self, Store};
+use super::scratch::Scratch;
 
 /// σ of imageproc's Canny blur.
 pub const SIGMA: f32 = 1.4;
@@ -71,70 +73,119 @@ fn bin(gx: f32, gy: f32) -> Bin {
     }
 }
 
+/// Sobel gradients and their magnitude along row `y` of the blurred `w x h` image `b`, with clamped borders
+/// (imageproc pads by continuity). `smooth` and `diff` are row-sized work space.
+#[allow(clippy::too_many_arguments)]
+fn sobel_row(
+    b: &[f32],
+    w: usize,
+    h: usize,
+    y: usize,
+    gx: &mut [f32],
+    gy: &mut [f32],
+    mag: &mut [f32],
+    smooth: &mut [f32],
+    diff: &mut [f32],
+) {
+    let up = &b[y.saturating_sub(1) * w..][..w];
+    let mid = &b[y * w..][..w];
+    let down = &b[(y + 1).min(h - 1) * w..][..w];
+    // Per column: the vertical smoothing [1 2 1]ᵀ of the horizontal kernel and the vertical difference of the
+    // vertical one; then gx = s(x+1) − s(x−1) and gy = d(x−1) + 2 d(x) + d(x+1). All whole numbers, exact.
+    for x in 0..w {
+        smooth[x] = up[x] + 2.0 * mid[x] + down[x];
+        diff[x] = down[x] - up[x];
+    }
+    for x in 0..w {
+        let (xl, xr) = (x.saturating_sub(1), (x + 1).min(w - 1));
+        gx[x] = smooth[xr] - smooth[xl];
+        gy[x] = diff[xl] + 2.0 * diff[x] + diff[xr];
+    }
+    for ((m, &a), &c) in mag.iter_mut().zip(gx.iter()).zip(gy.iter()) {
+        *m = (a * a + c * c).sqrt();
+    }
+}
+
 /// Canny edges of the `w x h` grey image `gray` (whole numbers 0–255, row-major) with hysteresis thresholds
-/// `0 < low ≤ high` on the Sobel magnitude (as [`super::VideoParams::validate`] ensures): `true` where
-/// imageproc's `canny` returns 255.
-pub fn canny(gray: &[f32], w: usize, h: usize, low: f32, high: f32) -> Vec<bool> {
+/// `0 < low ≤ high` on the Sobel magnitude (as [`super::VideoParams::validate`] ensures), into `out`: `true`
+/// where imageproc's `canny` returns 255.
+pub fn canny(gray: &[f32], w: usize, h: usize, low: f32, high: f32, out: &mut [bool]) {
     assert_eq!(gray.len(), w * h, "image buffer matches its size");
-    let mut out = vec![false; w * h];
+    assert_eq!(out.len(), w * h, "edge map matches the image size");
+    out.fill(false);
     // imageproc leaves the one-pixel border black and cannot suppress without both neighbours.
     if w < 3 || h < 3 {
-        return out;
+        return;
     }
-    let b = blur::separable(gray, w, h, &blur::gaussian_kernel(SIGMA), Store::U8);
-
-    // Sobel with clamped borders (imageproc pads by continuity) and the magnitude.
     let n = w * h;
-    let mut gx = vec![0.0f32; n];
-    let mut gy = vec![0.0f32; n];
-    let mut mag = vec![0.0f32; n];
-    let mut smooth = vec![0.0f32; w];
-    let mut diff = vec![0.0f32; w];
-    for y in 0..h {
-        let up = &b[y.saturating_sub(1) * w..][..w];
-        let mid = &b[y * w..][..w];
-        let down = &b[(y + 1).min(h - 1) * w..][..w];
-        // Per column: the vertical smoothing [1 2 1]ᵀ of the horizontal kernel and the vertical difference of the
-        // vertical one; then gx = s(x+1) − s(x−1) and gy = d(x−1) + 2 d(x) + d(x+1). All whole numbers, exact.
-        for x in 0..w {
-            smooth[x] = up[x] + 2.0 * mid[x] + down[x];
-            diff[x] = down[x] - up[x];
-        }
-        let (gxr, gyr) = (&mut gx[y * w..][..w], &mut gy[y * w..][..w]);
-        for x in 0..w {
-            let (xl, xr) = (x.saturating_sub(1), (x + 1).min(w - 1));
-            gxr[x] = smooth[xr] - smooth[xl];
-            gyr[x] = diff[xl] + 2.0 * diff[x] + diff[xr];
-        }
-        for ((m, &a), &c) in mag[y * w..][..w].iter_mut().zip(gxr.iter()).zip(gyr.iter()) {
-            *m = (a * a + c * c).sqrt();
-        }
+    let mut b = Scratch::filled(n, 0.0f32);
+    blur::separable(gray, w, h, &blur::gaussian_kernel(SIGMA), Store::U8, &mut b);
+
+    // Gradients are needed three rows at a time (suppression looks one row up and down): a ring of rows.
+    let (mut gx, mut gy, mut mag) = (
+        vec![0.0f32; 3 * w],
+        vec![0.0f32; 3 * w],
+        vec![0.0f32; 3 * w],
+    );
+    let (mut smooth, mut diff) = (vec![0.0f32; w], vec![0.0f32; w]);
+    for y in 0..2 {
+        let s = y * w..(y + 1) * w;
+        sobel_row(
+            &b,
+            w,
+            h,
+            y,
+            &mut gx[s.clone()],
+            &mut gy[s.clone()],
+            &mut mag[s],
+            &mut smooth,
+            &mut diff,
+        );
     }
 
     // Suppression and thresholds on the interior: 0 below low (or suppressed), 1 weak, 2 strong.
-    let mut class = vec![0u8; n];
-    let mut stack: Vec<usize> = Vec::new();
+    let mut class = Scratch::filled(n, 0u8);
     for y in 1..h - 1 {
+        let s = (y + 1) % 3 * w..((y + 1) % 3 + 1) * w;
+        sobel_row(
+            &b,
+            w,
+            h,
+            y + 1,
+            &mut gx[s.clone()],
+            &mut gy[s.clone()],
+            &mut mag[s],
+            &mut smooth,
+            &mut diff,
+        );
+        let row = |r: usize| (r % 3) * w;
+        let (prev, cur, next) = (
+            &mag[row(y - 1)..][..w],
+            &mag[row(y)..][..w],
+            &mag[row(y + 1)..][..w],
+        );
+        let (gxr, gyr) = (&gx[row(y)..][..w], &gy[row(y)..][..w]);
+        let crow = &mut class[y * w..][..w];
         for x in 1..w - 1 {
-            let i = y * w + x;
-            let g = mag[i];
+            let g = cur[x];
             if g < low {
                 continue;
             }
-            let (c1, c2) = match bin(gx[i], gy[i]) {
-                Bin::D0 => (mag[i - 1], mag[i + 1]),
-                Bin::D45 => (mag[i + w + 1], mag[i - w - 1]),
-                Bin::D90 => (mag[i - w], mag[i + w]),
-                Bin::D135 => (mag[i + w - 1], mag[i - w + 1]),
+            let (c1, c2) = match bin(gxr[x], gyr[x]) {
+                Bin::D0 => (cur[x - 1], cur[x + 1]),
+                Bin::D45 => (next[x + 1], prev[x - 1]),
+                Bin::D90 => (prev[x], next[x]),
+                Bin::D135 => (next[x - 1], prev[x + 1]),
             };
             if g < c1 || g < c2 {
                 continue;
             }
-            class[i] = if g >= high { 2 } else { 1 };
+            crow[x] = if g >= high { 2 } else { 1 };
         }
     }
 
     // Hysteresis: everything reachable from a strong pixel through weak or strong ones.
+    let mut stack: Vec<usize> = Vec::new();
     for seed in 0..n {
         if class[seed] != 2 || out[seed] {
             continue;
@@ -151,7 +202,6 @@ pub fn canny(gray: &[f32], w: usize, h: usize, low: f32, high: f32) -> Vec<bool>
             }
         }
     }
-    out
 }
 
 #[cfg(test)]
@@ -212,7 +262,8 @@ mod tests {
                 })
                 .collect();
             for &(low, high) in &[(12.0f32, 30.0f32), (6.0, 6.0), (40.0, 120.0), (8.4, 21.0)] {
-                let got = canny(&img, w, h, low, high);
+                let mut got = vec![true; w * h];
+                canny(&img, w, h, low, high, &mut got);
                 let want = imageproc_map(&img, w, h, low, high);
                 assert!(
                     want.iter().any(|&v| v) || w * h < 20,

@@ -11,6 +11,7 @@
 use super::blur::{self, Store};
 use super::cameras::Photo;
 use super::params::VideoParams;
+use super::scratch::Scratch;
 use super::{canny, quadric, resample};
 
 /// σ of the Gaussian inside Canny ([`canny::SIGMA`], which is this in `f32`; the level geometry has always used
@@ -87,9 +88,9 @@ struct LevelImage {
     width: u32,
     height: u32,
     /// The grey image resampled to the level grid and blurred by the level's extra Gaussian, 0–1.
-    image: Vec<f32>,
+    image: Scratch<f32>,
     /// Canny edge pixels of the level grid.
-    edge_map: Vec<bool>,
+    edge_map: Scratch<bool>,
 }
 
 /// Resamples and blurs `photo` for `level` and runs Canny on it.
@@ -105,25 +106,31 @@ fn level_image(photo: &Photo, level: Level, params: &VideoParams) -> LevelImage 
     };
     let lw = ((w as f64 * factor).round() as u32).max(1);
     let lh = ((h as f64 * factor).round() as u32).max(1);
+    let (wu, hu, lwu, lhu) = (w as usize, h as usize, lw as usize, lh as usize);
     // Grey in 0–1, as the `image` crate's resize expects of f32 pixels (it clamps to that range).
-    let unit: Vec<f32> = photo.gray.iter().map(|&g| g / 255.0).collect();
-    let mut img =
-        resample::resize_triangle(&unit, w as usize, h as usize, lw as usize, lh as usize);
-    if pre_sigma > 0.05 {
-        img = blur::separable(
-            &img,
-            lw as usize,
-            lh as usize,
-            &blur::gaussian_kernel(pre_sigma as f32),
-            Store::F32,
-        );
+    let mut unit = Scratch::filled(wu * hu, 0.0f32);
+    for (u, &g) in unit.iter_mut().zip(&photo.gray) {
+        *u = g / 255.0;
     }
-    let gray: Vec<f32> = img.iter().map(|&v| to_byte(v)).collect();
+    let mut img = Scratch::filled(lwu * lhu, 0.0f32);
+    resample::resize_triangle(&unit, wu, hu, lwu, lhu, &mut img);
+    drop(unit);
+    if pre_sigma > 0.05 {
+        let mut blurred = Scratch::filled(lwu * lhu, 0.0f32);
+        let kernel = blur::gaussian_kernel(pre_sigma as f32);
+        blur::separable(&img, lwu, lhu, &kernel, Store::F32, &mut blurred);
+        img = blurred;
+    }
+    let mut gray = Scratch::filled(lwu * lhu, 0.0f32);
+    for (g, &v) in gray.iter_mut().zip(img.iter()) {
+        *g = to_byte(v);
+    }
     // Enlarging by u divides image gradients by u; scale the thresholds to match.
     let k = (level.scale / factor) as f32;
     let low = params.canny_low as f32 * k;
     let high = params.canny_high as f32 * k;
-    let edge_map = canny::canny(&gray, lw as usize, lh as usize, low, high.max(low));
+    let mut edge_map = Scratch::filled(lwu * lhu, false);
+    canny::canny(&gray, lwu, lhu, low, high.max(low), &mut edge_map);
     LevelImage {
         factor,
         width: lw,
@@ -142,11 +149,12 @@ pub fn extract(photo: &Photo, mask: &[bool], level: Level, params: &VideoParams)
         width: lw,
         height: lh,
         image,
-        edge_map,
+        mut edge_map,
     } = level_image(photo, level, params);
     // The orientation test compares brightness a blur radius away on either side of an edge; the pre-blurred
     // level image is smooth enough for that and saves a second blur.
-    let smoothed: Vec<f32> = image.into_iter().map(|v| v * 255.0).collect();
+    let mut smoothed = image.into_vec();
+    smoothed.iter_mut().for_each(|v| *v *= 255.0);
 
     let inside = |x: u32, y: u32| {
         let ox = ((x as f64) / factor).round();
@@ -157,12 +165,12 @@ pub fn extract(photo: &Photo, mask: &[bool], level: Level, params: &VideoParams)
             && oy < h as f64
             && mask[oy as usize * w as usize + ox as usize]
     };
-    let on: Vec<bool> = edge_map
-        .iter()
-        .enumerate()
-        .map(|(i, &e)| e && inside(i as u32 % lw, i as u32 / lw))
-        .collect();
-    let pixel_chains = chain(&on, lw, lh);
+    for (i, e) in edge_map.iter_mut().enumerate() {
+        if *e {
+            *e = inside(i as u32 % lw, i as u32 / lw);
+        }
+    }
+    let pixel_chains = chain(&edge_map, lw, lh);
     // Tolerances are given in pixels of the resolution-`scale` image; the level grid may be finer.
     let up = factor / level.scale;
     let mut chains = Vec::with_capacity(pixel_chains.len());
@@ -235,7 +243,7 @@ pub fn chain(on: &[bool], w: u32, h: u32) -> Vec<Vec<(u32, u32)>> {
     const VISITED: u8 = 2;
     let (w, h) = (w as usize, h as usize);
     let pw = w + 2;
-    let mut grid = vec![OFF; pw * (h + 2)];
+    let mut grid = Scratch::filled(pw * (h + 2), OFF);
     let mut starts = Vec::new();
     for (i, _) in on.iter().enumerate().filter(|(_, &b)| b) {
         let g = (i / w + 1) * pw + i % w + 1;
@@ -252,7 +260,7 @@ pub fn chain(on: &[bool], w: u32, h: u32) -> Vec<Vec<(u32, u32)>> {
     let at = |g: usize| ((g % pw - 1) as u32, (g / pw - 1) as u32);
 
     // Walks from g along unvisited pixels, preferring the straightest continuation.
-    let walk = |g0: usize, grid: &mut Vec<u8>, path: &mut Vec<(u32, u32)>| {
+    let walk = |g0: usize, grid: &mut [u8], path: &mut Vec<(u32, u32)>| {
         path.clear();
         let mut g = g0;
         let mut dir = 8; // none yet
@@ -489,8 +497,18 @@ mod tests {
             factor,
             width: lw,
             height: lh,
-            image: img.into_raw(),
-            edge_map: canny.into_raw().into_iter().map(|v| v > 0).collect(),
+            image: {
+                let mut m = Scratch::filled((lw * lh) as usize, 0.0f32);
+                m.copy_from_slice(img.as_raw());
+                m
+            },
+            edge_map: {
+                let mut m = Scratch::filled((lw * lh) as usize, false);
+                for (m, v) in m.iter_mut().zip(canny.into_raw()) {
+                    *m = v > 0;
+                }
+                m
+            },
         }
     }
 
@@ -515,11 +533,14 @@ mod tests {
             assert!(
                 got.image
                     .iter()
-                    .zip(&want.image)
+                    .zip(want.image.iter())
                     .all(|(a, b)| a.to_bits() == b.to_bits()),
                 "{level:?}: level image differs"
             );
-            assert!(got.edge_map == want.edge_map, "{level:?}: edge map differs");
+            assert!(
+                got.edge_map[..] == want.edge_map[..],
+                "{level:?}: edge map differs"
+            );
             edge_pixels += got.edge_map.iter().filter(|&&e| e).count();
         }
         assert!(edge_pixels > 100, "only {edge_pixels} edge pixels");

@@ -22,6 +22,7 @@ pub mod params;
 pub mod project;
 pub mod quadric;
 pub mod resample;
+pub mod scratch;
 pub mod shading;
 pub mod views;
 
@@ -114,6 +115,8 @@ pub fn image_pairs(photo: &Photo, params: &VideoParams) -> (Vec<LevelResult>, Ve
                 .iter()
                 .filter_map(|e| orient::orient(e, &le, photo, params).ok())
                 .collect();
+            // The level image is only needed for orientation; its buffer serves the next level or frame.
+            scratch::recycle(le.smoothed);
             let merged = merge::merge(
                 oriented,
                 params.merge_gap,

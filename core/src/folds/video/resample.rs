@@ -4,6 +4,8 @@
 //! four channels through generic pixel accessors; the detection levels only need one, and the column pass here
 //! runs over whole rows so that it vectorises.
 
+use super::scratch::Scratch;
+
 /// The source pixels and normalised weights of every output pixel along one axis.
 struct Taps {
     /// First source pixel of each output pixel.
@@ -48,20 +50,22 @@ fn taps(n: usize, m: usize) -> Taps {
     Taps { first, weights }
 }
 
-/// Resizes the `w x h` image `src` (values in 0–1) to `nw x nh`. Equal sizes return a copy, as `image` does.
-pub fn resize_triangle(src: &[f32], w: usize, h: usize, nw: usize, nh: usize) -> Vec<f32> {
+/// Resizes the `w x h` image `src` (values in 0–1) to `nw x nh` into `out`. Equal sizes copy, as `image` does.
+pub fn resize_triangle(src: &[f32], w: usize, h: usize, nw: usize, nh: usize, out: &mut [f32]) {
     assert_eq!(src.len(), w * h, "image buffer matches its size");
+    assert_eq!(out.len(), nw * nh, "output buffer matches the new size");
     if (w, h) == (nw, nh) {
-        return src.to_vec();
+        out.copy_from_slice(src);
+        return;
     }
     if w == 0 || h == 0 || nw == 0 || nh == 0 {
-        return vec![0.0; nw * nh];
+        out.fill(0.0);
+        return;
     }
     // Columns: output row y is a weighted sum of source rows; summed over whole rows at once.
     let vt = taps(h, nh);
-    let mut tmp = vec![0.0f32; w * nh];
-    for y in 0..nh {
-        let row = &mut tmp[y * w..(y + 1) * w];
+    let mut tmp = Scratch::filled(w * nh, 0.0f32);
+    for (y, row) in tmp.chunks_exact_mut(w).enumerate() {
         for (i, &wt) in vt.weights[y].iter().enumerate() {
             let sy = vt.first[y] + i;
             for (t, &p) in row.iter_mut().zip(&src[sy * w..(sy + 1) * w]) {
@@ -71,10 +75,8 @@ pub fn resize_triangle(src: &[f32], w: usize, h: usize, nw: usize, nh: usize) ->
     }
     // Rows: each output pixel sums a few neighbours of its row, then is clamped into 0–1.
     let ht = taps(w, nw);
-    let mut out = vec![0.0f32; nw * nh];
-    for y in 0..nh {
-        let row = &tmp[y * w..(y + 1) * w];
-        for (x, o) in out[y * nw..(y + 1) * nw].iter_mut().enumerate() {
+    for (row, orow) in tmp.chunks_exact(w).zip(out.chunks_exact_mut(nw)) {
+        for (x, o) in orow.iter_mut().enumerate() {
             let mut t = 0.0f32;
             for (i, &wt) in ht.weights[x].iter().enumerate() {
                 t += row[ht.first[x] + i] * wt;
@@ -89,7 +91,6 @@ pub fn resize_triangle(src: &[f32], w: usize, h: usize, nw: usize, nh: usize) ->
             };
         }
     }
-    out
 }
 
 #[cfg(test)]
@@ -122,7 +123,8 @@ mod tests {
                 image::imageops::FilterType::Triangle,
             )
             .into_raw();
-            let got = resize_triangle(&src, w, h, nw, nh);
+            let mut got = vec![f32::NAN; nw * nh];
+            resize_triangle(&src, w, h, nw, nh, &mut got);
             assert_eq!(
                 got.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
                 want.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),

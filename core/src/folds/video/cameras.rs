@@ -569,7 +569,7 @@ mod tests {
                     let (x, y) = ((i % w) as f64, (i / w) as f64);
                     let inside = (x - 0.6 * w as f64).powi(2) + (y - 0.4 * h as f64).powi(2)
                         < (0.45 * w.max(h) as f64).powi(2);
-                    inside != ((s >> 40) % 13 == 0)
+                    inside != (s >> 40).is_multiple_of(13)
                 })
                 .collect();
             let photo = Photo {
@@ -581,7 +581,7 @@ mod tests {
                 has_alpha: true,
             };
             for margin in [0.0, 1.0, 2.5, 3.0] {
-                let steps = (margin as f64).ceil() as usize;
+                let steps = f64::ceil(margin) as usize;
                 assert_eq!(
                     photo.eroded_mask(margin),
                     reference(&mask, w, h, steps),

@@ -440,7 +440,7 @@ mod tests {
                     s = s
                         .wrapping_mul(6364136223846793005)
                         .wrapping_add(1442695040888963407);
-                    (s >> 40) % density == 0
+                    (s >> 40).is_multiple_of(density)
                 })
                 .collect();
             assert_eq!(chain(&on, w, h), reference_chain(&on, w, h), "{w}x{h}");

@@ -81,14 +81,9 @@ pub fn resize_triangle(src: &[f32], w: usize, h: usize, nw: usize, nh: usize, ou
             for (i, &wt) in ht.weights[x].iter().enumerate() {
                 t += row[ht.first[x] + i] * wt;
             }
-            // `image`'s clamp: below the minimum → minimum, above the maximum → maximum, else (NaN too) as is.
-            *o = if t < 0.0 {
-                0.0
-            } else if t > 1.0 {
-                1.0
-            } else {
-                t
-            };
+            // `image`'s clamp (below the minimum → minimum, above the maximum → maximum, else, NaN too, as is) is
+            // `f32::clamp`.
+            *o = t.clamp(0.0, 1.0);
         }
     }
 }

@@ -135,27 +135,22 @@ impl Photo {
         let steps = margin.ceil().max(0.0) as usize;
         let (w, h) = (self.width as usize, self.height as usize);
         let mut m = self.mask.clone();
+        if w == 0 || h == 0 {
+            return m;
+        }
+        let mut rows = vec![false; m.len()];
         for _ in 0..steps {
-            let prev = m.clone();
-            for y in 0..h {
+            // One step keeps a pixel whose 3x3 neighbourhood (the part inside the image) is all garment: the
+            // minimum along rows, then along columns; a clamped index repeats a pixel already in the window.
+            for (o, r) in rows.chunks_exact_mut(w).zip(m.chunks_exact(w)) {
                 for x in 0..w {
-                    if !prev[y * w + x] {
-                        continue;
-                    }
-                    let mut keep = true;
-                    'n: for dy in -1i64..=1 {
-                        for dx in -1i64..=1 {
-                            let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                            if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
-                                continue;
-                            }
-                            if !prev[yy as usize * w + xx as usize] {
-                                keep = false;
-                                break 'n;
-                            }
-                        }
-                    }
-                    m[y * w + x] = keep;
+                    o[x] = r[x.saturating_sub(1)] & r[x] & r[(x + 1).min(w - 1)];
+                }
+            }
+            for y in 0..h {
+                let (up, down) = (y.saturating_sub(1) * w, (y + 1).min(h - 1) * w);
+                for x in 0..w {
+                    m[y * w + x] = rows[up + x] & rows[y * w + x] & rows[down + x];
                 }
             }
         }
@@ -539,6 +534,60 @@ mod tests {
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(want) && e.contains("c.json"), "{want}: {e}");
+        }
+    }
+
+    #[test]
+    fn eroded_mask_equals_step_by_step_neighbourhood_erosion() {
+        // Reference: per step, a pixel stays garment when every pixel of its 3x3 neighbourhood inside the image is.
+        let reference = |mask: &[bool], w: usize, h: usize, steps: usize| {
+            let mut m = mask.to_vec();
+            for _ in 0..steps {
+                let prev = m.clone();
+                for y in 0..h {
+                    for x in 0..w {
+                        let mut keep = prev[y * w + x];
+                        for yy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+                            for xx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+                                keep &= prev[yy * w + xx];
+                            }
+                        }
+                        m[y * w + x] = keep;
+                    }
+                }
+            }
+            m
+        };
+        let mut s = 3u64;
+        for &(w, h) in &[(37usize, 23usize), (1, 9), (8, 1), (1, 1)] {
+            // A blob with holes and specks, touching the border.
+            let mask: Vec<bool> = (0..w * h)
+                .map(|i| {
+                    s = s
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    let (x, y) = ((i % w) as f64, (i / w) as f64);
+                    let inside = (x - 0.6 * w as f64).powi(2) + (y - 0.4 * h as f64).powi(2)
+                        < (0.45 * w.max(h) as f64).powi(2);
+                    inside != (s >> 40).is_multiple_of(13)
+                })
+                .collect();
+            let photo = Photo {
+                width: w as u32,
+                height: h as u32,
+                gray: vec![0.0; w * h],
+                rgb: vec![[0.0; 3]; w * h],
+                mask: mask.clone(),
+                has_alpha: true,
+            };
+            for margin in [0.0, 1.0, 2.5, 3.0] {
+                let steps = f64::ceil(margin) as usize;
+                assert_eq!(
+                    photo.eroded_mask(margin),
+                    reference(&mask, w, h, steps),
+                    "{w}x{h} margin {margin}"
+                );
+            }
         }
     }
 

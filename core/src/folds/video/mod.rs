@@ -10,7 +10,9 @@
 //! Each frame is processed on its own, so any frame range gives the same per-frame answer
 //! ([`Granularity::PerFrame`]); the automatic front/back vertices always come from frame 0 of the sequence.
 
+pub mod blur;
 pub mod cameras;
+pub mod canny;
 pub mod edges;
 pub mod merge;
 pub mod orient;
@@ -19,6 +21,8 @@ pub mod pairing;
 pub mod params;
 pub mod project;
 pub mod quadric;
+pub mod resample;
+pub mod scratch;
 pub mod shading;
 pub mod views;
 
@@ -111,6 +115,8 @@ pub fn image_pairs(photo: &Photo, params: &VideoParams) -> (Vec<LevelResult>, Ve
                 .iter()
                 .filter_map(|e| orient::orient(e, &le, photo, params).ok())
                 .collect();
+            // The level image is only needed for orientation; its buffer serves the next level or frame.
+            scratch::recycle(le.smoothed);
             let merged = merge::merge(
                 oriented,
                 params.merge_gap,

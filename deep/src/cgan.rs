@@ -173,7 +173,7 @@ impl Generator {
         let mut h = x.clone();
         for (i, (conv, bn)) in self.enc.iter().enumerate() {
             let inp = if i == 0 { h.clone() } else { leaky(&h)? };
-            h = conv.forward(&inp)?;
+            h = crate::gemm_conv::conv_k4s2p1(&inp, conv.weight(), conv.bias())?;
             if let Some(bn) = bn {
                 h = bn.forward_t(&h, train)?;
             }
@@ -186,7 +186,8 @@ impl Generator {
             } else {
                 Tensor::cat(&[&h, &skips[depth - 1 - j]], 1)?
             };
-            h = conv.forward(&inp.relu()?)?;
+            // candle's own transposed convolution is a per-texel loop; this is the same sum as one GEMM.
+            h = crate::gemm_conv::conv_transpose_k4s2p1(&inp.relu()?, conv.weight(), conv.bias())?;
             if let Some(bn) = bn {
                 h = bn.forward_t(&h, train)?;
             }

@@ -14,6 +14,7 @@ pub mod cgan;
 pub mod cgan_data;
 pub mod contract;
 pub mod enhance;
+pub mod gemm_conv;
 pub mod kdtree;
 pub mod lstm;
 pub mod model;

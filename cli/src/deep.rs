@@ -81,10 +81,14 @@ pub struct TrainArgs {
     #[arg(long, default_value = "autoregressive")]
     pub regressor: RegressorKind,
     /// Leading shape coefficients the autoregressive regressor feeds back (capped at --k).
-    #[arg(long, default_value_t = 25)]
+    #[arg(long, default_value_t = 10)]
     pub ar_state: usize,
-    /// Pose lags (frames) in the control vector.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32")]
+    /// Steps of the autoregressive regressor's fit on its own rollout after the ridge fit (0: ridge only).
+    #[arg(long, default_value_t = 20)]
+    pub ar_rollout_iters: usize,
+    /// Pose lags (frames) in the control vector, e.g. 1,2,4,8,16,32 (default: none; the pose, its velocity
+    /// and acceleration).
+    #[arg(long, value_delimiter = ',')]
     pub lags: Vec<usize>,
     /// Ridge weight of the linear regression (relative).
     #[arg(long, default_value_t = 1e-3)]
@@ -264,6 +268,7 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
         ridge: a.ridge,
         regressor: a.regressor,
         ar_state: a.ar_state,
+        ar_rollout_iters: a.ar_rollout_iters,
         lstm: LstmConfig {
             layers: a.lstm_layers,
             hidden: a.lstm_hidden,

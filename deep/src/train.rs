@@ -75,6 +75,9 @@ pub struct TrainParams {
     pub regressor: RegressorKind,
     /// Leading shape coefficients the autoregressive regressor feeds back (capped at the subspace size).
     pub ar_state: usize,
+    /// Steps of the autoregressive regressor's fit on its own rollout ([`crate::rollout_fit`]) after the
+    /// ridge fit; 0 keeps the ridge fit.
+    pub ar_rollout_iters: usize,
     pub lstm: LstmConfig,
     pub resolution: usize,
     /// A template OBJ whose `vt` must give the layout; without it one is computed from the first mean shape.
@@ -89,12 +92,15 @@ impl Default for TrainParams {
     fn default() -> Self {
         TrainParams {
             k: 200,
-            lags: vec![1, 2, 4, 8, 16, 32],
+            // Defaults chosen by the mean vertex error over the three leave-one-sequence-out splits of
+            // sleeve-train (docs/deepwrinkles.md): no pose lags (the pose-only map: 7.57 mm without, 8.33 mm
+            // with lags 1..32), and the autoregressive regressor feeding back 10 coefficients, fitted for 20
+            // steps on its own rollout (7.20 mm).
+            lags: vec![],
             ridge: 1e-3,
-            // From pose alone on the held-out sleeve sequence the autoregressive rollout measured 6.71 mm
-            // mean vertex error against the pose-only map's 7.88 mm (docs/deepwrinkles.md).
             regressor: RegressorKind::Autoregressive,
-            ar_state: 25,
+            ar_state: 10,
+            ar_rollout_iters: 20,
             lstm: LstmConfig::default(),
             resolution: 256,
             uv: None,
@@ -168,6 +174,9 @@ pub struct Fitted {
     pub autoregressive: AutoregressiveLinear,
     pub lstm: Option<LstmRegressor>,
     pub coeff_scale: Vec<f64>,
+    /// The autoregressive regressor's training rollout loss (coefficient MSE) before and after each step of
+    /// its rollout fit.
+    pub ar_rollout_losses: Vec<f64>,
     pub lstm_losses: Vec<f64>,
     pub seconds: BTreeSummary,
 }
@@ -216,7 +225,7 @@ pub fn fit(
     let linear = LinearRegression::fit(&controls, &targets, params.ridge)?;
     let linear_s = t1.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let autoregressive = fit_autoregressive(&per_seq, params, k)?;
+    let (autoregressive, ar_rollout_losses) = fit_autoregressive(&per_seq, params, k)?;
     let autoregressive_s = t1.elapsed().as_secs_f64();
     let n = targets.len() as f64;
     let coeff_scale: Vec<f64> = (0..k)
@@ -253,6 +262,7 @@ pub fn fit(
         autoregressive,
         lstm,
         coeff_scale,
+        ar_rollout_losses,
         lstm_losses,
         seconds: BTreeSummary {
             subspace_s,
@@ -264,19 +274,28 @@ pub fn fit(
     })
 }
 
-/// The autoregressive regressor on each sequence's (control vectors, true coefficients).
+/// The autoregressive regressor on each sequence's (control vectors, true coefficients): the ridge fit, then
+/// `ar_rollout_iters` steps on its own rollout. Returns it with the rollout losses.
 fn fit_autoregressive(
     per_seq: &[(Vec<Vec<f64>>, Vec<Vec<f64>>)],
     params: &TrainParams,
     k: usize,
-) -> Result<AutoregressiveLinear> {
+) -> Result<(AutoregressiveLinear, Vec<f64>)> {
     let a_refs: Vec<&[Vec<f64>]> = per_seq.iter().map(|(_, a)| a.as_slice()).collect();
     let history = ShapeHistory::fit(&a_refs, params.ar_state.min(k), 2)?;
     let seqs: Vec<ControlsAndCoefficients> = per_seq
         .iter()
         .map(|(c, a)| (c.as_slice(), a.as_slice()))
         .collect();
-    AutoregressiveLinear::fit(&seqs, history, params.ridge, 0)
+    let mut ar = AutoregressiveLinear::fit(&seqs, history, params.ridge, 0)?;
+    let report = crate::rollout_fit::refine(
+        &mut ar,
+        &seqs,
+        params.ridge,
+        params.ar_rollout_iters,
+        |_, _| {},
+    )?;
+    Ok((ar, report.losses))
 }
 
 /// Trains on `seqs` and publishes the model at `out`.
@@ -335,6 +354,7 @@ pub fn train(
             "frames": seqs.iter().map(|s| s.fine.len()).sum::<usize>(),
             "seconds": fitted.seconds,
             "lstm_final_loss": fitted.lstm_losses.last(),
+            "autoregressive_rollout_loss": [fitted.ar_rollout_losses.first(), fitted.ar_rollout_losses.last()],
             "cgan": cgan_summary,
         }),
         files: Default::default(),

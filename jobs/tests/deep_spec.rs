@@ -47,7 +47,8 @@ fn train_and_apply_specs_parse_with_the_cli_defaults() {
                 params.regressor,
                 crease_deep::model::RegressorKind::Autoregressive
             );
-            assert_eq!(params.ar_state, 25);
+            assert_eq!((params.ar_state, params.ar_rollout_iters), (10, 20));
+            assert!(params.lags.is_empty());
         }
         other => panic!("{other:?}"),
     }

@@ -263,7 +263,7 @@ mod tests {
         let lambda = 0.3;
         let (grad, _) = gradient(&model, &seqs, lambda);
         let h = 1e-6;
-        for i in 0..model.regression.weights.len() {
+        for (i, g) in grad.iter().enumerate() {
             let mut up = model.clone();
             up.regression.weights[i] += h;
             let mut down = model.clone();
@@ -272,9 +272,8 @@ mod tests {
                 - unnormalised_loss(&down, &seqs, lambda))
                 / (2.0 * h);
             assert!(
-                (fd - grad[i]).abs() <= 1e-5 * (1.0 + fd.abs()),
-                "weight {i}: finite difference {fd}, gradient {}",
-                grad[i]
+                (fd - g).abs() <= 1e-5 * (1.0 + fd.abs()),
+                "weight {i}: finite difference {fd}, gradient {g}"
             );
         }
     }

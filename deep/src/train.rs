@@ -225,7 +225,11 @@ pub fn fit(
     let linear = LinearRegression::fit(&controls, &targets, params.ridge)?;
     let linear_s = t1.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let (autoregressive, ar_rollout_losses) = fit_autoregressive(&per_seq, params, k)?;
+    let seqs: Vec<ControlsAndCoefficients> = per_seq
+        .iter()
+        .map(|(c, a)| (c.as_slice(), a.as_slice()))
+        .collect();
+    let (autoregressive, ar_rollout_losses) = fit_autoregressive(&seqs, params, k)?;
     let autoregressive_s = t1.elapsed().as_secs_f64();
     let n = targets.len() as f64;
     let coeff_scale: Vec<f64> = (0..k)
@@ -277,20 +281,16 @@ pub fn fit(
 /// The autoregressive regressor on each sequence's (control vectors, true coefficients): the ridge fit, then
 /// `ar_rollout_iters` steps on its own rollout. Returns it with the rollout losses.
 fn fit_autoregressive(
-    per_seq: &[(Vec<Vec<f64>>, Vec<Vec<f64>>)],
+    seqs: &[ControlsAndCoefficients<'_>],
     params: &TrainParams,
     k: usize,
 ) -> Result<(AutoregressiveLinear, Vec<f64>)> {
-    let a_refs: Vec<&[Vec<f64>]> = per_seq.iter().map(|(_, a)| a.as_slice()).collect();
+    let a_refs: Vec<&[Vec<f64>]> = seqs.iter().map(|(_, a)| *a).collect();
     let history = ShapeHistory::fit(&a_refs, params.ar_state.min(k), 2)?;
-    let seqs: Vec<ControlsAndCoefficients> = per_seq
-        .iter()
-        .map(|(c, a)| (c.as_slice(), a.as_slice()))
-        .collect();
-    let mut ar = AutoregressiveLinear::fit(&seqs, history, params.ridge, 0)?;
+    let mut ar = AutoregressiveLinear::fit(seqs, history, params.ridge, 0)?;
     let report = crate::rollout_fit::refine(
         &mut ar,
-        &seqs,
+        seqs,
         params.ridge,
         params.ar_rollout_iters,
         |_, _| {},

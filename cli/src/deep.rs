@@ -76,11 +76,19 @@ pub struct TrainArgs {
     /// Subspace size (capped by the number of training frames).
     #[arg(long, default_value_t = 200)]
     pub k: usize,
-    /// Regressor `apply --pose` uses: linear (pseudo-inverse) or lstm (also trains the linear one).
-    #[arg(long, default_value = "linear")]
+    /// Regressor `apply --pose` uses: autoregressive (pose and its own previous shapes, rolled out from the
+    /// first frame), linear (pose only) or lstm. The linear and autoregressive ones are always trained.
+    #[arg(long, default_value = "autoregressive")]
     pub regressor: RegressorKind,
-    /// Pose lags (frames) in the control vector.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8,16,32")]
+    /// Leading shape coefficients the autoregressive regressor feeds back (capped at --k).
+    #[arg(long, default_value_t = 10)]
+    pub ar_state: usize,
+    /// Steps of the autoregressive regressor's fit on its own rollout after the ridge fit (0: ridge only).
+    #[arg(long, default_value_t = 20)]
+    pub ar_rollout_iters: usize,
+    /// Pose lags (frames) in the control vector, e.g. 1,2,4,8,16,32 (default: none; the pose, its velocity
+    /// and acceleration).
+    #[arg(long, value_delimiter = ',')]
     pub lags: Vec<usize>,
     /// Ridge weight of the linear regression (relative).
     #[arg(long, default_value_t = 1e-3)]
@@ -146,7 +154,7 @@ pub struct ApplyArgs {
     /// Normal map space: world (default) or tangent.
     #[arg(long, default_value = "world")]
     pub space: Space,
-    /// Override the model's regressor for --pose.
+    /// Override the model's regressor for --pose: linear, autoregressive or lstm.
     #[arg(long)]
     pub regressor: Option<RegressorKind>,
     /// Write the coarse maps without the cGAN.
@@ -259,6 +267,8 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
         lags: a.lags,
         ridge: a.ridge,
         regressor: a.regressor,
+        ar_state: a.ar_state,
+        ar_rollout_iters: a.ar_rollout_iters,
         lstm: LstmConfig {
             layers: a.lstm_layers,
             hidden: a.lstm_hidden,

@@ -164,7 +164,7 @@ fn train_apply_writes_the_output_contract_deterministically() {
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
-    assert_eq!(manifest["version"], 1);
+    assert_eq!(manifest["version"], 2);
     // The synthetic shapes are affine in the two pose numbers that move (a, b): the subspace keeps only
     // components with non-negligible variance, so k is capped at that rank.
     assert_eq!(manifest["k"], 2);
@@ -246,6 +246,127 @@ fn train_apply_writes_the_output_contract_deterministically() {
         "tangent",
     ]);
     assert_eq!(tree_bytes(&out_c).len(), 32);
+}
+
+/// The vertices of an OBJ file.
+fn obj_vertices(path: &Path) -> Vec<[f64; 3]> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect()
+}
+
+#[test]
+fn apply_rolls_out_the_autoregressive_regressor_by_default() {
+    let tmp = tempfile::tempdir().unwrap();
+    let a = training_dir(tmp.path(), "a", 16, 0.0);
+    let b = training_dir(tmp.path(), "b", 16, 1.0);
+    let model = tmp.path().join("model");
+    ok(&[
+        "deep",
+        "train",
+        "--data",
+        s(&a),
+        s(&b),
+        "--out",
+        s(&model),
+        "--k",
+        "4",
+        "--resolution",
+        "16",
+        "--ar-state",
+        "3",
+    ]);
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
+            .unwrap();
+    assert_eq!(manifest["regressor"], "autoregressive");
+    // k is capped at the data's rank (2), and the fed-back state at k.
+    assert_eq!(manifest["autoregressive"]["k_state"], 2);
+    assert!(manifest["files"]["autoregressive.npy"].is_object());
+
+    let pose = a.join("pose.json");
+    let apply = |name: &str, extra: &[&str]| -> PathBuf {
+        let out = tmp.path().join(name);
+        let mut args = vec![
+            "deep",
+            "apply",
+            "--model",
+            s(&model),
+            "--pose",
+            s(&pose),
+            "--out",
+            s(&out),
+        ];
+        args.extend(extra);
+        ok(&args);
+        out
+    };
+    let rolled = apply("out-ar", &[]);
+    assert_eq!(
+        tree_bytes(&rolled),
+        tree_bytes(&apply("out-ar-2", &["--regressor", "autoregressive"])),
+        "the default is the autoregressive regressor, and it is deterministic"
+    );
+    // The rollout follows the training sequence's ripples (4 mm) and bulge (10 mm) from pose alone: far closer
+    // to each frame than the training mean shape (the model's template.obj) is.
+    let dist = |x: &[[f64; 3]], y: &[[f64; 3]]| -> f64 {
+        assert_eq!(x.len(), y.len());
+        x.iter()
+            .zip(y)
+            .map(|(p, q)| {
+                ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+            })
+            .sum::<f64>()
+            / x.len() as f64
+    };
+    let mean_shape = obj_vertices(&model.join("template.obj"));
+    let (mut e_rollout, mut e_mean) = (0.0, 0.0);
+    for t in 1..=16 {
+        let got = obj_vertices(&rolled.join(format!("mesh/frame_{t:04}.obj")));
+        let gt = obj_vertices(&a.join(format!("gt/frame_{t:04}.obj")));
+        e_rollout += dist(&got, &gt) / 16.0;
+        e_mean += dist(&mean_shape, &gt) / 16.0;
+    }
+    assert!(
+        e_rollout < 0.2 * e_mean,
+        "mean vertex error {e_rollout} m; the mean shape's {e_mean} m"
+    );
+
+    // A model of format version 1 (no autoregressive regressor) still applies its linear regressor, and
+    // refuses the autoregressive one by name.
+    let old = tmp.path().join("v1-model");
+    std::fs::create_dir_all(&old).unwrap();
+    let mut m = manifest.clone();
+    let o = m.as_object_mut().unwrap();
+    o.insert("version".into(), 1.into());
+    o.insert("regressor".into(), "linear".into());
+    o.remove("autoregressive");
+    for f in o["files"].as_object().unwrap().keys() {
+        std::fs::copy(model.join(f), old.join(f)).unwrap();
+    }
+    std::fs::write(old.join("manifest.json"), m.to_string()).unwrap();
+    let out_old = tmp.path().join("out-v1");
+    let on_old = ["deep", "apply", "--model", s(&old), "--pose", s(&pose)];
+    ok(&[&on_old[..], &["--out", s(&out_old)]].concat());
+    assert_eq!(
+        tree_bytes(&out_old),
+        tree_bytes(&apply("out-linear", &["--regressor", "linear"]))
+    );
+    let o = tmp.path().join("o");
+    fails(
+        &[
+            &on_old[..],
+            &["--out", s(&o), "--regressor", "autoregressive"],
+        ]
+        .concat(),
+        &["manifest.json", "no autoregressive regressor", "version 1"],
+    );
 }
 
 #[test]
@@ -415,7 +536,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
     }
     let m = std::fs::read_to_string(old.join("manifest.json"))
         .unwrap()
-        .replace("\"version\": 1", "\"version\": 99");
+        .replace("\"version\": 2", "\"version\": 99");
     std::fs::write(old.join("manifest.json"), m).unwrap();
     fails(
         &[
@@ -428,7 +549,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
             "--out",
             s(&tmp.path().join("o4")),
         ],
-        &["manifest.json", "version 99", "version 1"],
+        &["manifest.json", "version 99", "versions 1 to 2"],
     );
 
     // A half-written model (no manifest) is not a model; a damaged file is caught by the manifest.

@@ -68,7 +68,9 @@ impl CoarseShapes {
     }
 }
 
-/// Shapes predicted from a pose file (the whole file: controls need the history).
+/// Shapes predicted from a pose file (the whole file: controls need the history, and the autoregressive
+/// regressor is rolled out from the first frame on its own predictions, so every frame range of a chunked
+/// apply recomputes the same rollout: a linear map per frame, cheap next to the maps).
 pub fn shapes_from_poses(
     model: &Model,
     pose_path: &Path,
@@ -89,16 +91,16 @@ pub fn shapes_from_poses(
     let controls = model.manifest.control.controls(&poses)?;
     let coeffs: Vec<Vec<f64>> = match regressor {
         RegressorKind::Linear => controls.iter().map(|c| model.linear.predict(c)).collect(),
+        RegressorKind::Autoregressive => model
+            .autoregressive
+            .as_ref()
+            .ok_or_else(|| model.missing_regressor(regressor))?
+            .rollout(&controls),
         RegressorKind::Lstm => {
-            let net = model.lstm.as_ref().ok_or_else(|| {
-                Error::param(
-                    "regressor",
-                    format!(
-                        "the model at {} has no LSTM (trained with the linear regressor only)",
-                        model.dir.display()
-                    ),
-                )
-            })?;
+            let net = model
+                .lstm
+                .as_ref()
+                .ok_or_else(|| model.missing_regressor(regressor))?;
             let dummy = vec![vec![0.0; model.subspace.k()]; controls.len()];
             net.predict(&windows(&controls, &dummy, net.config.seq_len))?
         }

@@ -13,8 +13,8 @@ use crate::regress::LinearRegression;
 use crease_core::{Error, Result};
 use serde::{Deserialize, Serialize};
 
-/// Bound of a fed-back coefficient, in training standard deviations.
-const CLIP: f64 = 4.0;
+/// Default bound of a fed-back coefficient, in training standard deviations.
+pub const CLIP: f64 = 4.0;
 
 /// Which earlier coefficients join the control vector, and how they are normalised.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -28,6 +28,8 @@ pub struct ShapeHistory {
     /// Coefficients assumed before the first frame: the mean of the training sequences' first frames (every
     /// sequence starts at rest), so a rollout needs no ground truth of the sequence it predicts.
     pub start: Vec<f64>,
+    /// Bound of a fed-back coefficient, in training standard deviations.
+    pub clip: f64,
 }
 
 impl ShapeHistory {
@@ -69,6 +71,7 @@ impl ShapeHistory {
             order,
             scale,
             start,
+            clip: CLIP,
         })
     }
 
@@ -82,9 +85,11 @@ impl ShapeHistory {
             } else {
                 &self.start
             };
-            // Clipped at ±CLIP standard deviations: a drifting rollout then saturates instead of feeding
+            // Clipped at ±clip standard deviations: a drifting rollout then saturates instead of feeding
             // ever larger states back (and, in DAgger rounds, swamping the ridge's scale with them).
-            out.extend((0..self.k_state).map(|j| (a[j] * self.scale[j]).clamp(-CLIP, CLIP)));
+            out.extend(
+                (0..self.k_state).map(|j| (a[j] * self.scale[j]).clamp(-self.clip, self.clip)),
+            );
         }
         out
     }

@@ -24,6 +24,7 @@ pub mod pose;
 pub mod raster;
 pub mod register;
 pub mod regress;
+pub mod rollout_fit;
 pub mod seed;
 pub mod subspace;
 pub mod train;

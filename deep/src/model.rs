@@ -6,6 +6,7 @@
 //! loader checks the version first and each file against the manifest, so a model from another version or a
 //! damaged file is a clear error, never a silently different model.
 
+use crate::autoregress::{AutoregressiveLinear, ShapeHistory};
 use crate::lstm::{LstmConfig, LstmRegressor};
 use crate::pose::ControlSpec;
 use crate::regress::LinearRegression;
@@ -19,15 +20,32 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-/// Format written and read by this build. Bump when the layout or meaning of any file changes.
-pub const MODEL_VERSION: u32 = 1;
+/// Format written by this build. Bump when the layout or meaning of any file changes.
+/// Version 2 added the autoregressive regressor (`autoregressive.npy`, `ar_scale.npy`, `ar_start.npy`).
+pub const MODEL_VERSION: u32 = 2;
+/// Oldest format this build still reads: a version 1 model differs only by lacking the autoregressive
+/// regressor, so it still runs with the linear or LSTM one.
+pub const MODEL_VERSION_MIN: u32 = 1;
 pub const MODEL_FORMAT: &str = "crease-deep-model";
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum RegressorKind {
+    /// Pose (+ velocity, acceleration, lags) only.
     Linear,
+    /// Pose and the model's own previous shape coefficients, rolled out from the first frame.
+    Autoregressive,
     Lstm,
+}
+
+impl RegressorKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            RegressorKind::Linear => "linear",
+            RegressorKind::Autoregressive => "autoregressive",
+            RegressorKind::Lstm => "lstm",
+        }
+    }
 }
 
 impl std::str::FromStr for RegressorKind {
@@ -35,8 +53,11 @@ impl std::str::FromStr for RegressorKind {
     fn from_str(s: &str) -> std::result::Result<Self, String> {
         match s {
             "linear" => Ok(RegressorKind::Linear),
+            "autoregressive" => Ok(RegressorKind::Autoregressive),
             "lstm" => Ok(RegressorKind::Lstm),
-            _ => Err(format!("unknown regressor `{s}` (linear or lstm)")),
+            _ => Err(format!(
+                "unknown regressor `{s}` (linear, autoregressive or lstm)"
+            )),
         }
     }
 }
@@ -58,6 +79,10 @@ pub struct Manifest {
     /// Which regressor `apply --pose` uses; the linear one is always present.
     pub regressor: RegressorKind,
     pub lstm: Option<LstmConfig>,
+    /// The autoregressive regressor's shape history (its arrays are `ar_scale.npy` and `ar_start.npy`, its
+    /// weights `autoregressive.npy`); absent in version 1 models.
+    #[serde(default)]
+    pub autoregressive: Option<ArSpec>,
     /// Training standard deviation of each coefficient (the LSTM's output units).
     pub coeff_scale: Vec<f64>,
     /// Normal map resolution the model (and its cGAN) works at.
@@ -69,12 +94,34 @@ pub struct Manifest {
     pub files: BTreeMap<String, FileEntry>,
 }
 
+/// The scalar part of the autoregressive regressor's [`ShapeHistory`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ArSpec {
+    /// Leading coefficients fed back.
+    pub k_state: usize,
+    /// Earlier frames fed back (α_{t−1} … α_{t−order}).
+    pub order: usize,
+    /// Bound of a fed-back coefficient, in training standard deviations.
+    pub clip: f64,
+}
+
+impl ArSpec {
+    pub fn of(h: &ShapeHistory) -> Self {
+        ArSpec {
+            k_state: h.k_state,
+            order: h.order,
+            clip: h.clip,
+        }
+    }
+}
+
 pub struct Model {
     pub manifest: Manifest,
     pub topology: Arc<Topology>,
     pub layout: UvLayout,
     pub subspace: Subspace,
     pub linear: LinearRegression,
+    pub autoregressive: Option<AutoregressiveLinear>,
     pub lstm: Option<LstmRegressor>,
     /// Directory the model was loaded from (for components that load lazily, like the cGAN).
     pub dir: PathBuf,
@@ -234,6 +281,18 @@ pub fn write_core_parts(
     w.record("template.obj")
 }
 
+/// Writes the autoregressive regressor's arrays; its [`ArSpec`] goes into the manifest.
+pub fn write_autoregressive(w: &mut ModelWriter, ar: &AutoregressiveLinear) -> Result<()> {
+    let r = &ar.regression;
+    w.put(
+        "autoregressive.npy",
+        &npy::to_bytes(&[r.k, r.m], &r.weights),
+    )?;
+    let h = &ar.history;
+    w.put("ar_scale.npy", &npy::to_bytes(&[h.scale.len()], &h.scale))?;
+    w.put("ar_start.npy", &npy::to_bytes(&[h.start.len()], &h.start))
+}
+
 impl Model {
     /// Reads the manifest (version first), then every file, checking each against the manifest.
     pub fn load(dir: &Path) -> Result<Model> {
@@ -261,12 +320,12 @@ impl Model {
             ));
         }
         match raw.get("version").and_then(|v| v.as_u64()) {
-            Some(v) if v == MODEL_VERSION as u64 => {}
+            Some(v) if (MODEL_VERSION_MIN as u64..=MODEL_VERSION as u64).contains(&v) => {}
             Some(v) => {
                 return Err(Error::format(
                     &mpath,
                     None,
-                    format!("model format version {v}; this build of crease reads version {MODEL_VERSION} (retrain or use the matching crease)"),
+                    format!("model format version {v}; this build of crease reads versions {MODEL_VERSION_MIN} to {MODEL_VERSION} (retrain or use the matching crease)"),
                 ))
             }
             None => return Err(Error::format(&mpath, None, "no `version` field")),
@@ -343,6 +402,47 @@ impl Model {
             m: manifest.control.len(),
             weights,
         };
+        let autoregressive = match &manifest.autoregressive {
+            Some(spec) => {
+                let (wshape, weights) =
+                    npy::from_bytes::<f64>(&p("autoregressive.npy"), &read("autoregressive.npy")?)?;
+                let m = manifest.control.len() + spec.k_state * spec.order;
+                if wshape != [k, m] {
+                    return Err(Error::format(
+                        p("autoregressive.npy"),
+                        None,
+                        format!("shape {wshape:?} does not fit the manifest ([{k}, {m}])"),
+                    ));
+                }
+                let (_, scale) =
+                    npy::from_bytes::<f64>(&p("ar_scale.npy"), &read("ar_scale.npy")?)?;
+                let (_, start) =
+                    npy::from_bytes::<f64>(&p("ar_start.npy"), &read("ar_start.npy")?)?;
+                if scale.len() != spec.k_state || start.len() != k {
+                    return Err(Error::format(
+                        p("ar_scale.npy"),
+                        None,
+                        format!(
+                            "{} scales and {} start coefficients; the manifest says {} and {k}",
+                            scale.len(),
+                            start.len(),
+                            spec.k_state
+                        ),
+                    ));
+                }
+                Some(AutoregressiveLinear {
+                    history: ShapeHistory {
+                        k_state: spec.k_state,
+                        order: spec.order,
+                        scale,
+                        start,
+                        clip: spec.clip,
+                    },
+                    regression: LinearRegression { k, m, weights },
+                })
+            }
+            None => None,
+        };
         let lstm = match &manifest.lstm {
             Some(cfg) => {
                 read("lstm.safetensors")?;
@@ -365,8 +465,39 @@ impl Model {
             layout,
             subspace,
             linear,
+            autoregressive,
             lstm,
             dir: dir.to_path_buf(),
         })
+    }
+
+    /// Refuses a regressor the model does not hold, naming the model and why.
+    pub fn check_regressor(&self, kind: RegressorKind) -> Result<()> {
+        let has = match kind {
+            RegressorKind::Linear => true,
+            RegressorKind::Autoregressive => self.autoregressive.is_some(),
+            RegressorKind::Lstm => self.lstm.is_some(),
+        };
+        if has {
+            Ok(())
+        } else {
+            Err(self.missing_regressor(kind))
+        }
+    }
+
+    /// The error for a regressor the model lacks.
+    pub fn missing_regressor(&self, kind: RegressorKind) -> Error {
+        let why = match kind {
+            RegressorKind::Autoregressive => format!(
+                "format version {} models have none; retrain it with this crease",
+                self.manifest.version
+            ),
+            _ => "it was trained without one".to_string(),
+        };
+        Error::format(
+            self.dir.join("manifest.json"),
+            None,
+            format!("the model has no {} regressor ({why})", kind.name()),
+        )
     }
 }

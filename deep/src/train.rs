@@ -4,9 +4,11 @@
 //! `captured/` (the coarse input the cGAN learns to enrich) and `pose.json`. The data's meshes already share
 //! the template's topology; raw scans go through `crease deep register` first.
 
+use crate::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
 use crate::lstm::{windows, LstmConfig, LstmRegressor};
 use crate::model::{
-    write_core_parts, Manifest, ModelWriter, RegressorKind, MODEL_FORMAT, MODEL_VERSION,
+    write_autoregressive, write_core_parts, ArSpec, Manifest, ModelWriter, RegressorKind,
+    MODEL_FORMAT, MODEL_VERSION,
 };
 use crate::pose::{read_pose_file, ControlSpec};
 use crate::regress::LinearRegression;
@@ -68,8 +70,14 @@ pub struct TrainParams {
     pub lags: Vec<usize>,
     /// Ridge weight of the linear regression, relative to the mean diagonal of ΘᵀΘ.
     pub ridge: f64,
-    /// Regressor used by `apply --pose`; `Lstm` also trains the linear one.
+    /// Regressor used by `apply --pose`. The linear and autoregressive ones are always trained (seconds);
+    /// `Lstm` adds the network.
     pub regressor: RegressorKind,
+    /// Leading shape coefficients the autoregressive regressor feeds back (capped at the subspace size).
+    pub ar_state: usize,
+    /// Steps of the autoregressive regressor's fit on its own rollout ([`crate::rollout_fit`]) after the
+    /// ridge fit; 0 keeps the ridge fit.
+    pub ar_rollout_iters: usize,
     pub lstm: LstmConfig,
     pub resolution: usize,
     /// A template OBJ whose `vt` must give the layout; without it one is computed from the first mean shape.
@@ -84,9 +92,15 @@ impl Default for TrainParams {
     fn default() -> Self {
         TrainParams {
             k: 200,
-            lags: vec![1, 2, 4, 8, 16, 32],
+            // Defaults chosen by the mean vertex error over the three leave-one-sequence-out splits of
+            // sleeve-train (docs/deepwrinkles.md): no pose lags (the pose-only map: 7.57 mm without, 8.33 mm
+            // with lags 1..32), and the autoregressive regressor feeding back 10 coefficients, fitted for 20
+            // steps on its own rollout (7.20 mm).
+            lags: vec![],
             ridge: 1e-3,
-            regressor: RegressorKind::Linear,
+            regressor: RegressorKind::Autoregressive,
+            ar_state: 10,
+            ar_rollout_iters: 20,
             lstm: LstmConfig::default(),
             resolution: 256,
             uv: None,
@@ -100,6 +114,9 @@ impl TrainParams {
     pub fn validate(&self) -> Result<()> {
         if self.k == 0 {
             return Err(Error::param("k", "must be at least 1"));
+        }
+        if self.ar_state == 0 {
+            return Err(Error::param("ar_state", "must be at least 1"));
         }
         if !(self.ridge.is_finite() && self.ridge >= 0.0) {
             return Err(Error::param("ridge", "must be a non-negative number"));
@@ -154,8 +171,12 @@ pub struct Fitted {
     pub subspace: Subspace,
     pub control: ControlSpec,
     pub linear: LinearRegression,
+    pub autoregressive: AutoregressiveLinear,
     pub lstm: Option<LstmRegressor>,
     pub coeff_scale: Vec<f64>,
+    /// The autoregressive regressor's training rollout loss (coefficient MSE) before and after each step of
+    /// its rollout fit.
+    pub ar_rollout_losses: Vec<f64>,
     pub lstm_losses: Vec<f64>,
     pub seconds: BTreeSummary,
 }
@@ -164,6 +185,7 @@ pub struct Fitted {
 pub struct BTreeSummary {
     pub subspace_s: f64,
     pub linear_s: f64,
+    pub autoregressive_s: f64,
     pub lstm_s: f64,
     pub lstm_s_per_epoch: f64,
 }
@@ -202,6 +224,13 @@ pub fn fit(
     let t1 = Instant::now();
     let linear = LinearRegression::fit(&controls, &targets, params.ridge)?;
     let linear_s = t1.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let seqs: Vec<ControlsAndCoefficients> = per_seq
+        .iter()
+        .map(|(c, a)| (c.as_slice(), a.as_slice()))
+        .collect();
+    let (autoregressive, ar_rollout_losses) = fit_autoregressive(&seqs, params, k)?;
+    let autoregressive_s = t1.elapsed().as_secs_f64();
     let n = targets.len() as f64;
     let coeff_scale: Vec<f64> = (0..k)
         .map(|j| {
@@ -234,16 +263,39 @@ pub fn fit(
         subspace,
         control,
         linear,
+        autoregressive,
         lstm,
         coeff_scale,
+        ar_rollout_losses,
         lstm_losses,
         seconds: BTreeSummary {
             subspace_s,
             linear_s,
+            autoregressive_s,
             lstm_s,
             lstm_s_per_epoch: lstm_s / params.lstm.epochs.max(1) as f64,
         },
     })
+}
+
+/// The autoregressive regressor on each sequence's (control vectors, true coefficients): the ridge fit, then
+/// `ar_rollout_iters` steps on its own rollout. Returns it with the rollout losses.
+fn fit_autoregressive(
+    seqs: &[ControlsAndCoefficients<'_>],
+    params: &TrainParams,
+    k: usize,
+) -> Result<(AutoregressiveLinear, Vec<f64>)> {
+    let a_refs: Vec<&[Vec<f64>]> = seqs.iter().map(|(_, a)| *a).collect();
+    let history = ShapeHistory::fit(&a_refs, params.ar_state.min(k), 2)?;
+    let mut ar = AutoregressiveLinear::fit(seqs, history, params.ridge, 0)?;
+    let report = crate::rollout_fit::refine(
+        &mut ar,
+        seqs,
+        params.ridge,
+        params.ar_rollout_iters,
+        |_, _| {},
+    )?;
+    Ok((ar, report.losses))
 }
 
 /// Trains on `seqs` and publishes the model at `out`.
@@ -259,6 +311,7 @@ pub fn train(
     let layout = layout_for(params.uv.as_deref(), &topo, &mean_shape)?;
     let mut w = ModelWriter::new(out)?;
     write_core_parts(&mut w, &topo, &layout, &fitted.subspace, &fitted.linear)?;
+    write_autoregressive(&mut w, &fitted.autoregressive)?;
     if let Some(net) = &fitted.lstm {
         net.save(&w.staging_path("lstm.safetensors"))?;
         w.record("lstm.safetensors")?;
@@ -292,6 +345,7 @@ pub fn train(
         control: fitted.control.clone(),
         regressor: params.regressor,
         lstm: fitted.lstm.as_ref().map(|n| n.config.clone()),
+        autoregressive: Some(ArSpec::of(&fitted.autoregressive.history)),
         coeff_scale: fitted.coeff_scale.clone(),
         resolution: params.resolution,
         cgan: cgan_value,
@@ -300,6 +354,7 @@ pub fn train(
             "frames": seqs.iter().map(|s| s.fine.len()).sum::<usize>(),
             "seconds": fitted.seconds,
             "lstm_final_loss": fitted.lstm_losses.last(),
+            "autoregressive_rollout_loss": [fitted.ar_rollout_losses.first(), fitted.ar_rollout_losses.last()],
             "cgan": cgan_summary,
         }),
         files: Default::default(),

@@ -43,6 +43,12 @@ fn train_and_apply_specs_parse_with_the_cli_defaults() {
             assert_eq!(params.cgan_epochs, 2);
             assert_eq!(params.resolution, 256, "crease deep train's default");
             assert_eq!(params.cgan_filters, 64);
+            assert_eq!(
+                params.regressor,
+                crease_deep::model::RegressorKind::Autoregressive
+            );
+            assert_eq!((params.ar_state, params.ar_rollout_iters), (10, 20));
+            assert!(params.lags.is_empty());
         }
         other => panic!("{other:?}"),
     }
@@ -77,6 +83,10 @@ fn bad_deep_specs_name_the_field() {
         (
             spec("task = \"train\"\n[deep.params]\nlstm_layers = 0\n", ""),
             "deep.params.lstm_layers",
+        ),
+        (
+            spec("task = \"train\"\n[deep.params]\nar_state = 0\n", ""),
+            "deep.params.ar_state",
         ),
         (spec("task = \"apply\"\nfrom = \"pose\"\n", ""), "model"),
         (

@@ -9,7 +9,7 @@ use crate::inspect::InputInfo;
 use crate::spec::JobSpec;
 use crate::storage::fetch_input_to_cache;
 use crease_deep::apply::open_coarse;
-use crease_deep::model::Model;
+use crease_deep::model::{Model, RegressorKind};
 use crease_deep::pose::read_pose_file;
 use crease_deep::train::{common_topology, load_training_dir};
 use std::path::{Path, PathBuf};
@@ -28,8 +28,11 @@ pub fn model_files(deep: &DeepSpec) -> Vec<String> {
         "singular_values.npy",
         "linear.npy",
         "template.obj",
+        "autoregressive.npy",
+        "ar_scale.npy",
+        "ar_start.npy",
     ];
-    if params.regressor == crease_deep::model::RegressorKind::Lstm {
+    if params.regressor == RegressorKind::Lstm {
         names.push("lstm.safetensors");
     }
     if params.cgan_epochs > 0 {
@@ -66,12 +69,18 @@ pub async fn inspect(job: &JobSpec, deep: &DeepSpec, cache: &Path) -> Result<Inp
                 .await
                 .map_err(|e| JobError::input(&job.input, format!("inspection panicked: {e}")))?
         }
-        DeepSpec::Apply { model, from, .. } => {
+        DeepSpec::Apply {
+            model,
+            from,
+            regressor,
+            ..
+        } => {
             let model_dir = fetch_input_to_cache(model, cache).await?;
             let input = fetch_input_to_cache(&job.input, cache).await?;
-            let (job2, model_uri, from) = (job.clone(), model.clone(), *from);
+            let (job2, model_uri, from, regressor) =
+                (job.clone(), model.clone(), *from, *regressor);
             tokio::task::spawn_blocking(move || {
-                inspect_apply(&job2, &model_uri, &model_dir, from, &input)
+                inspect_apply(&job2, &model_uri, &model_dir, from, regressor, &input)
             })
             .await
             .map_err(|e| JobError::input(&job.input, format!("inspection panicked: {e}")))?
@@ -104,11 +113,15 @@ fn inspect_apply(
     model_uri: &str,
     model_dir: &Path,
     from: ApplyFrom,
+    regressor: Option<RegressorKind>,
     input: &Path,
 ) -> Result<InputInfo, JobError> {
     let model = Model::load(model_dir).map_err(|e| JobError::input(model_uri, e))?;
     let n = match from {
         ApplyFrom::Pose => {
+            model
+                .check_regressor(regressor.unwrap_or(model.manifest.regressor))
+                .map_err(|e| JobError::input(model_uri, e))?;
             let poses = read_pose_file(input, None).map_err(|e| JobError::input(&job.input, e))?;
             let dim = model.manifest.control.pose_dim();
             if poses[0].len() != dim {

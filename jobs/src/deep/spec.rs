@@ -60,6 +60,8 @@ pub enum ApplyFrom {
 pub struct DeepTrainParams {
     pub k: usize,
     pub regressor: RegressorKind,
+    pub ar_state: usize,
+    pub ar_rollout_iters: usize,
     pub lags: Vec<usize>,
     pub ridge: f64,
     pub lstm_layers: usize,
@@ -85,6 +87,8 @@ impl Default for DeepTrainParams {
         DeepTrainParams {
             k: t.k,
             regressor: t.regressor,
+            ar_state: t.ar_state,
+            ar_rollout_iters: t.ar_rollout_iters,
             lags: t.lags,
             ridge: t.ridge,
             lstm_layers: t.lstm.layers,
@@ -111,6 +115,8 @@ impl DeepTrainParams {
             lags: self.lags.clone(),
             ridge: self.ridge,
             regressor: self.regressor,
+            ar_state: self.ar_state,
+            ar_rollout_iters: self.ar_rollout_iters,
             lstm: LstmConfig {
                 layers: self.lstm_layers,
                 hidden: self.lstm_hidden,

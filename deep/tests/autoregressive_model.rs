@@ -1,0 +1,223 @@
+//! The autoregressive regressor inside a stored model: `crease deep train` fits and stores it, `apply --pose`
+//! rolls it out from the first frame exactly as the loop written out below does, and a version 1 model
+//! (which has none) is still read but refuses it by name.
+
+mod support;
+
+use crease_core::npy;
+use crease_core::progress::NoProgress;
+use crease_deep::apply::{apply, shapes_from_poses, ApplyInput, ApplyParams};
+use crease_deep::model::{Model, RegressorKind};
+use crease_deep::train::{fit, train, TrainParams, TrainingSequence};
+use std::path::Path;
+
+/// A tube whose bulge follows a leaky integral of the pose (s_t = 0.8 s_{t−1} + 0.5 pose_t): the same pose
+/// gives different shapes depending on the poses before it, as on the sleeve.
+fn sequence(dir: &Path, frames: usize, freq: f64, phase: f64) -> TrainingSequence {
+    let (topo, _) = support::tube(16, 8, |_, _| 0.07);
+    let (mut fine, mut poses) = (Vec::new(), Vec::new());
+    let mut s = 0.0;
+    for t in 0..frames {
+        let a = (freq * t as f64 + phase).sin();
+        s = 0.8 * s + 0.5 * a;
+        poses.push(vec![a, 0.0, 0.2]);
+        fine.push(
+            support::tube(16, 8, |phi, x| {
+                0.07 + 0.01 * s * (6.0 * x).sin() + 0.003 * a * (4.0 * phi).cos()
+            })
+            .1,
+        );
+    }
+    std::fs::create_dir_all(dir).unwrap();
+    let doc = serde_json::json!({ "pose_vectors": poses });
+    std::fs::write(dir.join("pose.json"), doc.to_string()).unwrap();
+    TrainingSequence {
+        dir: dir.to_path_buf(),
+        topology: topo,
+        coarse: fine.clone(),
+        fine,
+        poses,
+    }
+}
+
+fn params() -> TrainParams {
+    TrainParams {
+        k: 4,
+        lags: vec![],
+        ridge: 1e-6,
+        ar_state: 2,
+        resolution: 16,
+        ..Default::default()
+    }
+}
+
+fn array(dir: &Path, name: &str) -> (Vec<usize>, Vec<f64>) {
+    let p = dir.join(name);
+    npy::from_bytes::<f64>(&p, &std::fs::read(&p).unwrap()).unwrap()
+}
+
+fn mean_vertex_error(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> f64 {
+    let (mut s, mut n) = (0.0, 0.0);
+    for (fa, fb) in a.iter().zip(b) {
+        for (p, q) in fa.iter().zip(fb) {
+            s += ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+            n += 1.0;
+        }
+    }
+    s / n
+}
+
+#[test]
+fn stored_rollout_equals_a_hand_rolled_loop_and_beats_the_pose_only_map() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seqs = vec![
+        sequence(&tmp.path().join("a"), 60, 0.21, 0.0),
+        sequence(&tmp.path().join("b"), 60, 0.13, 1.0),
+    ];
+    let held = sequence(&tmp.path().join("held"), 60, 0.17, 2.0);
+    let dir = tmp.path().join("model");
+    train(&seqs, &params(), &dir, &NoProgress).unwrap();
+    let model = Model::load(&dir).unwrap();
+    assert_eq!(model.manifest.version, 2);
+    assert_eq!(
+        model.manifest.regressor,
+        RegressorKind::Autoregressive,
+        "the default"
+    );
+    // The stored regressor is the fitted one, bit for bit.
+    let fitted = fit(&seqs, &params(), &NoProgress).unwrap();
+    assert_eq!(model.autoregressive.as_ref(), Some(&fitted.autoregressive));
+
+    // The rollout written out from the model's files: x_t = [Θ_t, clip(s ⊙ α_{t−1}[..k_state]),
+    // clip(s ⊙ α_{t−2}[..k_state])], α_t = W x_t, frames before the first at the stored start state.
+    let spec = model.manifest.autoregressive.clone().unwrap();
+    assert_eq!((spec.k_state, spec.order), (2, 2));
+    let (wshape, w) = array(&dir, "autoregressive.npy");
+    let (_, scale) = array(&dir, "ar_scale.npy");
+    let (_, start) = array(&dir, "ar_start.npy");
+    let (k, m) = (wshape[0], wshape[1]);
+    let controls = model.manifest.control.controls(&held.poses).unwrap();
+    assert_eq!(m, controls[0].len() + 2 * 2);
+    let mut alphas: Vec<Vec<f64>> = Vec::new();
+    for (t, c) in controls.iter().enumerate() {
+        let mut x = c.clone();
+        for lag in 1..=2 {
+            let prev = if t >= lag { &alphas[t - lag] } else { &start };
+            for j in 0..2 {
+                x.push((prev[j] * scale[j]).clamp(-spec.clip, spec.clip));
+            }
+        }
+        alphas.push(
+            (0..k)
+                .map(|r| (0..m).map(|i| w[r * m + i] * x[i]).sum())
+                .collect(),
+        );
+    }
+    let by_hand: Vec<Vec<[f64; 3]>> = alphas
+        .iter()
+        .map(|a| model.subspace.reconstruct(a))
+        .collect();
+    let pose_file = held.dir.join("pose.json");
+    let rolled = shapes_from_poses(&model, &pose_file, RegressorKind::Autoregressive).unwrap();
+    assert_eq!(rolled.len(), 60);
+    let diff = mean_vertex_error(&rolled, &by_hand);
+    assert!(diff < 1e-12, "rollout vs hand-rolled loop: {diff}");
+
+    // On the held-out motion the history matters: the rollout is closer to the truth than the pose-only map.
+    let linear = shapes_from_poses(&model, &pose_file, RegressorKind::Linear).unwrap();
+    let (e_ar, e_lin) = (
+        mean_vertex_error(&rolled, &held.fine),
+        mean_vertex_error(&linear, &held.fine),
+    );
+    eprintln!("held-out mean vertex error: autoregressive {e_ar:.2e} m, linear {e_lin:.2e} m");
+    assert!(
+        e_lin > 2e-4,
+        "the pose alone should not determine the shape"
+    );
+    assert!(
+        e_ar < 0.5 * e_lin,
+        "autoregressive {e_ar} vs linear {e_lin}"
+    );
+
+    // A frame range (a job's chunk) writes the bytes of the full run's frames.
+    let full = tmp.path().join("full");
+    let input = ApplyInput::Pose(pose_file.clone());
+    apply(&model, &input, &ApplyParams::default(), &full, &NoProgress).unwrap();
+    let part = tmp.path().join("part");
+    let chunk = ApplyParams {
+        frames: Some(40..44),
+        ..Default::default()
+    };
+    apply(&model, &input, &chunk, &part, &NoProgress).unwrap();
+    for t in 41..=44 {
+        for f in [
+            format!("mesh/frame_{t:04}.obj"),
+            format!("normals/frame_{t:04}.png"),
+        ] {
+            assert_eq!(
+                std::fs::read(full.join(&f)).unwrap(),
+                std::fs::read(part.join(&f)).unwrap(),
+                "{f}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_version_1_model_is_read_and_refuses_the_autoregressive_regressor_by_name() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seqs = vec![
+        sequence(&tmp.path().join("a"), 30, 0.21, 0.0),
+        sequence(&tmp.path().join("b"), 30, 0.13, 1.0),
+    ];
+    let dir = tmp.path().join("model");
+    train(&seqs, &params(), &dir, &NoProgress).unwrap();
+    // What version 1 wrote: no autoregressive entry, its files absent, the linear regressor by default.
+    let old = tmp.path().join("v1");
+    std::fs::create_dir_all(&old).unwrap();
+    let mut manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    let m = manifest.as_object_mut().unwrap();
+    m.insert("version".into(), 1.into());
+    m.insert("regressor".into(), "linear".into());
+    m.remove("autoregressive");
+    let files = m["files"].as_object_mut().unwrap();
+    for f in ["autoregressive.npy", "ar_scale.npy", "ar_start.npy"] {
+        files.remove(f);
+    }
+    for f in files.keys() {
+        std::fs::copy(dir.join(f), old.join(f)).unwrap();
+    }
+    std::fs::write(
+        old.join("manifest.json"),
+        serde_json::to_string_pretty(&manifest).unwrap(),
+    )
+    .unwrap();
+
+    let v1 = Model::load(&old).unwrap();
+    assert!(v1.autoregressive.is_none());
+    let v2 = Model::load(&dir).unwrap();
+    let pose = seqs[0].dir.join("pose.json");
+    assert_eq!(
+        shapes_from_poses(&v1, &pose, v1.manifest.regressor).unwrap(),
+        shapes_from_poses(&v2, &pose, RegressorKind::Linear).unwrap(),
+        "the version 1 model runs its linear regressor as before"
+    );
+    let e = shapes_from_poses(&v1, &pose, RegressorKind::Autoregressive)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("manifest.json")
+            && e.contains("no autoregressive regressor")
+            && e.contains("version 1"),
+        "{e}"
+    );
+    // No LSTM was trained: asking for it is refused the same way.
+    let e = shapes_from_poses(&v2, &pose, RegressorKind::Lstm)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("manifest.json") && e.contains("no lstm regressor"),
+        "{e}"
+    );
+}

@@ -248,7 +248,7 @@ mod tests {
                     let folds = tracer.trace(&field, &params);
                     out.push(format!("{folds:?} {:?}", tracer.seeds()));
                 }
-                (out, tracer.traced_ahead)
+                (out, tracer.traced_ahead().0)
             })
         };
         let (one, ahead_one) = run(1);

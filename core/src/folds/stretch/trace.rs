@@ -90,9 +90,8 @@ pub struct FoldTracer {
     prev_seed: Vec<bool>,
     /// One [`SeedWork`] per thread tracing seeds at the same time ([`super::speculate`]).
     pool: SeedPool,
-    /// Seeds traced ahead of their turn so far, and those of them wasted (their seed was consumed first).
-    pub(super) traced_ahead: usize,
-    pub(super) wasted: usize,
+    traced_ahead: usize,
+    wasted: usize,
 }
 
 /// The work on one seed — patch, axis, control lines, region — which reads the frame but nothing of the other
@@ -192,6 +191,12 @@ impl FoldTracer {
         (0..self.prev_seed.len() as u32)
             .filter(|&t| self.prev_seed[t as usize])
             .collect()
+    }
+
+    /// Seeds traced ahead of their turn so far ([`super::speculate`]), and those of them wasted because their
+    /// seed was consumed first.
+    pub fn traced_ahead(&self) -> (usize, usize) {
+        (self.traced_ahead, self.wasted)
     }
 
     /// Replaces the seed memory (as if the last traced frame's folds came from `seeds`); out-of-range

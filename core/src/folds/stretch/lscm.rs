@@ -44,14 +44,16 @@ pub fn lscm_with(
     let rings = Rings::new(n, tris);
     let ring = |i: usize| rings.ring(i);
     let m = 2 * n;
-    let mut row_ptr = vec![0usize; m + 1];
+    let mut row_ptr = Vec::with_capacity(m + 1);
+    let mut total = 0usize;
+    row_ptr.push(total);
     for i in 0..m {
-        row_ptr[i + 1] = row_ptr[i] + 2 * ring(i % n).len();
+        total += 2 * ring(i % n).len();
+        row_ptr.push(total);
     }
     let mut cols: Vec<u32> = vec![0; row_ptr[m]];
-    for i in 0..m {
+    for (i, &base) in row_ptr[..m].iter().enumerate() {
         let r = ring(i % n);
-        let base = row_ptr[i];
         for (k, &j) in r.iter().enumerate() {
             cols[base + k] = j;
             cols[base + r.len() + k] = j + n as u32;

@@ -81,7 +81,7 @@ impl SymbolicCache {
                 return Some(e.symbolic.clone());
             }
             let moved = old.get_mut(&h).and_then(|v| {
-                let k = v.iter().position(|e| same(e))?;
+                let k = v.iter().position(&same)?;
                 Some(v.swap_remove(k))
             });
             if let Some(e) = moved {

@@ -378,20 +378,21 @@ fn aux_stages(a: &BenchArgs) -> Result<()> {
 }
 
 /// Geometric fold estimation (Chen 2011, `--folds stretch`) on a compressed, twisting tube: seconds per frame
-/// for the whole detector (both passes and the tracing), with folds and anchors per frame.
+/// for the whole detector (both passes and the tracing) and for the tracing alone, with folds and anchors per
+/// frame.
 fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
     use crease_core::folds::stretch::StretchDetector;
     let frames = a.frames.clamp(4, 12);
     println!("\nstretch folds (Chen 2011), seconds per frame over {frames} frames of a compressed sleeve");
     println!(
-        "{:>8} {:>10} {:>10} {:>10} {:>12}",
-        "tris", "s/frame", "folds/f", "anchors/f", "seeds tried/f"
+        "{:>8} {:>10} {:>10} {:>10} {:>10} {:>12}",
+        "tris", "s/frame", "tracing", "folds/f", "anchors/f", "seeds tried/f"
     );
     for &size in &a.sizes {
         let seq = synth::compressed_tube(size, frames, 0.3, -1.0)?;
         let (mut folds, mut anchors, mut seeds) = (0usize, 0usize, 0usize);
         let t = Instant::now();
-        StretchDetector::default().run(&seq, &NoProgress, |_, _, _, f| {
+        let tracing = StretchDetector::default().run_timed(&seq, &NoProgress, |_, _, _, f| {
             folds += f.folds.len();
             anchors += f.anchors.len();
             seeds += f.seeds_tried;
@@ -399,9 +400,10 @@ fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
         })?;
         let per = |x: usize| x as f64 / frames as f64;
         println!(
-            "{:>8} {:>10.3} {:>10.1} {:>10.1} {:>12.1}",
+            "{:>8} {:>10.3} {:>10.3} {:>10.1} {:>10.1} {:>12.1}",
             seq.topology.n_triangles(),
             t.elapsed().as_secs_f64() / frames as f64,
+            tracing / frames as f64,
             per(folds),
             per(anchors),
             per(seeds)

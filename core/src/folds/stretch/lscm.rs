@@ -9,13 +9,31 @@
 //! conjugate gradients. The result is rescaled so the patch keeps its 3D area (distances in the plane are
 //! then comparable to distances on the surface).
 
+use super::symbolic::SymbolicCache;
 use super::tensor::shape;
 use crate::vec3::{self, V3};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::SymbolicSparseColMatRef;
+use faer::Side;
+use std::sync::Arc;
 
 /// Flattens the patch (`positions` indexed by the local vertex ids of `tris`), pinning local vertex `pin.0`
 /// at the origin and `pin.1` on the positive u axis. Returns `None` when the solve breaks down (degenerate
 /// patch).
 pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<Vec<[f64; 2]>> {
+    lscm_with(positions, tris, pin, None)
+}
+
+/// [`lscm`], taking the symbolic factorisation from `cache` when a patch with the same pattern was flattened
+/// before (the result is the same bit for bit).
+pub fn lscm_with(
+    positions: &[V3],
+    tris: &[[u32; 3]],
+    pin: (usize, usize),
+    cache: Option<&SymbolicCache>,
+) -> Option<Vec<[f64; 2]>> {
     let n = positions.len();
     if n < 3 || pin.0 == pin.1 || pin.0 >= n || pin.1 >= n {
         return None;
@@ -23,29 +41,19 @@ pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<
     // Unknown index: u_k → k, v_k → n + k. The normal matrix couples vertices sharing a triangle, so its
     // sparsity is known from the vertex rings: row u_i (and v_i) holds u_j then v_j for each j in the
     // closed ring of i, sorted. Building it that way avoids sorting ~72 triplets per triangle.
-    let mut ring: Vec<Vec<u32>> = vec![Vec::with_capacity(8); n];
-    for tri in tris {
-        for &i in tri {
-            for &j in tri {
-                let r = &mut ring[i as usize];
-                if !r.contains(&j) {
-                    r.push(j);
-                }
-            }
-        }
-    }
+    let rings = Rings::new(n, tris);
+    let ring = |i: usize| rings.ring(i);
     let m = 2 * n;
-    let mut row_ptr = vec![0usize; m + 1];
+    let mut row_ptr = Vec::with_capacity(m + 1);
+    let mut total = 0usize;
+    row_ptr.push(total);
     for i in 0..m {
-        row_ptr[i + 1] = row_ptr[i] + 2 * ring[i % n].len();
-    }
-    for r in &mut ring {
-        r.sort_unstable();
+        total += 2 * ring(i % n).len();
+        row_ptr.push(total);
     }
     let mut cols: Vec<u32> = vec![0; row_ptr[m]];
-    for i in 0..m {
-        let r = &ring[i % n];
-        let base = row_ptr[i];
+    for (i, &base) in row_ptr[..m].iter().enumerate() {
+        let r = ring(i % n);
         for (k, &j) in r.iter().enumerate() {
             cols[base + k] = j;
             cols[base + r.len() + k] = j + n as u32;
@@ -75,17 +83,22 @@ pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<
         let im = [
             eps[0][1], eps[1][1], eps[2][1], eps[0][0], eps[1][0], eps[2][0],
         ];
+        // Where corner b sits in corner a's ring: 9 searches per triangle rather than 36.
+        let slot: [[usize; 3]; 3] = std::array::from_fn(|a| {
+            let r = ring(tri[a] as usize);
+            std::array::from_fn(|b| {
+                r.iter()
+                    .position(|&w| w == tri[b])
+                    .expect("ring holds the triangle")
+            })
+        });
         for x in 0..6 {
             let vi = tri[x % 3] as usize;
             let row = vi + if x < 3 { 0 } else { n };
-            let r = &ring[vi];
+            let len = ring(vi).len();
             for y in 0..6 {
-                let vj = tri[y % 3];
-                let k = r
-                    .iter()
-                    .position(|&w| w == vj)
-                    .expect("ring holds the triangle");
-                let at = row_ptr[row] + k + if y < 3 { 0 } else { r.len() };
+                let k = slot[x % 3][y % 3];
+                let at = row_ptr[row] + k + if y < 3 { 0 } else { len };
                 vals[at] += re[x] * re[y] + im[x] * im[y];
             }
         }
@@ -101,23 +114,6 @@ pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<
     fixed[pin.1] = Some(d);
     fixed[n + pin.1] = Some(0.0);
     let mut x: Vec<f64> = (0..m).map(|i| fixed[i].unwrap_or(0.0)).collect();
-    // N_ff x_f = −N_fp x_p: the free unknowns given the pins.
-    let mat_vec = |x: &[f64], y: &mut [f64]| {
-        for i in 0..m {
-            if fixed[i].is_some() {
-                y[i] = 0.0;
-                continue;
-            }
-            let mut s = 0.0;
-            for k in row_ptr[i]..row_ptr[i + 1] {
-                let j = cols[k] as usize;
-                if fixed[j].is_none() {
-                    s += vals[k] * x[j];
-                }
-            }
-            y[i] = s;
-        }
-    };
     // b = −N_fp x_p.
     let mut b = vec![0.0; m];
     for i in 0..m {
@@ -132,60 +128,96 @@ pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<
         }
         b[i] = -s;
     }
-    let diag: Vec<f64> = (0..m)
-        .map(|i| {
-            (row_ptr[i]..row_ptr[i + 1])
-                .find(|&k| cols[k] as usize == i)
-                .map(|k| vals[k])
-                .unwrap_or(0.0)
-        })
-        .collect();
-    let precond = |r: &[f64], z: &mut [f64]| {
-        for i in 0..m {
-            z[i] = if fixed[i].is_none() && diag[i] > 0.0 {
-                r[i] / diag[i]
-            } else {
-                0.0
-            };
-        }
-    };
-    // Start from the orthographic projection onto the patch's mean plane, aligned with the pins: for the
-    // gently curved patches that folds live on this is close to the answer, so CG needs few iterations.
-    let mut normal = [0.0; 3];
-    for tri in tris {
-        let p = tri.map(|v| positions[v as usize]);
-        normal = vec3::add(
-            normal,
-            vec3::cross(vec3::sub(p[1], p[0]), vec3::sub(p[2], p[0])),
-        );
-    }
-    let normal = vec3::normalize(normal);
-    let o = positions[pin.0];
-    let along = vec3::sub(positions[pin.1], o);
-    let ax_u = vec3::sub(along, vec3::scale(normal, vec3::dot(along, normal)));
-    let du = vec3::norm(ax_u);
-    let mut xf = vec![0.0; m];
-    if du > 1e-12 * d {
-        let ax_u = vec3::scale(ax_u, 1.0 / du);
-        let ax_v = vec3::cross(normal, ax_u);
-        let k = d / du;
-        for i in 0..n {
-            let r = vec3::sub(positions[i], o);
-            if fixed[i].is_none() {
-                xf[i] = k * vec3::dot(r, ax_u);
-            }
-            if fixed[n + i].is_none() {
-                xf[n + i] = k * vec3::dot(r, ax_v);
-            }
-        }
-    }
     // Sparse Cholesky of N_ff (a patch has a few hundred vertices: a direct solve is far cheaper than CG,
     // which converges slowly on a map pinned at only two vertices). CG remains the fallback.
-    if let Some(sol) = direct_solve(m, &row_ptr, &cols, &vals, &fixed, &b) {
-        xf = sol;
-    } else {
-        conjugate_gradients(m, &mat_vec, &precond, &b, &mut xf);
-    }
+    let symbolic = |sym: SymbolicSparseColMatRef<'_, usize>| {
+        let compute = || {
+            factorize_symbolic_cholesky(
+                sym,
+                Side::Lower,
+                SymmetricOrdering::Amd,
+                Default::default(),
+            )
+            .ok()
+        };
+        match cache {
+            Some(c) => c.get_or_compute(n, pin, tris, compute),
+            None => compute().map(Arc::new),
+        }
+    };
+    // The iterative fallback's setup is only built when the direct solve breaks down.
+    let xf = match direct_solve(m, &row_ptr, &cols, &vals, &fixed, &b, symbolic) {
+        Some(sol) => sol,
+        None => {
+            // N_ff x_f = −N_fp x_p: the free unknowns given the pins.
+            let mat_vec = |x: &[f64], y: &mut [f64]| {
+                for i in 0..m {
+                    if fixed[i].is_some() {
+                        y[i] = 0.0;
+                        continue;
+                    }
+                    let mut s = 0.0;
+                    for k in row_ptr[i]..row_ptr[i + 1] {
+                        let j = cols[k] as usize;
+                        if fixed[j].is_none() {
+                            s += vals[k] * x[j];
+                        }
+                    }
+                    y[i] = s;
+                }
+            };
+            let diag: Vec<f64> = (0..m)
+                .map(|i| {
+                    (row_ptr[i]..row_ptr[i + 1])
+                        .find(|&k| cols[k] as usize == i)
+                        .map(|k| vals[k])
+                        .unwrap_or(0.0)
+                })
+                .collect();
+            let precond = |r: &[f64], z: &mut [f64]| {
+                for i in 0..m {
+                    z[i] = if fixed[i].is_none() && diag[i] > 0.0 {
+                        r[i] / diag[i]
+                    } else {
+                        0.0
+                    };
+                }
+            };
+            // Start from the orthographic projection onto the patch's mean plane, aligned with the pins: for
+            // the gently curved patches that folds live on this is close to the answer, so CG needs few
+            // iterations.
+            let mut normal = [0.0; 3];
+            for tri in tris {
+                let p = tri.map(|v| positions[v as usize]);
+                normal = vec3::add(
+                    normal,
+                    vec3::cross(vec3::sub(p[1], p[0]), vec3::sub(p[2], p[0])),
+                );
+            }
+            let normal = vec3::normalize(normal);
+            let o = positions[pin.0];
+            let along = vec3::sub(positions[pin.1], o);
+            let ax_u = vec3::sub(along, vec3::scale(normal, vec3::dot(along, normal)));
+            let du = vec3::norm(ax_u);
+            let mut xf = vec![0.0; m];
+            if du > 1e-12 * d {
+                let ax_u = vec3::scale(ax_u, 1.0 / du);
+                let ax_v = vec3::cross(normal, ax_u);
+                let k = d / du;
+                for i in 0..n {
+                    let r = vec3::sub(positions[i], o);
+                    if fixed[i].is_none() {
+                        xf[i] = k * vec3::dot(r, ax_u);
+                    }
+                    if fixed[n + i].is_none() {
+                        xf[n + i] = k * vec3::dot(r, ax_v);
+                    }
+                }
+            }
+            conjugate_gradients(m, &mat_vec, &precond, &b, &mut xf);
+            xf
+        }
+    };
     for i in 0..m {
         if fixed[i].is_none() {
             x[i] = xf[i];
@@ -212,6 +244,62 @@ pub fn lscm(positions: &[V3], tris: &[[u32; 3]], pin: (usize, usize)) -> Option<
         q[1] *= s;
     }
     Some(uv)
+}
+
+/// The closed one-rings of a patch's vertices (each vertex and those sharing a triangle with it), sorted, in
+/// one flat array: built without a vector per vertex, since a patch is flattened per fold seed.
+struct Rings {
+    ptr: Vec<usize>,
+    idx: Vec<u32>,
+}
+
+impl Rings {
+    fn new(n: usize, tris: &[[u32; 3]]) -> Self {
+        // Every corner of every incident triangle, then sorted and deduplicated per vertex in place.
+        let mut ptr = vec![0usize; n + 1];
+        for tri in tris {
+            for &i in tri {
+                ptr[i as usize + 1] += 3;
+            }
+        }
+        for i in 0..n {
+            ptr[i + 1] += ptr[i];
+        }
+        let mut fill = ptr[..n].to_vec();
+        let mut idx = vec![0u32; ptr[n]];
+        for tri in tris {
+            for &i in tri {
+                let at = &mut fill[i as usize];
+                idx[*at..*at + 3].copy_from_slice(tri);
+                *at += 3;
+            }
+        }
+        let mut len = 0;
+        let mut start = 0;
+        for i in 0..n {
+            let end = ptr[i + 1];
+            let r = &mut idx[start..end];
+            r.sort_unstable();
+            let mut k = 0;
+            for j in 0..r.len() {
+                if j == 0 || r[j] != r[k - 1] {
+                    r[k] = r[j];
+                    k += 1;
+                }
+            }
+            idx.copy_within(start..start + k, len);
+            ptr[i] = len;
+            len += k;
+            start = end;
+        }
+        ptr[n] = len;
+        idx.truncate(len);
+        Rings { ptr, idx }
+    }
+
+    fn ring(&self, i: usize) -> &[u32] {
+        &self.idx[self.ptr[i]..self.ptr[i + 1]]
+    }
 }
 
 /// Jacobi-preconditioned conjugate gradients on the free unknowns, from the initial guess in `xf`.
@@ -260,7 +348,8 @@ fn conjugate_gradients(
     }
 }
 
-/// Solves N_ff x_f = b by sparse Cholesky (faer, AMD ordering, sequential); `None` if it breaks down.
+/// Solves N_ff x_f = b by sparse Cholesky (faer, AMD ordering by `symbolic`, sequential); `None` if it breaks
+/// down.
 fn direct_solve(
     m: usize,
     row_ptr: &[usize],
@@ -268,11 +357,12 @@ fn direct_solve(
     vals: &[f64],
     fixed: &[Option<f64>],
     b: &[f64],
+    symbolic: impl FnOnce(SymbolicSparseColMatRef<'_, usize>) -> Option<Arc<SymbolicCholesky<usize>>>,
 ) -> Option<Vec<f64>> {
     use faer::dyn_stack::{MemBuffer, MemStack};
-    use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymmetricOrdering};
-    use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-    use faer::{Conj, Mat, Par, Side};
+    use faer::sparse::linalg::cholesky::LltRef;
+    use faer::sparse::SparseColMatRef;
+    use faer::{Conj, Mat, Par};
     let mut free = vec![usize::MAX; m];
     let mut nf = 0;
     for i in 0..m {
@@ -302,9 +392,7 @@ fn direct_solve(
         col_ptr.push(row_idx.len());
     }
     let sym = SymbolicSparseColMatRef::new_checked(nf, nf, &col_ptr, None, &row_idx);
-    let symbolic =
-        factorize_symbolic_cholesky(sym, Side::Lower, SymmetricOrdering::Amd, Default::default())
-            .ok()?;
+    let symbolic = symbolic(sym)?;
     let mut buf = MemBuffer::try_new(
         symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
     )
@@ -345,6 +433,62 @@ fn direct_solve(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The flat rings are the per-vertex sets of the triangles' vertices, sorted.
+    #[test]
+    fn rings_are_the_sorted_closed_one_rings() {
+        let (topo, _) = crate::synth::sheet(7, 5, 0.1).unwrap();
+        // A patch in scrambled local numbering, with a vertex no triangle uses.
+        let n = topo.n_vertices() + 1;
+        let tris: Vec<[u32; 3]> = topo
+            .triangles()
+            .iter()
+            .map(|t| t.map(|v| (v * 11 + 3) % n as u32))
+            .collect();
+        let rings = Rings::new(n, &tris);
+        for i in 0..n {
+            let mut want: Vec<u32> = tris
+                .iter()
+                .filter(|t| t.contains(&(i as u32)))
+                .flatten()
+                .copied()
+                .collect();
+            want.sort_unstable();
+            want.dedup();
+            assert_eq!(rings.ring(i), &want[..], "vertex {i}");
+        }
+    }
+
+    /// A cached symbolic factorisation gives the flattening bit for bit, for the same patch and for another
+    /// patch with the same pattern; another pattern is not served from the cache.
+    #[test]
+    fn cached_factorisations_flatten_bit_for_bit() {
+        let (topo, flat) = crate::synth::sheet(9, 7, 0.1).unwrap();
+        let bent: Vec<V3> = flat
+            .iter()
+            .map(|p| [p[0], p[1], 0.3 * (p[0] * 4.0).sin() * p[1]])
+            .collect();
+        let cache = SymbolicCache::new(4);
+        let bits = |uv: Option<Vec<[f64; 2]>>| -> Vec<u64> {
+            uv.unwrap()
+                .iter()
+                .flat_map(|q| [q[0].to_bits(), q[1].to_bits()])
+                .collect()
+        };
+        let tris = topo.triangles();
+        for p in [&flat, &bent, &bent] {
+            assert_eq!(
+                bits(lscm_with(p, tris, (0, 8), Some(&cache))),
+                bits(lscm(p, tris, (0, 8)))
+            );
+        }
+        assert_eq!(cache.stats(), (2, 1));
+        assert_eq!(
+            bits(lscm_with(&bent, tris, (0, 62), Some(&cache))),
+            bits(lscm(&bent, tris, (0, 62)))
+        );
+        assert_eq!(cache.stats(), (2, 2));
+    }
 
     #[test]
     fn developable_patch_is_flattened_isometrically() {

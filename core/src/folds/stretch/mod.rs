@@ -16,7 +16,9 @@ pub mod params;
 pub mod phases;
 pub mod realise;
 pub mod smooth;
+mod speculate;
 pub mod split;
+pub mod symbolic;
 pub mod tensor;
 pub mod trace;
 
@@ -96,8 +98,19 @@ impl StretchDetector {
         &self,
         source: &dyn FrameSource,
         progress: &dyn Progress,
-        mut each: impl FnMut(usize, &[V3], &[f64], FrameFolds) -> Result<()>,
+        each: impl FnMut(usize, &[V3], &[f64], FrameFolds) -> Result<()>,
     ) -> Result<()> {
+        self.run_timed(source, progress, each).map(|_| ())
+    }
+
+    /// [`Self::run`], returning the seconds spent tracing (the rest is the two passes and `each`), so that
+    /// `crease bench` can tell the two costs apart.
+    pub fn run_timed(
+        &self,
+        source: &dyn FrameSource,
+        progress: &dyn Progress,
+        mut each: impl FnMut(usize, &[V3], &[f64], FrameFolds) -> Result<()>,
+    ) -> Result<f64> {
         self.params.validate()?;
         let (source, levels) = match source.subdivided_from() {
             Some((base, sub)) => (base, sub.levels()),
@@ -107,7 +120,7 @@ impl StretchDetector {
         let n = source.n_frames();
         let nt = topo.n_triangles();
         if n == 0 {
-            return Ok(());
+            return Ok(0.0);
         }
         let params = &self.params;
         progress.begin(STAGE, 2 * n as u64);
@@ -153,6 +166,7 @@ impl StretchDetector {
         let mut tracer = trace::FoldTracer::new(&topo, levels);
         let mut prev = first;
         let mut buf = vec![0u8; record];
+        let mut tracing = 0.0;
         for t in 0..n {
             check()?;
             let cur = if t == 0 {
@@ -189,13 +203,15 @@ impl StretchDetector {
                 dir: &sig.dir,
                 h,
             };
+            let started = std::time::Instant::now();
             let folds = tracer.trace(&field, params);
+            tracing += started.elapsed().as_secs_f64();
             each(t, &cur, &sig.shrink, folds)?;
             prev = cur;
             progress.advance(STAGE, 1);
         }
         progress.end(STAGE);
-        Ok(())
+        Ok(tracing)
     }
 }
 

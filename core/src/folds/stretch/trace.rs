@@ -20,13 +20,16 @@
 //!   al. 2009 §5.1 rotate counter-clockwise about the fold edge), by the angle [`fold_angle`] that gives back
 //!   the length the capture lost.
 
-use super::lscm::lscm;
+use super::lscm::lscm_with;
 use super::params::StretchParams;
 use super::smooth::FrameGeometry;
+use super::speculate::{Entry, Outcome, SeedPool, SeedQueue};
+use super::symbolic::SymbolicCache;
 use super::tensor::shape;
 use crate::mesh::{Topology, NONE};
 use crate::vec3::{self, V3};
 use std::collections::BinaryHeap;
+use std::sync::Arc;
 
 /// What tracing reads of one frame.
 pub struct FrameField<'a> {
@@ -85,8 +88,19 @@ pub struct FrameFolds {
 /// Traces frames one after the other, carrying the seed memory (O(triangles)).
 pub struct FoldTracer {
     prev_seed: Vec<bool>,
+    /// One [`SeedWork`] per thread tracing seeds at the same time ([`super::speculate`]).
+    pool: SeedPool,
+    traced_ahead: usize,
+    wasted: usize,
+}
+
+/// The work on one seed — patch, axis, control lines, region — which reads the frame but nothing of the other
+/// seeds, so seeds can be traced on several threads, each with its own local numbering (O(triangles)).
+pub(super) struct SeedWork {
     tri_local: Vec<u32>,
     vert_local: Vec<u32>,
+    /// Shared by the pool's [`SeedWork`]s.
+    patterns: Arc<SymbolicCache>,
     /// Control-line samples per axis step: 2^levels when the lines are realised on a mesh subdivided `levels`
     /// times, so that every fine triangle they cross is sampled.
     density: usize,
@@ -166,9 +180,9 @@ impl FoldTracer {
     pub fn new(topo: &Topology, levels: usize) -> Self {
         FoldTracer {
             prev_seed: vec![false; topo.n_triangles()],
-            tri_local: vec![NONE; topo.n_triangles()],
-            vert_local: vec![NONE; topo.n_vertices()],
-            density: 1 << levels.min(8),
+            pool: SeedPool::new(topo, levels),
+            traced_ahead: 0,
+            wasted: 0,
         }
     }
 
@@ -177,6 +191,12 @@ impl FoldTracer {
         (0..self.prev_seed.len() as u32)
             .filter(|&t| self.prev_seed[t as usize])
             .collect()
+    }
+
+    /// Seeds traced ahead of their turn so far ([`super::speculate`]), and those of them wasted because their
+    /// seed was consumed first.
+    pub fn traced_ahead(&self) -> (usize, usize) {
+        (self.traced_ahead, self.wasted)
     }
 
     /// Replaces the seed memory (as if the last traced frame's folds came from `seeds`); out-of-range
@@ -194,7 +214,7 @@ impl FoldTracer {
     pub fn trace(&mut self, f: &FrameField, params: &StretchParams) -> FrameFolds {
         let n_tri = f.topo.n_triangles();
         let seed_min = 1.0 + params.min_shrink;
-        let mut heap: BinaryHeap<(bool, u64, std::cmp::Reverse<u32>)> = f
+        let heap: BinaryHeap<Entry> = f
             .shrink
             .iter()
             .enumerate()
@@ -212,36 +232,61 @@ impl FoldTracer {
         let mut new_seed = vec![false; n_tri];
         let mut folds = Vec::new();
         let mut seeds_tried = 0;
-        while let Some((_, _, std::cmp::Reverse(s))) = heap.pop() {
-            let s = s as usize;
-            if consumed[s] {
-                continue;
-            }
+        let mut queue = SeedQueue::new(heap);
+        while let Some(s) = queue.next(&consumed) {
             consumed[s] = true;
             seeds_tried += 1;
-            let Some(patch) = self.patch(f, s, params.patch_radius * f.h) else {
-                continue;
-            };
-            if let Some(axis) = self.axis(f, params, s, &patch) {
-                let fold = self.control_lines(f, params, s, &patch, &axis, centroid);
-                self.region(
-                    f,
-                    &patch,
-                    &axis,
-                    params.alpha * f.shrink[s] * f.h,
-                    &mut consumed,
-                );
+            let outcome = queue.outcome(s, &consumed, &self.pool, f, params, centroid);
+            if let Some((fold, region)) = outcome {
+                for t in region {
+                    consumed[t as usize] = true;
+                }
                 new_seed[s] = true;
                 folds.push(fold);
             }
-            self.release(&patch);
         }
         self.prev_seed = new_seed;
+        self.traced_ahead += queue.traced_ahead;
+        self.wasted += queue.wasted;
         FrameFolds {
             anchors: super::realise::anchors(&folds, None),
             folds,
             seeds_tried,
         }
+    }
+}
+
+impl SeedWork {
+    pub(super) fn new(
+        n_triangles: usize,
+        n_vertices: usize,
+        levels: usize,
+        patterns: Arc<SymbolicCache>,
+    ) -> Self {
+        SeedWork {
+            tri_local: vec![NONE; n_triangles],
+            vert_local: vec![NONE; n_vertices],
+            patterns,
+            density: 1 << levels.min(8),
+        }
+    }
+
+    /// What seed `s` gives on its own: its fold and the patch triangles of the fold's region of influence.
+    pub(super) fn trace_seed(
+        &mut self,
+        f: &FrameField,
+        params: &StretchParams,
+        s: usize,
+        centroid: V3,
+    ) -> Outcome {
+        let patch = self.patch(f, s, params.patch_radius * f.h)?;
+        let out = self.axis(f, params, s, &patch).map(|axis| {
+            let fold = self.control_lines(f, params, s, &patch, &axis, centroid);
+            let reach = params.alpha * f.shrink[s] * f.h;
+            (fold, self.region(f, &patch, &axis, reach))
+        });
+        self.release(&patch);
+        out
     }
 
     /// Triangles whose centroid lies within `radius` of the seed's (breadth-first, so the patch is connected),
@@ -288,7 +333,7 @@ impl FoldTracer {
                 da.total_cmp(&db).then(verts[b].cmp(&verts[a]))
             })
             .unwrap_or(pin0);
-        let patch_uv = lscm(&pos, &local_tris, (pin0, pin1));
+        let patch_uv = lscm_with(&pos, &local_tris, (pin0, pin1), Some(&self.patterns));
         let patch = Patch {
             tris,
             verts,
@@ -603,22 +648,17 @@ impl FoldTracer {
         }
     }
 
-    /// Region of influence (eq. 4.3): marks the patch triangles within `reach` of the axis, in the plane.
-    fn region(
-        &self,
-        f: &FrameField,
-        patch: &Patch,
-        axis: &Axis,
-        reach: f64,
-        consumed: &mut [bool],
-    ) {
+    /// Region of influence (eq. 4.3): the patch triangles within `reach` of the axis, in the plane.
+    fn region(&self, f: &FrameField, patch: &Patch, axis: &Axis, reach: f64) -> Vec<u32> {
         let axis_uv: Vec<[f64; 2]> = axis.iter().map(|a| a.0).collect();
+        let mut region = Vec::new();
         for &t in &patch.tris {
             let c = self.uv_centroid(f.topo, patch, t as usize);
             if dist_to_polyline(c, &axis_uv) <= reach {
-                consumed[t as usize] = true;
+                region.push(t);
             }
         }
+        region
     }
 }
 

@@ -1,0 +1,263 @@
+//! Tracing several seeds of one frame at once, with the sequential result (issue 14).
+//!
+//! Seeds are taken from the priority queue one at a time, and a fold consumes the seeds in its region of
+//! influence, so which seeds are tried depends on the folds before them. But what one seed gives — its patch,
+//! flattening, axis, control lines and region — reads only the frame. So the queue looks ahead: when the seed
+//! it must trace next has not been traced yet, it also traces, in parallel, later seeds that no fold before them
+//! could consume, and keeps their outcomes until their turn comes. Seeds are still committed strictly in queue
+//! order, and one consumed before its turn is skipped (its outcome discarded), so folds, seeds tried and seed
+//! memory are those of the one-at-a-time loop for any number of threads.
+//!
+//! A fold's region lies inside its seed's patch: the triangles whose centroids are within `patch_radius` edge
+//! lengths of the seed's. Seeds chosen together are kept farther apart than that, so none of them can consume
+//! another; only seeds passed over in between can, and those are few.
+
+use super::params::StretchParams;
+use super::symbolic::SymbolicCache;
+use super::trace::{FrameField, SeedWork, TracedFold};
+use crate::mesh::Topology;
+use crate::vec3::{self, V3};
+use rayon::prelude::*;
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap, VecDeque};
+use std::sync::{Arc, Mutex};
+
+/// What tracing one seed gives: its fold and the triangles of the fold's region of influence, or nothing (no
+/// patch, or an axis too short).
+pub(super) type Outcome = Option<(TracedFold, Vec<u32>)>;
+
+/// Queue entry: (seed of the previous frame, priority, triangle), largest first.
+pub(super) type Entry = (bool, u64, Reverse<u32>);
+
+/// Queue entries looked at past the next seed when choosing seeds to trace ahead.
+const LOOKAHEAD: usize = 64;
+
+/// Patch patterns whose symbolic factorisation is kept ([`SymbolicCache`]), per generation.
+const PATTERNS_PER_GENERATION: usize = 1024;
+
+/// Per-thread scratch for [`SeedWork`], created on demand and reused across seeds and frames.
+pub(super) struct SeedPool {
+    free: Mutex<Vec<SeedWork>>,
+    pub(super) patterns: Arc<SymbolicCache>,
+    n_triangles: usize,
+    n_vertices: usize,
+    levels: usize,
+}
+
+impl SeedPool {
+    pub(super) fn new(topo: &Topology, levels: usize) -> Self {
+        SeedPool {
+            free: Mutex::new(Vec::new()),
+            patterns: Arc::new(SymbolicCache::new(PATTERNS_PER_GENERATION)),
+            n_triangles: topo.n_triangles(),
+            n_vertices: topo.n_vertices(),
+            levels,
+        }
+    }
+
+    fn take(&self) -> SeedWork {
+        let work = self.free.lock().map(|mut v| v.pop()).unwrap_or(None);
+        work.unwrap_or_else(|| {
+            SeedWork::new(
+                self.n_triangles,
+                self.n_vertices,
+                self.levels,
+                self.patterns.clone(),
+            )
+        })
+    }
+
+    fn put(&self, work: SeedWork) {
+        if let Ok(mut v) = self.free.lock() {
+            v.push(work);
+        }
+    }
+
+    /// The outcomes of `seeds`, in order; in parallel when there are several.
+    fn trace(
+        &self,
+        f: &FrameField,
+        params: &StretchParams,
+        centroid: V3,
+        seeds: &[usize],
+    ) -> Vec<Outcome> {
+        let one = |s: usize| {
+            let mut work = self.take();
+            let out = work.trace_seed(f, params, s, centroid);
+            self.put(work);
+            out
+        };
+        if seeds.len() == 1 {
+            vec![one(seeds[0])]
+        } else {
+            seeds.par_iter().with_max_len(1).map(|&s| one(s)).collect()
+        }
+    }
+}
+
+/// The seed queue of one frame with the outcomes traced ahead of their turn.
+pub(super) struct SeedQueue {
+    heap: BinaryHeap<Entry>,
+    /// Entries taken from the heap but not yet handed out, in queue order.
+    ahead: VecDeque<u32>,
+    ready: HashMap<u32, Outcome>,
+    /// Seeds traced together: 1 traces one seed at a time (no look-ahead).
+    batch: usize,
+    /// Seeds traced ahead of their turn, and those of them discarded because their seed was consumed first.
+    pub traced_ahead: usize,
+    pub wasted: usize,
+}
+
+impl SeedQueue {
+    pub(super) fn new(heap: BinaryHeap<Entry>) -> Self {
+        let threads = rayon::current_num_threads();
+        SeedQueue {
+            heap,
+            ahead: VecDeque::new(),
+            ready: HashMap::new(),
+            batch: if threads > 1 { 2 * threads } else { 1 },
+            traced_ahead: 0,
+            wasted: 0,
+        }
+    }
+
+    /// The next seed in queue order that is not consumed yet.
+    pub(super) fn next(&mut self, consumed: &[bool]) -> Option<usize> {
+        loop {
+            let s = match self.ahead.pop_front() {
+                Some(s) => s,
+                None => self.heap.pop()?.2 .0,
+            };
+            if !consumed[s as usize] {
+                return Some(s as usize);
+            }
+            if self.ready.remove(&s).is_some() {
+                self.wasted += 1;
+            }
+        }
+    }
+
+    /// What seed `s` (just handed out by [`Self::next`]) gives: traced ahead already, or now, together with
+    /// later seeds that no fold before them can consume.
+    pub(super) fn outcome(
+        &mut self,
+        s: usize,
+        consumed: &[bool],
+        pool: &SeedPool,
+        f: &FrameField,
+        params: &StretchParams,
+        centroid: V3,
+    ) -> Outcome {
+        if let Some(out) = self.ready.remove(&(s as u32)) {
+            return out;
+        }
+        let mut chosen = vec![s];
+        if self.batch > 1 {
+            while self.ahead.len() < LOOKAHEAD {
+                let Some(e) = self.heap.pop() else { break };
+                self.ahead.push_back(e.2 .0);
+            }
+            // A seed's fold stays within its patch; a candidate closer than that to a seed before it that may
+            // still give a fold (passed over, or traced ahead already) is left for its turn.
+            let apart = params.patch_radius * f.h;
+            let near = |a: usize, b: usize| {
+                vec3::norm(vec3::sub(f.geom.centroids[a], f.geom.centroids[b])) <= apart
+            };
+            let mut passed: Vec<usize> = Vec::new();
+            for &c in &self.ahead {
+                if chosen.len() == self.batch {
+                    break;
+                }
+                let c = c as usize;
+                if consumed[c] {
+                    continue;
+                }
+                if self.ready.contains_key(&(c as u32))
+                    || chosen.iter().chain(&passed).any(|&o| near(o, c))
+                {
+                    passed.push(c);
+                    continue;
+                }
+                chosen.push(c);
+            }
+        }
+        self.traced_ahead += chosen.len() - 1;
+        let mut outs = pool.trace(f, params, centroid, &chosen).into_iter();
+        let mine = outs.next().expect("the seed itself");
+        for (&c, out) in chosen[1..].iter().zip(outs) {
+            self.ready.insert(c as u32, out);
+        }
+        mine
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::smooth::FrameGeometry;
+    use super::super::trace::FoldTracer;
+    use super::super::{mean_edge_length, StretchParams};
+    use super::*;
+
+    /// Tracing seeds ahead on several threads gives the folds, anchors, seeds tried and seed memory of the
+    /// one-at-a-time loop, frame after frame (the seed memory carries over).
+    #[test]
+    fn tracing_ahead_in_parallel_is_the_sequential_loop() {
+        let seq = crate::synth::compressed_tube(6000, 4, 0.3, -1.0).unwrap();
+        let topo = &seq.topology;
+        let params = StretchParams::default();
+        // A banded shrinkage along the tube with a ripple, so there are many folds and many failing seeds.
+        let fields: Vec<(Vec<f64>, Vec<V3>)> = (0..seq.frames.len())
+            .map(|t| {
+                let geom = FrameGeometry::new(topo, &seq.frames[t]);
+                let shrink = geom
+                    .centroids
+                    .iter()
+                    .enumerate()
+                    .map(|(i, c)| {
+                        let band = (c[2] * 90.0 + t as f64).sin().max(0.0);
+                        1.0 + 0.1 * band + 0.01 * ((i * 7919 % 97) as f64 / 97.0)
+                    })
+                    .collect();
+                let dir = geom
+                    .normals
+                    .iter()
+                    .map(|n| vec3::normalize(vec3::sub([0.0, 0.0, 1.0], vec3::scale(*n, n[2]))))
+                    .collect();
+                (shrink, dir)
+            })
+            .collect();
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut tracer = FoldTracer::new(topo, 0);
+                let mut out = Vec::new();
+                for (t, (shrink, dir)) in fields.iter().enumerate() {
+                    let p = &seq.frames[t];
+                    let geom = FrameGeometry::new(topo, p);
+                    let field = FrameField {
+                        topo,
+                        p,
+                        geom: &geom,
+                        shrink,
+                        dir,
+                        h: mean_edge_length(topo, &seq.frames[0]),
+                    };
+                    let folds = tracer.trace(&field, &params);
+                    out.push(format!("{folds:?} {:?}", tracer.seeds()));
+                }
+                (out, tracer.traced_ahead().0)
+            })
+        };
+        let (one, ahead_one) = run(1);
+        let (four, ahead_four) = run(4);
+        assert_eq!(ahead_one, 0);
+        assert!(ahead_four > 0, "nothing was traced ahead");
+        assert!(one.iter().all(|f| f.contains("TracedFold")), "no folds");
+        for (t, (a, b)) in one.iter().zip(&four).enumerate() {
+            assert!(a == b, "frame {t} differs with 4 threads");
+        }
+    }
+}

@@ -76,7 +76,7 @@ impl Restoration {
         (0..n)
             .map(|v| {
                 let w = (weight[v] / self.reference_tilt).min(1.0);
-                if !(w > 0.0) || vec3::norm(n_rest[v]) == 0.0 {
+                if w.is_nan() || w <= 0.0 || vec3::norm(n_rest[v]) == 0.0 {
                     return out[v];
                 }
                 let height = vec3::dot(vec3::sub(rest[v], smooth[v]), n_rest[v]);

@@ -65,6 +65,11 @@ pub struct DeformArgs {
     /// lowest-index vertex fixed.
     #[arg(long, default_value = "centroid", value_parser = parse_pinning)]
     pub pinning: Pinning,
+    /// Fold restoration gain: where the deformation put folds, the captured surface's residual under the
+    /// capture filter is added this many times along its normal (the folds the capture smoothed but did not
+    /// erase). 0 = off.
+    #[arg(long, default_value_t = crease_core::spacetime::params::DEFAULT_FOLD_RESTORE)]
+    pub fold_restore: f64,
 }
 
 fn parse_shape_cutoff(s: &str) -> Result<f64, String> {
@@ -106,6 +111,7 @@ impl DeformArgs {
             stretch_rotation: self.stretch_rotation,
             shape_cutoff: self.shape_cutoff,
             pinning: self.pinning,
+            fold_restore: self.fold_restore,
         }
     }
 }
@@ -245,6 +251,8 @@ fn write_demo_video(a: &DemoArgs) -> Result<()> {
         // Popa's stretch passes, not crease's fold-keeping default: the truth stays what it was whatever the
         // reconstruction's defaults become.
         stretch_rotation: StretchRotation::Polar,
+        // Nor is the fold restoration: it reads the captured surface, which the truth is made from.
+        fold_restore: 0.0,
         ..DeformParams::default()
     };
     deform(

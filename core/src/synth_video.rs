@@ -124,6 +124,8 @@ pub fn folded_demo_image(triangles: usize, width: u32, height: u32) -> Result<Rg
         // Popa's stretch passes, not crease's fold-keeping default: the truth stays what it was whatever the
         // reconstruction's defaults become.
         stretch_rotation: crate::spacetime::stretch::StretchRotation::Polar,
+        // Nor crease's fold restoration, which reads the captured surface the truth is made from.
+        fold_restore: 0.0,
         ..DeformParams::default()
     };
     let mut sink = crate::mesh::MemorySink::default();

@@ -134,6 +134,7 @@ pub fn deform(
                     &phi,
                     params.stretch_passes,
                     params.stretch_rotation,
+                    params.restoration(),
                 );
                 progress.advance("position", 1);
                 r

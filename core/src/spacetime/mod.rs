@@ -10,6 +10,7 @@ pub mod operator;
 pub mod params;
 pub mod per_anchor;
 pub mod position;
+pub mod restore;
 pub mod so3;
 pub mod stages;
 pub mod stretch;

@@ -72,7 +72,18 @@ pub struct DeformParams {
     /// How the unscreened system (`shape_cutoff` 0) removes its translational null space; the screened one
     /// has none and keeps each component's area-weighted mean displacement at zero by itself.
     pub pinning: Pinning,
+    /// Fold restoration gain (see [`super::restore`]): where the deformation tilted the surface, the captured
+    /// surface's residual under the capture filter is added this many times along its normal, giving back in
+    /// place the fold amplitude the capture smoothed away. 0 turns it off.
+    pub fold_restore: f64,
 }
+
+/// Largest fold restoration gain accepted: 1/T for a fold the capture kept 5% of; below that the residual is
+/// noise rather than cloth.
+pub const MAX_FOLD_RESTORE: f64 = 20.0;
+
+/// Default fold restoration gain (docs/fidelity-folds.md, "Restoring the folds the capture kept").
+pub const DEFAULT_FOLD_RESTORE: f64 = 2.0;
 
 impl Default for DeformParams {
     fn default() -> Self {
@@ -88,6 +99,7 @@ impl Default for DeformParams {
             stretch_rotation: StretchRotation::Anchored,
             shape_cutoff: DEFAULT_SHAPE_CUTOFF,
             pinning: Pinning::Centroid,
+            fold_restore: DEFAULT_FOLD_RESTORE,
         }
     }
 }
@@ -115,6 +127,7 @@ struct DeformFields {
     stretch_rotation: Option<StretchRotation>,
     shape_cutoff: Option<f64>,
     pinning: Option<Pinning>,
+    fold_restore: Option<f64>,
 }
 
 #[derive(Deserialize, Default)]
@@ -156,6 +169,7 @@ impl TryFrom<DeformFields> for DeformParams {
             stretch_rotation: f.stretch_rotation.unwrap_or(d.stretch_rotation),
             shape_cutoff: f.shape_cutoff.unwrap_or(d.shape_cutoff),
             pinning: f.pinning.unwrap_or(d.pinning),
+            fold_restore: f.fold_restore.unwrap_or(d.fold_restore),
         })
     }
 }
@@ -164,6 +178,14 @@ impl DeformParams {
     /// The screen's cutoff for [`super::position::PositionSystem::new`] (None when off).
     pub fn screen(&self) -> Option<f64> {
         (self.shape_cutoff > 0.0).then_some(self.shape_cutoff)
+    }
+
+    /// The fold restoration the positioning ends with ([`super::restore`]).
+    pub fn restoration(&self) -> super::restore::Restoration {
+        super::restore::Restoration {
+            gain: self.fold_restore,
+            reference_tilt: super::restore::REFERENCE_TILT_DEG.to_radians(),
+        }
     }
 
     /// Rejects values the solver cannot honour, naming the parameter.
@@ -226,6 +248,16 @@ impl DeformParams {
             return Err(Error::param(
                 "pinning",
                 "`vertex` needs the unscreened system: set shape_cutoff to 0 (off) to fix a vertex",
+            ));
+        }
+        if !(self.fold_restore.is_finite() && (0.0..=MAX_FOLD_RESTORE).contains(&self.fold_restore))
+        {
+            return Err(Error::param(
+                "fold_restore",
+                format!(
+                    "must be a gain in [0, {MAX_FOLD_RESTORE}] (0: off), got {}",
+                    self.fold_restore
+                ),
             ));
         }
         if self.stretch_passes > 20 {

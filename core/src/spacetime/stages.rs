@@ -157,7 +157,8 @@ pub struct PositionedFrame {
 
 /// Positions frame `t` of `source` from its cross-faded rotation-vector field `phi` (Alexa blend, gradient-
 /// domain solve), then runs `passes` stretch-reduction passes reusing the frame's factorisation, measuring
-/// stretch after each step.
+/// stretch after each step, and ends with the fold restoration `restore` ([`super::restore`]; the last
+/// stretch figures are then those of the restored frame).
 pub fn position_frame(
     system: &PositionSystem,
     source: &dyn FrameSource,
@@ -165,6 +166,7 @@ pub fn position_frame(
     phi: &[V3],
     passes: usize,
     rotation: super::stretch::StretchRotation,
+    restore: super::restore::Restoration,
 ) -> Result<PositionedFrame> {
     let clock = Instant::now();
     let rest = source.read_frame(t)?;
@@ -190,27 +192,34 @@ pub fn position_frame(
 
     let mut metrics = 0.0;
     let mut stretch = Vec::with_capacity(passes + 1);
-    let mut measure = |out: &Frame, metrics: &mut f64| {
+    let measure = |out: &Frame, metrics: &mut f64| {
         let clock = Instant::now();
         let mut acc = StretchAccumulator::default();
         acc.add_frame(system.topology(), &rest, out);
         let st = acc.stats();
-        stretch.push((acc, st));
         *metrics += clock.elapsed().as_secs_f64();
+        (acc, st)
     };
-    measure(&out, &mut metrics);
     // A frame the positioning left exactly in place (no anchor's weight reaches it) has no stretch to reduce:
     // a pass would only add round-off (the closest rotation to an identity gradient is I up to rounding), and
     // no anchors must give the input back bit for bit.
     let moved = out != rest;
+    let restoring = moved && restore.is_active();
+    if restoring && passes == 0 {
+        out = restore.apply(system.topology(), &rest, &out);
+    }
+    stretch.push(measure(&out, &mut metrics));
     let mut pass_times = Vec::with_capacity(passes);
-    for _ in 0..passes {
+    for k in 0..passes {
         let clock = Instant::now();
         if moved {
             out = super::stretch::pass(&fp, &out, rotation, &rotations);
         }
+        if restoring && k + 1 == passes {
+            out = restore.apply(system.topology(), &rest, &out);
+        }
         pass_times.push(clock.elapsed().as_secs_f64());
-        measure(&out, &mut metrics);
+        stretch.push(measure(&out, &mut metrics));
     }
     drop(fp);
     Ok(PositionedFrame {

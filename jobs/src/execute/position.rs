@@ -91,6 +91,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                     phi,
                     passes,
                     env.params.stretch_rotation,
+                    env.params.restoration(),
                 )
                 .map_err(|e| TaskError::from_core(&label, e));
                 env.progress().advance("position", 1);

@@ -62,6 +62,9 @@ pub struct StretchArgs {
     /// Frames on each side over which anchors are matched and their angles averaged (0 = off).
     #[arg(long = "stretch-temporal-radius", default_value_t = StretchParams::default().temporal_radius)]
     pub temporal_radius: usize,
+    /// Try the previous frame's fold seeds first (Chen's seed memory); makes tracing sequential over time.
+    #[arg(long = "stretch-seed-memory", default_value_t = StretchParams::default().seed_memory)]
+    pub seed_memory: bool,
     /// Levels of midpoint subdivision before detection (0 = none); output is then on the subdivided mesh,
     /// original vertices first.
     #[arg(long, default_value_t = 0)]
@@ -87,6 +90,7 @@ impl StretchArgs {
             max_angle_deg: self.max_angle,
             min_length: self.min_length,
             temporal_radius: self.temporal_radius,
+            seed_memory: self.seed_memory,
         }
     }
 

@@ -131,8 +131,23 @@ fn check(seq: &Sequence, params: StretchParams, what: &str) {
         }
         retraced_somewhere |= retraced > 0;
     }
-    // Cold chunk starts in the middle of folds: the reconcile must have had work to do.
-    assert!(retraced_somewhere, "{what}: reconcile never traced again");
+    if det.params.seed_memory {
+        // Cold chunk starts in the middle of folds: the reconcile must have had work to do.
+        assert!(retraced_somewhere, "{what}: reconcile never traced again");
+    } else {
+        // Without the seed memory a frame's folds are its own: every chunk is exact as traced.
+        assert!(
+            !retraced_somewhere,
+            "{what}: traced again without a seed memory"
+        );
+    }
+}
+
+fn with_memory() -> StretchParams {
+    StretchParams {
+        seed_memory: true,
+        ..Default::default()
+    }
 }
 
 #[test]
@@ -143,6 +158,7 @@ fn split_detection_is_the_streaming_run_for_any_chunking() {
     env.extend((1..=4).map(|i| 1.0 - i as f64 / 4.0));
     let seq = synth::compressed_sheet(24, 24, 0.1, 0.5, (0.35, 0.65), 0.12, 0.03, &env).unwrap();
     check(&seq, StretchParams::default(), "compressed sheet");
+    check(&seq, with_memory(), "compressed sheet, seed memory");
     let (demo, _) = synth::demo(&synth::DemoSpec {
         triangles: 900,
         frames: 9,
@@ -150,4 +166,5 @@ fn split_detection_is_the_streaming_run_for_any_chunking() {
     })
     .unwrap();
     check(&demo, StretchParams::default(), "demo");
+    check(&demo, with_memory(), "demo, seed memory");
 }

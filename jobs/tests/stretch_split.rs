@@ -14,8 +14,13 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 fn spec(input: &Path, out: &Path, partition: &str) -> JobSpec {
+    spec_with(input, out, partition, false)
+}
+
+fn spec_with(input: &Path, out: &Path, partition: &str, seed_memory: bool) -> JobSpec {
     let text = format!(
-        "input = {:?}\noutput = {:?}\n[folds]\nkind = \"stretch\"\n[deform]\nwindow = 4\nshift = 3\n\
+        "input = {:?}\noutput = {:?}\n[folds]\nkind = \"stretch\"\n[folds.params]\nseed_memory = {seed_memory}\n\
+         [deform]\nwindow = 4\nshift = 3\n\
          [partition]\nframes_per_chunk = 5\n{partition}\n[preview]\nsize = 64\n",
         input.display().to_string(),
         out.display().to_string()
@@ -34,6 +39,17 @@ fn tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn split_stretch_detection_is_the_single_detector_for_any_chunking() {
+    split_is_single(false).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn with_the_seed_memory_the_merge_traces_again_and_is_still_exact() {
+    split_is_single(true).await;
+}
+
+async fn split_is_single(seed_memory: bool) {
+    let spec =
+        |input: &Path, out: &Path, partition: &str| spec_with(input, out, partition, seed_memory);
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
     let (input, _) = fixture(root, 900, 11);
@@ -110,8 +126,16 @@ async fn split_stretch_detection_is_the_single_detector_for_any_chunking() {
             }
         }
     }
-    // Chunks cut through folds with no warm-up: the merge had frames to trace again.
-    assert!(retraced_total > 0, "the merge never reconciled a chunk");
+    if seed_memory {
+        // Chunks cut through folds with no warm-up: the merge had frames to trace again.
+        assert!(retraced_total > 0, "the merge never reconciled a chunk");
+    } else {
+        // Without the seed memory every tracing chunk is exact: the merge only gathers.
+        assert_eq!(
+            retraced_total, 0,
+            "the merge traced again without a seed memory"
+        );
+    }
 }
 
 #[test]

@@ -36,7 +36,7 @@ use smooth::FrameGeometry;
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::ops::Range;
 
-/// The geometric fold detector. Whole-sequence: phases and seed memory carry state through time.
+/// The geometric fold detector. Whole-sequence: phases (and the seed memory, when on) carry state through time.
 #[derive(Debug, Clone, Default)]
 pub struct StretchDetector {
     pub params: StretchParams,

@@ -204,7 +204,10 @@ mod tests {
     fn tracing_ahead_in_parallel_is_the_sequential_loop() {
         let seq = crate::synth::compressed_tube(6000, 4, 0.3, -1.0).unwrap();
         let topo = &seq.topology;
-        let params = StretchParams::default();
+        let params = StretchParams {
+            seed_memory: true,
+            ..Default::default()
+        };
         // A banded shrinkage along the tube with a ripple, so there are many folds and many failing seeds.
         let fields: Vec<(Vec<f64>, Vec<V3>)> = (0..seq.frames.len())
             .map(|t| {

@@ -12,13 +12,16 @@
 //!    and pass the frame each triangle's phase started at ([`PhaseCode`]), so it is cheap.
 //! 3. **Tracing** ([`ChunkTracer`]): per frame, the integrated tensor against those reference frames, the two
 //!    passes combined exactly as the streaming run combines them, and the folds traced. Independent per frame
-//!    except for the seed memory, which makes a frame's folds depend on the previous frame's seeds.
+//!    (the default); with the seed memory on ([`StretchParams::seed_memory`]) a frame's folds depend on the
+//!    previous frame's seeds.
 //! 4. **Reconcile** ([`reconcile`]): a tracing chunk starts with an empty seed memory a few frames early (a
 //!    warm-up) and records the memory it reached at its first frame. The true memory there is the previous
 //!    chunk's last seeds; when they agree the chunk is exact, otherwise its frames are traced again from the
 //!    true memory until the seeds agree with the chunk's own (from then on its frames are exact). So the result
 //!    is the streaming run's for any chunking; chunking only moves work into the reconcile when warm-ups do not
-//!    catch the memory.
+//!    catch the memory. Measured on the sleeve, they never do (48 frames in two chunks: all 24 frames of the
+//!    second traced again, in order), which is why the memory is off by default: then chunks need no warm-up
+//!    and the reconcile only checks and gathers.
 //!
 //! Then [`StretchDetector::finish`] (temporal coherence, `folds.png`) as in the single run.
 
@@ -435,7 +438,8 @@ pub fn warm_up_start(frames: &Range<usize>, warm_up: usize) -> usize {
 }
 
 /// Traces the chunk `frames` after `warm_up` frames of warm-up. `codes(t)` gives frame `t`'s (forward,
-/// backward) phase codes.
+/// backward) phase codes. Without the seed memory ([`StretchParams::seed_memory`], the default) a frame's
+/// folds depend on that frame alone, so there is nothing to warm up and none is traced.
 pub fn trace_chunk(
     tracer: &mut ChunkTracer,
     frames: Range<usize>,
@@ -447,6 +451,11 @@ pub fn trace_chunk(
     tracer.set_seeds(&[]);
     let mut out = Vec::with_capacity(frames.len());
     let mut entry_seeds = Vec::new();
+    let warm_up = if tracer.params.seed_memory {
+        warm_up
+    } else {
+        0
+    };
     let start = warm_up_start(&frames, warm_up);
     progress.begin("stretch tracing", (frames.end - start) as u64);
     for t in start..frames.end {

@@ -1,7 +1,8 @@
 //! Fold tracing on one frame (Chen 2011 §4.4): seeds, axis, control lines, region of influence, anchors.
 //!
 //! * **Seeds** come from a priority queue of integrated shrinkage (absolute change), largest first, one at a
-//!   time; seeds of the previous frame go first (the thesis' seed memory, which keeps folds where they were).
+//!   time; with `seed_memory` on, seeds of the previous frame go first (the thesis' seed memory; off by default,
+//!   see [`StretchParams::seed_memory`]).
 //! * **Axis** ([`FoldTracer::axis`]): the patch around the seed is flattened with [`super::lscm`]; from the
 //!   seed's centroid a line is marched in the plane perpendicular to the shrinkage direction, following each
 //!   crossed triangle's own direction, in both senses, until the shrinkage fades below `fade` of the seed's or
@@ -85,7 +86,7 @@ pub struct FrameFolds {
     pub seeds_tried: usize,
 }
 
-/// Traces frames one after the other, carrying the seed memory (O(triangles)).
+/// Traces frames one after the other, carrying the seed memory when it is on (O(triangles)).
 pub struct FoldTracer {
     prev_seed: Vec<bool>,
     /// One [`SeedWork`] per thread tracing seeds at the same time ([`super::speculate`]).
@@ -221,7 +222,7 @@ impl FoldTracer {
             .filter(|(_, &s)| s >= seed_min && s.is_finite())
             .map(|(t, &s)| {
                 (
-                    self.prev_seed[t],
+                    params.seed_memory && self.prev_seed[t],
                     seed_priority(s),
                     std::cmp::Reverse(t as u32),
                 )
@@ -245,7 +246,9 @@ impl FoldTracer {
                 folds.push(fold);
             }
         }
-        self.prev_seed = new_seed;
+        if params.seed_memory {
+            self.prev_seed = new_seed;
+        }
         self.traced_ahead += queue.traced_ahead;
         self.wasted += queue.wasted;
         FrameFolds {

@@ -298,7 +298,9 @@ mod tests {
             }
         }
         assert_eq!(checked, 2160);
-        assert_eq!(doubled_angle(nrm, e1, e2), (1.0, 0.0));
+        // Exactly along the normal (an exact frame, so the projections are exactly zero).
+        let (x, y, z) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+        assert_eq!(doubled_angle(z, x, y), (1.0, 0.0));
     }
 
     #[test]

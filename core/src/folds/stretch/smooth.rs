@@ -12,7 +12,7 @@
 //! are averaged (so d and −d agree), weighted also by the anisotropy ln Γ − ln γ (a nearly isotropic tensor has
 //! no meaningful direction). Dropped outliers contribute nothing and are refilled from their neighbours.
 
-use super::tensor::{absolute_change, axial_angle, Tensor};
+use super::tensor::{absolute_change, Tensor};
 use crate::mesh::{Topology, NONE};
 use crate::vec3::{self, V3};
 use rayon::prelude::*;
@@ -121,8 +121,73 @@ pub fn remove_outliers(
     dropped
 }
 
+/// What one triangle adds to its own and its neighbours' means in one sweep, computed once per sweep rather
+/// than once per neighbour (each triangle is read by up to four means): the area weight (0 for no data), the
+/// weighted principal values, the direction weight (area × anisotropy) and the Γ direction.
+#[derive(Clone, Copy)]
+struct Share {
+    w: f64,
+    big: f64,
+    small: f64,
+    wd: f64,
+    dir: V3,
+}
+
+impl Share {
+    fn of(t: Option<Tensor>, area: f64) -> Self {
+        match t {
+            Some(t) => {
+                let aniso = (t.big / t.small.max(1e-12)).ln().max(0.0);
+                Share {
+                    w: area,
+                    big: area * t.big,
+                    small: area * t.small,
+                    wd: area * aniso,
+                    dir: t.dir_big,
+                }
+            }
+            None => Share {
+                w: 0.0,
+                big: 0.0,
+                small: 0.0,
+                wd: 0.0,
+                dir: [0.0; 3],
+            },
+        }
+    }
+}
+
+/// The doubled angle (cos 2θ, sin 2θ) of the axial direction `d` in the local frame (e1, e2), without
+/// trigonometry: with x = d·e1, y = d·e2, cos 2θ = (x² − y²)/r² and sin 2θ = 2xy/r². The same as
+/// `axial_angle` followed by cos/sin of twice it, up to rounding; a direction along the normal gives θ = 0,
+/// as atan2(0, 0) does.
+#[inline]
+fn doubled_angle(d: V3, e1: V3, e2: V3) -> (f64, f64) {
+    let (x, y) = (vec3::dot(d, e1), vec3::dot(d, e2));
+    let r2 = x * x + y * y;
+    if r2 > 0.0 {
+        ((x * x - y * y) / r2, 2.0 * x * y / r2)
+    } else {
+        (1.0, 0.0)
+    }
+}
+
+/// The unit direction at half the angle of the doubled-angle sum (c2, s2) (not zero), in the frame (e1, e2):
+/// θ = ½ atan2(s2, c2) in (−π/2, π/2] from the half-angle identities, cos θ = √((1 + cos 2θ)/2) ≥ 0 and
+/// sin θ = ±√((1 − cos 2θ)/2) with the sign of s2.
+#[inline]
+fn half_angle_direction(c2: f64, s2: f64, e1: V3, e2: V3) -> V3 {
+    let c = (c2 / (c2 * c2 + s2 * s2).sqrt()).clamp(-1.0, 1.0);
+    let cos = (0.5 * (1.0 + c)).sqrt();
+    let sin = (0.5 * (1.0 - c)).sqrt();
+    let sin = if s2 < 0.0 { -sin } else { sin };
+    vec3::add(vec3::scale(e1, cos), vec3::scale(e2, sin))
+}
+
 /// Smooths Γ, γ and the direction angle separately (see the module doc) for `iterations` Jacobi sweeps.
 /// Triangles with no data take their neighbours' values; those with no valid neighbour stay the identity.
+/// The direction is averaged as doubled-angle unit vectors (cos 2θ, sin 2θ) and halved back with the
+/// half-angle identities: no trigonometric call per neighbour (they were most of the detector's passes).
 pub fn smooth(
     topo: &Topology,
     geom: &FrameGeometry,
@@ -131,7 +196,13 @@ pub fn smooth(
 ) -> Vec<Tensor> {
     let adj = topo.tri_adj();
     let mut cur: Vec<Option<Tensor>> = field.to_vec();
+    let mut shares: Vec<Share> = Vec::with_capacity(cur.len());
     for _ in 0..iterations {
+        cur.par_iter()
+            .zip(geom.areas.par_iter())
+            .with_min_len(4096)
+            .map(|(&t, &a)| Share::of(t, a))
+            .collect_into_vec(&mut shares);
         cur = (0..cur.len())
             .into_par_iter()
             .with_min_len(1024)
@@ -140,16 +211,14 @@ pub fn smooth(
                 let (mut wsum, mut big, mut small) = (0.0, 0.0, 0.0);
                 let (mut c2, mut s2) = (0.0, 0.0);
                 let mut add = |j: usize| {
-                    if let Some(t) = cur[j] {
-                        let w = geom.areas[j];
-                        wsum += w;
-                        big += w * t.big;
-                        small += w * t.small;
-                        let aniso = (t.big / t.small.max(1e-12)).ln().max(0.0);
-                        let th = axial_angle(t.dir_big, e1, e2);
-                        let wd = w * aniso;
-                        c2 += wd * (2.0 * th).cos();
-                        s2 += wd * (2.0 * th).sin();
+                    let sh = &shares[j];
+                    if sh.w > 0.0 {
+                        wsum += sh.w;
+                        big += sh.big;
+                        small += sh.small;
+                        let (c, s) = doubled_angle(sh.dir, e1, e2);
+                        c2 += sh.wd * c;
+                        s2 += sh.wd * s;
                     }
                 };
                 add(i);
@@ -162,8 +231,7 @@ pub fn smooth(
                     return None;
                 }
                 let dir = if c2 * c2 + s2 * s2 > 0.0 {
-                    let th = 0.5 * s2.atan2(c2);
-                    vec3::add(vec3::scale(e1, th.cos()), vec3::scale(e2, th.sin()))
+                    half_angle_direction(c2, s2, e1, e2)
                 } else {
                     cur[i].map(|t| t.dir_big).unwrap_or(e1)
                 };
@@ -190,6 +258,50 @@ pub fn smooth(
 mod tests {
     use super::*;
     use crate::folds::stretch::tensor::{jacobian, shape};
+
+    /// The trigonometry-free doubled and halved angles agree with atan2/cos/sin to rounding, on directions all
+    /// round the circle, tilted out of the plane, and along the normal.
+    #[test]
+    fn doubled_and_half_angles_match_the_trigonometric_ones() {
+        use crate::folds::stretch::tensor::axial_angle;
+        let (e1, e2) = (
+            vec3::normalize([1.0, 0.3, 0.1]),
+            vec3::normalize(vec3::cross(
+                [0.2, -0.1, 1.0],
+                vec3::normalize([1.0, 0.3, 0.1]),
+            )),
+        );
+        let e2 = vec3::normalize(vec3::sub(e2, vec3::scale(e1, vec3::dot(e1, e2))));
+        let nrm = vec3::cross(e1, e2);
+        let mut checked = 0;
+        for k in 0..720 {
+            let a = (k as f64 - 360.0) * std::f64::consts::PI / 360.0 + 1e-3;
+            for tilt in [0.0, 0.4, -2.0] {
+                let d = vec3::add(
+                    vec3::add(vec3::scale(e1, a.cos()), vec3::scale(e2, a.sin())),
+                    vec3::scale(nrm, tilt),
+                );
+                let th = axial_angle(d, e1, e2);
+                let (c, s) = doubled_angle(d, e1, e2);
+                assert!((c - (2.0 * th).cos()).abs() < 1e-12, "{a} {tilt}");
+                assert!((s - (2.0 * th).sin()).abs() < 1e-12, "{a} {tilt}");
+                // Any positive multiple of the doubled angle halves back to the axial direction at θ.
+                let back = half_angle_direction(3.7 * c, 3.7 * s, e1, e2);
+                let want = vec3::add(vec3::scale(e1, th.cos()), vec3::scale(e2, th.sin()));
+                // ±π/2 are the same axis: compare as axes.
+                assert!(
+                    vec3::dot(back, want).abs() > 1.0 - 1e-12,
+                    "{a} {tilt}: {back:?} vs {want:?}"
+                );
+                assert!(back[0].is_finite() && (vec3::norm(back) - 1.0).abs() < 1e-12);
+                checked += 1;
+            }
+        }
+        assert_eq!(checked, 2160);
+        // Exactly along the normal (an exact frame, so the projections are exactly zero).
+        let (x, y, z) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+        assert_eq!(doubled_angle(z, x, y), (1.0, 0.0));
+    }
 
     #[test]
     fn smoothing_averages_axial_directions_and_fills_outliers() {

@@ -4,7 +4,7 @@
 //! cargo run --release -p crease-deep --example deep_report -- subspace   DATA OUT [held-out]
 //! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT [held-out] [epochs] [layers] [hidden] [ridge] [AR states, e.g. 10,25,50]
 //! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT all [epochs] [layers] [hidden] [ridge] [AR states] [rollout-fit iterations, e.g. 0,5,20,50]
-//! cargo run --release -p crease-deep --example deep_report -- cgan       DATA OUT [held-out] [epochs] [res] [filters] [ridge] [AR state]
+//! cargo run --release -p crease-deep --example deep_report -- cgan       DATA OUT [held-out] [epochs] [res] [filters] [ridge] [AR state] [variants, e.g. captured,captured_notemp,subspace200,subspace50,regression] [batch] [minutes per variant]
 //! cargo run --release -p crease-deep --example deep_report -- register   DATA OUT [frames]
 //! cargo run --release -p crease-deep --example deep_report -- score      APPLY_OUT GT CAPTURED
 //! ```
@@ -76,11 +76,26 @@ fn main() -> R<()> {
             &arg(1).ok_or("DATA")?,
             &arg(2).ok_or("OUT")?,
             &arg(3).unwrap_or("seed_3".into()),
-            arg(4).map_or(Ok(3), |s| s.parse())?,
-            arg(5).map_or(Ok(64), |s| s.parse())?,
-            arg(6).map_or(Ok(16), |s| s.parse())?,
+            &CganRun {
+                epochs: arg(4).map_or(Ok(3), |s| s.parse())?,
+                res: arg(5).map_or(Ok(64), |s| s.parse())?,
+                filters: arg(6).map_or(Ok(16), |s| s.parse())?,
+                kinds: arg(9)
+                    .unwrap_or_else(|| VARIANTS.map(|v| v.1).join(","))
+                    .split(',')
+                    .map(String::from)
+                    .collect(),
+                batch: arg(10).map_or(Ok(4), |s| s.parse())?,
+                budget_min: arg(11).map_or(Ok(0.0), |s| s.parse())?,
+            },
             arg(7).map_or(Ok(1e-3), |s| s.parse())?,
             arg(8).map_or(Ok(25), |s| s.parse())?,
+        ),
+        "mapbound" => mapbound(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).unwrap_or("seed_3".into()),
+            &list(arg(3), "64,128,256")?,
+            arg(4).map_or(Ok(4), |s| s.parse())?,
         ),
         "register" => register(
             &arg(1).ok_or("DATA")?,
@@ -835,17 +850,40 @@ fn to_rgb(m: &NormalMap) -> image::RgbImage {
     })
 }
 
-#[allow(clippy::too_many_arguments)]
-fn cgan(
-    data: &str,
-    out: &str,
-    held: &str,
+/// The Table 1 variants in row order: (row name, input kind, temporal weight).
+const VARIANTS: [(&str, &str, f64); 5] = [
+    ("captured, Eq. 4", "captured", 50.0),
+    ("captured, no temporal term", "captured_notemp", 0.0),
+    ("subspace k = 200", "subspace200", 50.0),
+    ("subspace k = 50", "subspace50", 50.0),
+    ("regression (AR linear rollout)", "regression", 50.0),
+];
+
+/// What `deep_report cgan` trains: the network's size and how long.
+struct CganRun {
     epochs: usize,
     res: usize,
     filters: usize,
-    ridge: f64,
-    ar_state: usize,
-) -> R<()> {
+    batch: usize,
+    /// Variant kinds to run (a subset of [`VARIANTS`]'s).
+    kinds: Vec<String>,
+    /// Minutes of training per variant; after an epoch that leaves less than another epoch's time, the
+    /// variant stops early (its checkpoint lets a later run continue).
+    budget_min: f64,
+}
+
+/// Table 1 in spirit: one cGAN per input variant, trained epoch by epoch with a checkpoint after each
+/// (`OUT/ck_KIND`, resumed when present) and the held-out errors logged after each (the learning curve,
+/// `OUT/curve_KIND.jsonl`). Each finished variant writes `OUT/table1_KIND.json` and its Fig. 11 row; the table
+/// and the strip are then assembled from every variant present, so variants may run in separate invocations.
+fn cgan(data: &str, out: &str, held: &str, run: &CganRun, ridge: f64, ar_state: usize) -> R<()> {
+    let (res, filters, epochs) = (run.res, run.filters, run.epochs);
+    for k in &run.kinds {
+        if !VARIANTS.iter().any(|v| v.1 == k) {
+            return Err(format!("unknown variant {k}").into());
+        }
+    }
+    std::fs::create_dir_all(out)?;
     let (train, test) = split(data, held)?;
     let topo = test.topology.clone();
     let frames: Vec<&[V3]> = train
@@ -878,7 +916,7 @@ fn cgan(
     let ar = AutoregressiveLinear::fit(&seqs, ShapeHistory::fit(&a_refs, ar_state, 2)?, ridge, 0)?;
     let shapes = |s: &TrainingSequence, kind: &str| -> R<Vec<Frame>> {
         Ok(match kind {
-            "captured" => s.coarse.clone(),
+            "captured" | "captured_notemp" => s.coarse.clone(),
             "subspace200" | "subspace50" => {
                 let k = if kind == "subspace200" { 200 } else { 50 };
                 let st = sub.truncated(k);
@@ -894,17 +932,7 @@ fn cgan(
                 .collect(),
         })
     };
-    let variants = [
-        ("captured, Eq. 4", "captured", 50.0),
-        ("captured, no temporal", "captured", 0.0),
-        ("subspace k=200", "subspace200", 50.0),
-        ("subspace k=50", "subspace50", 50.0),
-        ("regression (AR linear rollout)", "regression", 50.0),
-    ];
-    println!("held out: {held}; {res}x{res} maps, generator {filters} filters, {epochs} epochs per variant");
-    println!("| input | data (L1) | temporal | map angle to target (°) | input's data (L1) | vertex normal error (°) | captured mesh normal error (°) | s/epoch |\n|---|---|---|---|---|---|---|---|");
-    let mut rows = Vec::new();
-    let mut strip: Vec<image::RgbImage> = Vec::new();
+    eprintln!("held out: {held}; {res}x{res} maps, generator {filters} filters, batch {}, up to {epochs} epochs per variant", run.batch);
     let show = test.fine.len() / 3;
     let gt_ne: f64 = test
         .fine
@@ -913,7 +941,20 @@ fn cgan(
         .map(|(g, c)| mesh_normal_error(&topo, g, c))
         .sum::<f64>()
         / test.fine.len() as f64;
-    for (name, kind, w_temp) in variants {
+    // DESIGN §9 normal error of maps sampled at the vertices, averaged over the held-out frames.
+    let vertex_ne = |maps: &[&NormalMap]| -> f64 {
+        maps.iter()
+            .zip(&test.fine)
+            .map(|(p, g)| map_normal_error(&sample_vertex_normals(p, &topo, &layout), &topo, g).0)
+            .sum::<f64>()
+            / maps.len() as f64
+    };
+    let t_all = Instant::now();
+    for &(name, kind, w_temp) in VARIANTS
+        .iter()
+        .filter(|v| run.kinds.iter().any(|k| k == v.1))
+    {
+        let t_prep = Instant::now();
         let mut train_samples: Vec<Sample> = Vec::new();
         for s in &train {
             train_samples.extend(samples(&map_pairs(
@@ -926,51 +967,137 @@ fn cgan(
         }
         let test_shapes = shapes(&test, kind)?;
         let test_pairs = map_pairs(&topo, &texels, &test_shapes, &test.fine, 8.0)?;
+        let inputs: Vec<&NormalMap> = test_pairs.iter().map(|p| &p.0).collect();
+        let targets: Vec<&NormalMap> = test_pairs.iter().map(|p| &p.1).collect();
+        let input_ne = vertex_ne(&inputs);
+        let target_ne = vertex_ne(&targets);
+        eprintln!(
+            "{name}: maps in {:.0} s; held-out vertex normal error: input map {input_ne:.2}°, target map {target_ne:.2}°, captured mesh {gt_ne:.2}°",
+            t_prep.elapsed().as_secs_f64()
+        );
         let cfg = CganConfig {
             resolution: res,
             filters,
             disc_filters: filters,
             w_temporal: w_temp,
             epochs,
-            batch: 4,
+            batch: run.batch,
             ..Default::default()
         };
-        let mut gan = Cgan::new(cfg)?;
-        let t0 = Instant::now();
-        let hist = gan.train(
-            &train_samples,
-            |_, _, _| {},
-            |_, e, l| {
-                eprintln!(
-                    "{name}: epoch {e}: L1 {:.4} temporal {:.4} GAN {:.3} D {:.3}",
-                    l.l1, l.temporal, l.gan, l.disc
-                );
-                Ok(())
-            },
-        )?;
-        let per_epoch = t0.elapsed().as_secs_f64() / epochs.max(1) as f64;
-        let preds: Vec<NormalMap> = test_pairs
-            .iter()
-            .map(|p| gan.enhance(&p.0))
-            .collect::<Result<_, _>>()?;
-        let (d, tmp) = eval_maps(&preds, &test_pairs);
-        let inputs: Vec<NormalMap> = test_pairs.iter().map(|p| p.0.clone()).collect();
-        let (d_in, _) = eval_maps(&inputs, &test_pairs);
+        let ck = Path::new(out).join(format!("ck_{kind}"));
+        let curve_path = Path::new(out).join(format!("curve_{kind}.jsonl"));
+        let mut gan = if ck.join("state.json").exists() {
+            let g = Cgan::resume(cfg.clone(), &ck)?;
+            eprintln!(
+                "{name}: resuming from {} after epoch {}",
+                ck.display(),
+                g.epoch
+            );
+            g
+        } else {
+            let _ = std::fs::remove_file(&curve_path);
+            Cgan::new(cfg.clone())?
+        };
+        let evaluate = |gan: &Cgan| -> R<(Vec<NormalMap>, f64, f64, f64)> {
+            let preds: Vec<NormalMap> = test_pairs
+                .iter()
+                .map(|p| gan.enhance(&p.0))
+                .collect::<Result<_, _>>()?;
+            let (d, tmp) = eval_maps(&preds, &test_pairs);
+            let refs: Vec<&NormalMap> = preds.iter().collect();
+            let ne = vertex_ne(&refs);
+            Ok((preds, d, tmp, ne))
+        };
+        let log_curve = |line: serde_json::Value| -> R<()> {
+            use std::io::Write;
+            let mut f = std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(&curve_path)?;
+            writeln!(f, "{line}")?;
+            Ok(())
+        };
+        if gan.epoch == 0 {
+            let (_, d, tmp, ne) = evaluate(&gan)?;
+            eprintln!("{name}: epoch 0 (untrained): held-out data {d:.4} temporal {tmp:.4} vertex normal error {ne:.2}°");
+            log_curve(
+                serde_json::json!({"epoch": 0, "data_l1": d, "temporal": tmp, "vertex_normal_error_deg": ne}),
+            )?;
+        }
+        let budget = run.budget_min * 60.0;
+        let t_var = Instant::now();
+        let mut epoch_s: Vec<f64> = Vec::new();
+        while gan.epoch < epochs {
+            let spent = t_var.elapsed().as_secs_f64();
+            if let Some(&last) = epoch_s.last() {
+                if budget > 0.0 && spent + last > budget {
+                    eprintln!("{name}: stopping after epoch {} ({spent:.0} s of the {budget:.0} s budget)", gan.epoch);
+                    break;
+                }
+            }
+            gan.config.epochs = gan.epoch + 1;
+            let te = Instant::now();
+            let steps = train_samples.len().div_ceil(run.batch);
+            let hist = gan.train(
+                &train_samples,
+                |e, i, l| {
+                    if i % 10 == 0 || i + 1 == steps {
+                        eprintln!(
+                            "{name}: epoch {} step {}/{steps} ({:.0} s): L1 {:.4} temporal {:.4} GAN {:.3} D {:.3}",
+                            e + 1,
+                            i + 1,
+                            te.elapsed().as_secs_f64(),
+                            l.l1,
+                            l.temporal,
+                            l.gan,
+                            l.disc
+                        )
+                    }
+                },
+                |_, _, _| Ok(()),
+            )?;
+            let secs = te.elapsed().as_secs_f64();
+            epoch_s.push(secs);
+            gan.save_checkpoint(&ck)?;
+            let (_, d, tmp, ne) = evaluate(&gan)?;
+            let l = hist.last().copied().unwrap_or_default();
+            eprintln!(
+                "{name}: epoch {} in {secs:.0} s: train L1 {:.4} temporal {:.4} GAN {:.3} D {:.3}; held-out data {d:.4} temporal {tmp:.4} vertex normal error {ne:.2}° ({:.0} s since start)",
+                gan.epoch, l.l1, l.temporal, l.gan, l.disc, t_all.elapsed().as_secs_f64()
+            );
+            log_curve(
+                serde_json::json!({"epoch": gan.epoch, "seconds": secs, "train": l, "data_l1": d, "temporal": tmp, "vertex_normal_error_deg": ne}),
+            )?;
+        }
+        let per_epoch = if epoch_s.is_empty() {
+            f64::NAN
+        } else {
+            epoch_s.iter().sum::<f64>() / epoch_s.len() as f64
+        };
+        let (preds, d, tmp, ne) = evaluate(&gan)?;
+        let (d_in, _) = eval_maps(
+            &test_pairs.iter().map(|p| p.0.clone()).collect::<Vec<_>>(),
+            &test_pairs,
+        );
         let angle = preds
             .iter()
             .zip(&test_pairs)
             .map(|(p, q)| p.mean_angle_deg(&q.1))
             .sum::<f64>()
             / preds.len() as f64;
-        let ne = preds
-            .iter()
-            .zip(&test.fine)
-            .map(|(p, g)| map_normal_error(&sample_vertex_normals(p, &topo, &layout), &topo, g).0)
-            .sum::<f64>()
-            / preds.len() as f64;
-        println!("| {name} | {d:.4} | {tmp:.4} | {angle:.2} | {d_in:.4} | {ne:.2} | {gt_ne:.2} | {per_epoch:.1} |");
-        rows.push(serde_json::json!({"input": name, "data_l1": d, "temporal": tmp, "map_angle_deg": angle, "input_data_l1": d_in, "vertex_normal_error_deg": ne, "captured_normal_error_deg": gt_ne, "s_per_epoch": per_epoch, "history": hist}));
-        if kind == "captured" && w_temp > 0.0 {
+        let curve: Vec<serde_json::Value> = std::fs::read_to_string(&curve_path)?
+            .lines()
+            .map(serde_json::from_str)
+            .collect::<Result<_, _>>()?;
+        write_json(
+            out,
+            &format!("table1_{kind}.json"),
+            &serde_json::json!({"input": name, "kind": kind, "epochs": gan.epoch, "resolution": res, "filters": filters, "batch": run.batch,
+                "residual": gan.config.residual, "data_l1": d, "temporal": tmp, "map_angle_deg": angle, "input_data_l1": d_in,
+                "input_map_vertex_normal_error_deg": input_ne, "vertex_normal_error_deg": ne, "target_map_vertex_normal_error_deg": target_ne,
+                "captured_normal_error_deg": gt_ne, "s_per_epoch": per_epoch, "curve": curve}),
+        )?;
+        if kind == "captured" {
             // The same frames as `crease deep apply --coarse` writes them (DESIGN §7 contract), for `score`.
             let dir = Path::new(out).join("apply_captured");
             crease_deep::contract::prepare(&dir)?;
@@ -1001,20 +1128,94 @@ fn cgan(
         {
             image::imageops::overlay(&mut row, &to_rgb(m), (i as u32 * w) as i64, 0);
         }
-        strip.push(row);
+        row.save(Path::new(out).join(format!("fig11_{kind}.png")))?;
     }
-    let (w, h) = (strip[0].width(), strip[0].height());
-    let mut fig = image::RgbImage::new(w, h * strip.len() as u32);
-    for (i, r) in strip.iter().enumerate() {
-        image::imageops::overlay(&mut fig, r, 0, (i as u32 * h) as i64);
+    // The table and the strip over every variant that has a result in OUT.
+    println!(
+        "held out: {held}; {res}x{res} maps, generator {filters} filters; frame {} in the strip",
+        show + 1
+    );
+    println!("| input | epochs | data (L1) | temporal | map angle to target (°) | input's data (L1) | vertex normal error: input map (°) | prediction (°) | target map (°) | captured mesh (°) | s/epoch |\n|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut rows = Vec::new();
+    let mut strip: Vec<image::RgbImage> = Vec::new();
+    for &(_, kind, _) in &VARIANTS {
+        let p = Path::new(out).join(format!("table1_{kind}.json"));
+        if !p.exists() {
+            continue;
+        }
+        let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&p)?)?;
+        let f = |k: &str| r[k].as_f64().unwrap_or(f64::NAN);
+        println!(
+            "| {} | {} | {:.4} | {:.4} | {:.2} | {:.4} | {:.2} | {:.2} | {:.2} | {:.2} | {:.0} |",
+            r["input"].as_str().unwrap_or(kind),
+            r["epochs"],
+            f("data_l1"),
+            f("temporal"),
+            f("map_angle_deg"),
+            f("input_data_l1"),
+            f("input_map_vertex_normal_error_deg"),
+            f("vertex_normal_error_deg"),
+            f("target_map_vertex_normal_error_deg"),
+            f("captured_normal_error_deg"),
+            f("s_per_epoch")
+        );
+        rows.push(r);
+        strip.push(image::open(Path::new(out).join(format!("fig11_{kind}.png")))?.to_rgb8());
     }
-    std::fs::create_dir_all(out)?;
-    fig.save(Path::new(out).join("fig11_strip.png"))?;
+    if let Some(first) = strip.first() {
+        let (w, h) = (first.width(), first.height());
+        let mut fig = image::RgbImage::new(w, h * strip.len() as u32);
+        for (i, r) in strip.iter().enumerate() {
+            image::imageops::overlay(&mut fig, r, 0, (i as u32 * h) as i64);
+        }
+        fig.save(Path::new(out).join("fig11_strip.png"))?;
+    }
     write_json(
         out,
         "table1.json",
-        &serde_json::json!({"held_out": held, "resolution": res, "filters": filters, "epochs": epochs, "frame_shown": show + 1, "rows": rows}),
+        &serde_json::json!({"held_out": held, "resolution": res, "filters": filters, "frame_shown": show + 1, "rows": rows}),
     )
+}
+
+/// What a map of each resolution can carry at best: the DESIGN §9 vertex normal error of the coarse
+/// (captured) map and of the target map (gt projected onto the captured mesh), both sampled at the vertices,
+/// beside the captured mesh's own, over every `step`-th frame of the held-out sequence. A cGAN's prediction is
+/// scored the same way, so the target map's error is the floor it can reach at that resolution.
+fn mapbound(data: &str, held: &str, resolutions: &[usize], step: usize) -> R<()> {
+    let (_, test) = split(data, held)?;
+    let topo = test.topology.clone();
+    let layout = auto_atlas(&topo, &test.fine[0], 0.01)?;
+    let idx: Vec<usize> = (0..test.fine.len()).step_by(step.max(1)).collect();
+    let coarse: Vec<Frame> = idx.iter().map(|&t| test.coarse[t].clone()).collect();
+    let fine: Vec<Frame> = idx.iter().map(|&t| test.fine[t].clone()).collect();
+    let mesh_ne = coarse
+        .iter()
+        .zip(&fine)
+        .map(|(c, g)| mesh_normal_error(&topo, g, c))
+        .sum::<f64>()
+        / idx.len() as f64;
+    println!("held out: {held}, {} frames\n| resolution | coverage | input map (°) | target map (°) | captured mesh (°) |\n|---|---|---|---|---|", idx.len());
+    for &res in resolutions {
+        let texels = TexelMap::new(&layout, res, res);
+        let pairs = map_pairs(&topo, &texels, &coarse, &fine, 8.0)?;
+        let ne = |m: &dyn Fn(&(NormalMap, NormalMap)) -> &NormalMap| {
+            pairs
+                .iter()
+                .zip(&fine)
+                .map(|(p, g)| {
+                    map_normal_error(&sample_vertex_normals(m(p), &topo, &layout), &topo, g).0
+                })
+                .sum::<f64>()
+                / pairs.len() as f64
+        };
+        println!(
+            "| {res}² | {:.2} | {:.2} | {:.2} | {mesh_ne:.2} |",
+            texels.coverage(),
+            ne(&|p| &p.0),
+            ne(&|p| &p.1)
+        );
+    }
+    Ok(())
 }
 
 fn register(data: &str, out: &str, frames: usize) -> R<()> {

@@ -10,6 +10,12 @@
 //!
 //! At 256² with 64 filters the generator is 8 + 8 layers as in the paper; smaller resolutions use
 //! log2(resolution) layers per side, so the innermost feature map is always 1×1.
+//!
+//! The generator is residual by default ([`CganConfig::residual`]): it predicts a correction that is added to
+//! the input normals, and its last layer starts at zero, so an untrained model returns the input map and
+//! training can only add detail. The coarse map already carries the garment's large shape, and the cGAN's job
+//! in the paper is to add the wrinkles; a generator that has to rebuild the whole map from noise started (and,
+//! after one epoch, stayed) far worse than its own input.
 
 use crate::adam::Adam;
 use crate::lstm::SortedVars;
@@ -41,6 +47,10 @@ pub struct CganConfig {
     pub epochs: usize,
     pub batch: usize,
     pub seed: u64,
+    /// Output = input normals + G(input) (last layer initialised to zero) instead of G(input) alone. Absent in
+    /// the manifests of model format 2 and older, whose generators are not residual: it then reads as false.
+    #[serde(default)]
+    pub residual: bool,
 }
 
 impl Default for CganConfig {
@@ -57,6 +67,7 @@ impl Default for CganConfig {
             epochs: 20,
             batch: 1,
             seed: 1,
+            residual: true,
         }
     }
 }
@@ -128,6 +139,7 @@ fn bn_cfg() -> BatchNormConfig {
 pub struct Generator {
     enc: Vec<(Conv2d, Option<BatchNorm>)>,
     dec: Vec<(ConvTranspose2d, Option<BatchNorm>)>,
+    residual: bool,
 }
 
 impl Generator {
@@ -164,10 +176,22 @@ impl Generator {
             };
             dec.push((conv, bn));
         }
-        Ok(Generator { enc, dec })
+        Ok(Generator {
+            enc,
+            dec,
+            residual: cfg.residual,
+        })
     }
 
-    /// [b, 4, H, W] → [b, 3, H, W] in (−1, 1).
+    /// The variable names of the last decoder layer, which a residual generator starts at zero.
+    fn last_layer_names(cfg: &CganConfig) -> [String; 2] {
+        let j = cfg.depth() - 1;
+        [format!("g.dec{j}.weight"), format!("g.dec{j}.bias")]
+    }
+
+    /// [b, 4, H, W] → [b, 3, H, W]: in (−1, 1), or for a residual generator the input normals plus a
+    /// correction in (−1, 1), zero where the input is not covered (the target is zero there too, so the
+    /// discriminator cannot tell real from fake by the gutter).
     pub fn forward(&self, x: &Tensor, train: bool) -> candle_core::Result<Tensor> {
         let mut skips = Vec::with_capacity(self.enc.len());
         let mut h = x.clone();
@@ -192,12 +216,19 @@ impl Generator {
                 h = bn.forward_t(&h, train)?;
             }
         }
-        h.tanh()
+        let out = h.tanh()?;
+        if !self.residual {
+            return Ok(out);
+        }
+        let normals = x.narrow(1, 0, 3)?;
+        let coverage = x.narrow(1, 3, 1)?;
+        (normals + out)?.broadcast_mul(&coverage)
     }
 }
 
 pub struct Discriminator {
-    layers: Vec<(Conv2d, Option<BatchNorm>)>,
+    /// (convolution, its stride, batch norm).
+    layers: Vec<(Conv2d, usize, Option<BatchNorm>)>,
 }
 
 impl Discriminator {
@@ -234,7 +265,7 @@ impl Discriminator {
             } else {
                 None
             };
-            layers.push((conv, bn));
+            layers.push((conv, stride, bn));
         }
         Ok(Discriminator { layers })
     }
@@ -242,8 +273,14 @@ impl Discriminator {
     pub fn forward(&self, x: &Tensor, y: &Tensor, train: bool) -> candle_core::Result<Tensor> {
         let mut h = Tensor::cat(&[x, y], 1)?;
         let last = self.layers.len() - 1;
-        for (i, (conv, bn)) in self.layers.iter().enumerate() {
-            h = conv.forward(&h)?;
+        for (i, (conv, stride, bn)) in self.layers.iter().enumerate() {
+            // The generator's gradient passes back through every discriminator layer; candle differentiates its
+            // own convolution with its per-texel transposed convolution, the GEMM form with matrix products.
+            h = if *stride == 2 {
+                crate::gemm_conv::conv_k4s2p1(&h, conv.weight(), conv.bias())?
+            } else {
+                conv.forward(&h)?
+            };
             if let Some(bn) = bn {
                 h = bn.forward_t(&h, train)?;
             }
@@ -253,6 +290,21 @@ impl Discriminator {
         }
         Ok(h)
     }
+}
+
+/// Sets the named variables to zero (the residual generator's last layer: it starts as the identity).
+fn zero_vars(vm: &VarMap, names: &[String]) -> candle_core::Result<()> {
+    let data = vm
+        .data()
+        .lock()
+        .map_err(|_| candle_core::Error::Msg("var map lock poisoned".into()))?;
+    for name in names {
+        let var = data
+            .get(name)
+            .ok_or_else(|| candle_core::Error::Msg(format!("no variable {name}")))?;
+        var.set(&var.as_tensor().zeros_like()?)?;
+    }
+    Ok(())
 }
 
 fn leaky(x: &Tensor) -> candle_core::Result<Tensor> {
@@ -363,6 +415,9 @@ impl Cgan {
         .map_err(ce)?;
         init_vars(&gen_vars, config.seed, &["g."]).map_err(ce)?;
         init_vars(&disc_vars, config.seed.wrapping_add(17), &["d."]).map_err(ce)?;
+        if config.residual {
+            zero_vars(&gen_vars, &Generator::last_layer_names(&config)).map_err(ce)?;
+        }
         // Only trainable tensors go to the optimisers; batch-norm running statistics are updated by the layers.
         let trainable = |vm: &VarMap| {
             named_sorted(vm)

@@ -16,6 +16,14 @@ impl Enhancer {
             return Ok(None);
         };
         let mpath = model.dir.join("manifest.json");
+        // From format 3 on the field is always written; only older models may lack it (and are plain).
+        if model.manifest.version >= 3 && value.get("residual").is_none() {
+            return Err(Error::format(
+                &mpath,
+                None,
+                "the `cgan` section has no `residual` field (format 3 models always have one)",
+            ));
+        }
         let config: CganConfig = serde_json::from_value(value.clone())
             .map_err(|e| Error::format(&mpath, None, format!("malformed `cgan` section: {e}")))?;
         if config.resolution != model.manifest.resolution {

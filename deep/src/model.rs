@@ -22,9 +22,12 @@ use std::sync::Arc;
 
 /// Format written by this build. Bump when the layout or meaning of any file changes.
 /// Version 2 added the autoregressive regressor (`autoregressive.npy`, `ar_scale.npy`, `ar_start.npy`).
-pub const MODEL_VERSION: u32 = 2;
+/// Version 3 made the cGAN generator residual (`cgan.residual` in the manifest): an older crease would have
+/// read such a generator as a plain one and written wrong maps, so it must refuse the model instead.
+pub const MODEL_VERSION: u32 = 3;
 /// Oldest format this build still reads: a version 1 model differs only by lacking the autoregressive
-/// regressor, so it still runs with the linear or LSTM one.
+/// regressor, so it still runs with the linear or LSTM one; the generator of a version 1 or 2 model has no
+/// `residual` field and runs as the plain generator it was trained as.
 pub const MODEL_VERSION_MIN: u32 = 1;
 pub const MODEL_FORMAT: &str = "crease-deep-model";
 

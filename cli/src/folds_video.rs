@@ -85,6 +85,10 @@ pub struct VideoArgs {
     /// Look for fold edges in the raw image, not in its residual against the captured mesh's fitted shading.
     #[arg(long)]
     pub raw_darkness: bool,
+    /// Analyse every camera that sees the garment, not only the front and back views (Popa et al.); each
+    /// triangle takes the anchors of the camera that sees it most squarely.
+    #[arg(long)]
+    pub all_views: bool,
     /// Frames on each side over which anchors are matched and their angles averaged, 0 = off [default: 2].
     #[arg(long)]
     pub temporal_radius: Option<usize>,
@@ -121,6 +125,7 @@ impl VideoArgs {
             wide_width: or(self.wide_width, d.wide_width),
             temporal_radius: self.temporal_radius.unwrap_or(d.temporal_radius),
             lighting_residual: !self.raw_darkness,
+            all_views: self.all_views,
             skip_border: self.skip_border,
             ..d
         }

@@ -17,6 +17,7 @@ pub mod edges;
 pub mod merge;
 pub mod orient;
 pub mod overlay;
+pub mod ownership;
 pub mod pairing;
 pub mod params;
 pub mod project;
@@ -208,9 +209,23 @@ impl VideoFolds {
         let number = *self.image_numbers.get(t).ok_or_else(|| {
             Error::param("image_numbers", format!("no image number for frame {t}"))
         })?;
+        let mut roles: Vec<(&'static str, usize)> =
+            [("front", choice.front), ("back", choice.back)]
+                .into_iter()
+                .filter_map(|(role, cam)| Some((role, cam?)))
+                .collect();
+        if self.params.all_views {
+            for cam in 0..self.rig.cameras.len() {
+                if !roles.iter().any(|r| r.1 == cam)
+                    && views::coverage(&self.rig, cam, positions) > 0.0
+                {
+                    roles.push(("side", cam));
+                }
+            }
+        }
         let mut views = Vec::new();
-        for (role, cam) in [("front", choice.front), ("back", choice.back)] {
-            let Some(cam) = cam else { continue };
+        let mut casters = Vec::new();
+        for (role, cam) in roles {
             let photo = self.rig.load(cam, t, number)?;
             if photo.has_alpha && !photo.mask.iter().any(|&m| m) {
                 notes.push(format!(
@@ -240,6 +255,7 @@ impl VideoFolds {
                 .iter()
                 .filter_map(|p| project::project_pair(&caster, p, &self.params))
                 .collect();
+            casters.push(caster);
             views.push(ViewResult {
                 camera: cam,
                 role,
@@ -249,7 +265,11 @@ impl VideoFolds {
                 projected,
             });
         }
-        let anchors = self.frame_anchors(topo, positions, t, &views, h);
+        let owners = self.params.all_views.then(|| {
+            let h_frame = crate::folds::stretch::mean_edge_length(topo, positions);
+            ownership::Ownership::new(topo, positions, &casters, h_frame)
+        });
+        let anchors = self.frame_anchors(topo, positions, t, &views, h, owners.as_ref());
         Ok(FrameAnalysis {
             frame: t,
             views,
@@ -258,7 +278,8 @@ impl VideoFolds {
         })
     }
 
-    /// Anchors of a frame from its projected pairs (best pairs first; a triangle keeps its first anchor).
+    /// Anchors of a frame from its projected pairs (best pairs first; a triangle keeps its first anchor). With
+    /// `owners`, a view's anchors are kept only on the triangles that view owns ([`ownership`]).
     fn frame_anchors(
         &self,
         topo: &Topology,
@@ -266,16 +287,24 @@ impl VideoFolds {
         t: usize,
         views: &[ViewResult],
         h: f64,
+        owners: Option<&ownership::Ownership>,
     ) -> FrameAnchors {
         let normals = geometry::triangle_normals(topo, positions);
-        let all: Vec<&ProjectedPair> = views.iter().flat_map(|v| &v.projected).collect();
+        let all: Vec<(usize, &ProjectedPair)> = views
+            .iter()
+            .enumerate()
+            .flat_map(|(v, view)| view.projected.iter().map(move |p| (v, p)))
+            .collect();
         let mut seen = HashSet::new();
         let mut anchors: Vec<Anchor> = Vec::new();
         let mut control_lines = Vec::new();
-        for p in &all {
+        for &(v, p) in &all {
             let angle = project::pair_angle(p.width, h, &self.params);
             for hits in [&p.a, &p.b] {
                 for a in project::edge_anchors(hits, &normals, angle) {
+                    if owners.is_some_and(|o| !o.owns(v, a.triangle)) {
+                        continue;
+                    }
                     if seen.insert(a.triangle) {
                         anchors.push(a);
                     }
@@ -390,6 +419,7 @@ mod tests {
     use super::*;
     use crate::folds::video::cameras::{NamedCamera, DEFAULT_IMAGE_PATTERN};
     use crate::render::CalibratedCamera;
+    use std::collections::HashMap;
 
     /// A 1 x 1 sheet (5 cm edges) in z = 0 under a camera looking down -z.
     fn setup() -> (std::sync::Arc<Topology>, Vec<V3>, CalibratedCamera) {
@@ -472,7 +502,7 @@ mod tests {
         ];
         let mut angles = Vec::new();
         for (t, pairs) in frames.into_iter().enumerate() {
-            let fa = det.frame_anchors(&topo, &p, t, &[view(pairs)], h);
+            let fa = det.frame_anchors(&topo, &p, t, &[view(pairs)], h, None);
             // The fold's triangles lie left of x = 0.5.
             let mine: Vec<f64> = fa
                 .anchors
@@ -493,5 +523,94 @@ mod tests {
         assert!(w > 1.5 && w < 6.0);
         let want = 60.0 * 30.0 / (30.0 + (w - 1.5) / (6.0 - 1.5) * 30.0);
         assert!((angles[0].to_degrees() - want).abs() < 1e-6, "{angles:?}");
+    }
+
+    /// A view holding only `pairs` (frame_anchors reads nothing else).
+    fn bare_view(camera: usize, pairs: Vec<ProjectedPair>) -> ViewResult {
+        ViewResult {
+            camera,
+            role: "front",
+            photo: Photo {
+                width: 1,
+                height: 1,
+                gray: vec![0.0],
+                rgb: vec![[0.0; 3]],
+                mask: vec![true],
+                has_alpha: false,
+            },
+            levels: Vec::new(),
+            union: Vec::new(),
+            projected: pairs,
+        }
+    }
+
+    /// With every camera analysed, each triangle keeps only the anchors of the view that sees it most squarely,
+    /// whichever view comes first.
+    #[test]
+    fn each_triangle_keeps_the_anchors_of_the_squarest_view() {
+        use crate::render::{Camera, Projection};
+        let (topo, p, square_cam) = setup();
+        let (lo, hi) = geometry::bounding_box(&p);
+        let slanted_cam =
+            Camera::fit(lo, hi, [1.2, 0.0, -1.0], [0.0, 1.0, 0.0], 400, 400).calibrated();
+        let named = |name: &str, camera| NamedCamera {
+            name: name.into(),
+            camera,
+        };
+        let rig = CameraRig {
+            cameras: vec![named("square", square_cam), named("slanted", slanted_cam)],
+            images_dir: "unused".into(),
+            image_pattern: DEFAULT_IMAGE_PATTERN.to_string(),
+        };
+        let det = VideoFolds::new(rig, VideoParams::default(), vec![1]).unwrap();
+        let h = crate::folds::stretch::mean_edge_length(&topo, &p);
+        let caster = |c: &CalibratedCamera| project::MeshCaster::new(&topo, &p, c).unwrap();
+        // Both views see the edge at x = 0.3; the slanted view pairs it with a nearer edge, so its angle differs.
+        let square = pair(&caster(&square_cam), &square_cam, 0.3, 0.15);
+        let slanted = pair(&caster(&slanted_cam), &slanted_cam, 0.3, 0.06);
+        let (a_square, a_slanted) = (
+            project::pair_angle(square.width, h, &det.params),
+            project::pair_angle(slanted.width, h, &det.params),
+        );
+        assert!((a_square - a_slanted).abs() > 0.1, "{a_square} {a_slanted}");
+        let alone = |v: ViewResult| -> HashMap<u32, f64> {
+            det.frame_anchors(&topo, &p, 0, &[v], h, None)
+                .anchors
+                .iter()
+                .map(|a| (a.triangle, a.angle))
+                .collect()
+        };
+        let only_square = alone(bare_view(0, vec![square.clone()]));
+        let only_slanted = alone(bare_view(1, vec![slanted.clone()]));
+        let shared: Vec<u32> = only_square
+            .keys()
+            .filter(|t| only_slanted.contains_key(t))
+            .copied()
+            .collect();
+        assert!(shared.len() >= 4, "{shared:?}");
+
+        let casters_ab = [caster(&square_cam), caster(&slanted_cam)];
+        let casters_ba = [caster(&slanted_cam), caster(&square_cam)];
+        let own_ab = ownership::Ownership::new(&topo, &p, &casters_ab, h);
+        let own_ba = ownership::Ownership::new(&topo, &p, &casters_ba, h);
+        let ab = [
+            bare_view(0, vec![square.clone()]),
+            bare_view(1, vec![slanted.clone()]),
+        ];
+        let ba = [bare_view(1, vec![slanted]), bare_view(0, vec![square])];
+        let fa = det.frame_anchors(&topo, &p, 0, &ab, h, Some(&own_ab));
+        let fb = det.frame_anchors(&topo, &p, 0, &ba, h, Some(&own_ba));
+        assert_eq!(fa.anchors, fb.anchors);
+        // The square camera sees the whole flat sheet more squarely: its anchors are kept, the slanted
+        // camera's are dropped, also on the triangles only the slanted camera anchored.
+        let got: HashMap<u32, f64> = fa.anchors.iter().map(|a| (a.triangle, a.angle)).collect();
+        assert_eq!(got, only_square);
+        assert!(only_slanted.keys().any(|t| !only_square.contains_key(t)));
+        // Without the ownership test the first view wins, as with Popa's two views.
+        let first = det.frame_anchors(&topo, &p, 0, &ba, h, None);
+        assert!(shared.iter().all(|t| first
+            .anchors
+            .iter()
+            .any(|a| a.triangle == *t && a.angle == a_slanted)));
     }
 }

@@ -69,6 +69,10 @@ pub struct VideoParams {
     /// Look for fold edges in the residual between the image and the captured mesh shaded under lighting fitted
     /// to the image (spherical harmonics, [`super::shading`]) rather than in the raw image.
     pub lighting_residual: bool,
+    /// Analyse every camera that sees the garment, each triangle taking the anchors of the camera that sees it
+    /// most squarely ([`super::ownership`]). Off by default (the front and back views of Popa et al. §4): it
+    /// helps the tube-like sleeve and hurts the sheet (docs/fidelity-folds.md).
+    pub all_views: bool,
     /// Frames on each side over which anchors are matched and their angles averaged (`crate::folds::temporal`);
     /// 0 leaves each frame's anchors as detected.
     pub temporal_radius: usize,
@@ -103,6 +107,7 @@ impl Default for VideoParams {
             narrow_width: 1.5,
             wide_width: 6.0,
             lighting_residual: true,
+            all_views: false,
             temporal_radius: 2,
             stable_normal_rings: 8,
         }

@@ -98,6 +98,29 @@ impl MeshCaster {
         })
     }
 
+    /// |cos| of the angle between triangle `tri`'s normal and this camera's viewing ray to `point` (1 = seen
+    /// head-on, 0 = edge-on), whether or not the camera actually sees the point.
+    pub fn facing(&self, tri: u32, point: V3) -> f64 {
+        let d = vec3::normalize(vec3::sub(point, self.origin));
+        self.normals
+            .get(tri as usize)
+            .map_or(0.0, |n| vec3::dot(*n, d).abs())
+    }
+
+    /// [`Self::facing`] where the camera sees `point` on triangle `tri`: the point lies inside the image and the
+    /// first surface along its viewing ray is `tri` or lies within `tol` of the point. `None` when the point is
+    /// outside the image, behind the camera or hidden by other cloth.
+    pub fn visible_facing(&self, tri: u32, point: V3, tol: f64) -> Option<f64> {
+        let uv = self.camera.project(point)?;
+        let (w, h) = (self.camera.width as f64, self.camera.height as f64);
+        if uv[0] < -0.5 || uv[1] < -0.5 || uv[0] >= w - 0.5 || uv[1] >= h - 0.5 {
+            return None;
+        }
+        let hit = self.cast(uv)?;
+        let near = vec3::norm(vec3::sub(hit.point, point)) <= tol;
+        (hit.triangle == tri || near).then(|| self.facing(tri, point))
+    }
+
     /// Casts the points of an image polyline, sampled every `step` pixels. Returns the hits on the garment away
     /// from the silhouette (and the border if asked), in order, and the fraction of samples that missed, grazed
     /// or hit the border.

@@ -21,8 +21,10 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Format written by this build. Bump when the layout or meaning of any file changes.
-/// Version 2 added the autoregressive regressor (`autoregressive.npy`, `ar_scale.npy`, `ar_start.npy`).
-pub const MODEL_VERSION: u32 = 2;
+/// Version 2 added the autoregressive regressor (`autoregressive.npy`, `ar_scale.npy`, `ar_start.npy`);
+/// version 3 the decayed pose history in the control vector (`control.history` in the manifest; an older
+/// build would ignore it and build control vectors of the wrong length).
+pub const MODEL_VERSION: u32 = 3;
 /// Oldest format this build still reads: a version 1 model differs only by lacking the autoregressive
 /// regressor, so it still runs with the linear or LSTM one.
 pub const MODEL_VERSION_MIN: u32 = 1;

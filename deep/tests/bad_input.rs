@@ -127,7 +127,7 @@ fn models_meshes_and_uv_requirements_are_checked() {
     let old = copy("old");
     let m = std::fs::read_to_string(old.join("manifest.json"))
         .unwrap()
-        .replace("\"version\": 2", "\"version\": 99");
+        .replace("\"version\": 3", "\"version\": 99");
     std::fs::write(old.join("manifest.json"), m).unwrap();
     let e = err(Model::load(&old));
     assert!(

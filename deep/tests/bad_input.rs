@@ -133,7 +133,7 @@ fn models_meshes_and_uv_requirements_are_checked() {
     assert!(
         e.contains("manifest.json")
             && e.contains("version 99")
-            && e.contains("reads versions 1 to 2"),
+            && e.contains("reads versions 1 to 3"),
         "{e}"
     );
     let damaged = copy("damaged");

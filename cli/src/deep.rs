@@ -90,6 +90,10 @@ pub struct TrainArgs {
     /// and acceleration).
     #[arg(long, value_delimiter = ',')]
     pub lags: Vec<usize>,
+    /// Time constants (frames) of decayed pose history features in the control vector, e.g. 3,10,30
+    /// (leaky averages of the pose: the cloth's memory of how it got to its pose, without feedback).
+    #[arg(long, value_delimiter = ',')]
+    pub pose_history: Vec<f64>,
     /// Ridge weight of the linear regression (relative).
     #[arg(long, default_value_t = 1e-3)]
     pub ridge: f64,
@@ -265,6 +269,7 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
     let params = TrainParams {
         k: a.k,
         lags: a.lags,
+        pose_history: a.pose_history,
         ridge: a.ridge,
         regressor: a.regressor,
         ar_state: a.ar_state,

@@ -3,7 +3,7 @@
 //! ```text
 //! cargo run --release -p crease-deep --example deep_report -- subspace   DATA OUT [held-out]
 //! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT [held-out] [epochs] [layers] [hidden] [ridge] [AR states, e.g. 10,25,50]
-//! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT all [epochs] [layers] [hidden] [ridge] [AR states] [rollout-fit iterations, e.g. 0,5,20,50]
+//! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT all [epochs] [layers] [hidden] [ridge] [AR states] [rollout-fit iterations, e.g. 0,5,20,50] [history time constants, e.g. "none;3,10,30"]
 //! cargo run --release -p crease-deep --example deep_report -- cgan       DATA OUT [held-out] [epochs] [res] [filters] [ridge] [AR state] [variants, e.g. captured,captured_notemp,subspace200,subspace50,regression] [batch] [minutes per variant]
 //! cargo run --release -p crease-deep --example deep_report -- register   DATA OUT [frames]
 //! cargo run --release -p crease-deep --example deep_report -- score      APPLY_OUT GT CAPTURED
@@ -55,6 +55,7 @@ fn main() -> R<()> {
             arg(7).map_or(Ok(1e-3), |s| s.parse())?,
             &list(arg(8), "10,25,50")?,
             &list(arg(9), "0,5,20,50")?,
+            &history_sets(arg(10))?,
         ),
         "regression" => regression(
             &arg(1).ok_or("DATA")?,
@@ -383,9 +384,11 @@ fn sequence_names(data: &str) -> R<Vec<String>> {
 }
 
 /// Leave-one-sequence-out over every sequence under DATA: each held out in turn, the models fitted on the
-/// others (subspace k = 200), pose-only vertex error (mean and p95 per frame, averaged over its frames) per
-/// split and the mean over splits, by which the defaults are chosen. The autoregressive rows are the ridge
-/// (teacher-forced) fit and the rollout fit after each listed number of iterations.
+/// others (subspace k = 200), pose-only vertex error (mean and p95 per frame, averaged over its frames) and
+/// coefficient MSE per split and the mean over splits, by which the defaults are chosen. The autoregressive
+/// rows are the ridge (teacher-forced) fit and the rollout fit after each listed number of iterations, once
+/// per control vector: pose + velocity + acceleration, and that plus each listed set of decayed pose history
+/// time constants.
 fn regression_loso(
     data: &str,
     out: &str,
@@ -393,19 +396,18 @@ fn regression_loso(
     ridge: f64,
     ar_states: &[usize],
     iterations: &[usize],
+    histories: &[Vec<f64>],
 ) -> R<()> {
     let names = sequence_names(data)?;
-    let mut table: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
-    let mut add = |split: usize, name: String, e: (f64, f64)| match table
-        .iter_mut()
-        .find(|(n, _)| *n == name)
-    {
-        Some((_, v)) => v.push(e),
-        None => {
-            assert_eq!(split, 0, "row {name} missing from an earlier split");
-            table.push((name, vec![e]));
-        }
-    };
+    let mut table: Vec<(String, Vec<Scores>)> = Vec::new();
+    let mut add =
+        |split: usize, name: String, e: Scores| match table.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, v)) => v.push(e),
+            None => {
+                assert_eq!(split, 0, "row {name} missing from an earlier split");
+                table.push((name, vec![e]));
+            }
+        };
     let max_iter = iterations.iter().copied().max().unwrap_or(0);
     let mut notes = Vec::new();
     for (si, held) in names.iter().enumerate() {
@@ -418,63 +420,71 @@ fn regression_loso(
         let sub = Subspace::fit(&frames, 200)?;
         let k = sub.k();
         let truth: Vec<Vec<f64>> = test.fine.iter().map(|f| sub.project(f, k)).collect();
-        let err = |pred: &[Vec<f64>]| -> (f64, f64) {
-            mean_err(
-                &pred.iter().map(|c| sub.reconstruct(c)).collect::<Vec<_>>(),
-                &test.fine,
-            )
-        };
+        let err = |pred: &[Vec<f64>]| scores(&sub, pred, &truth, &test.fine);
         add(si, "subspace projection of gt (bound)".into(), err(&truth));
         let pose_refs: Vec<&[Vec<f64>]> = train.iter().map(|s| s.poses.as_slice()).collect();
-        for (name, lags) in [
-            ("linear, pose+vel+acc", vec![]),
+        let train_a: Vec<Vec<Vec<f64>>> = train
+            .iter()
+            .map(|s| s.fine.iter().map(|f| sub.project(f, k)).collect())
+            .collect();
+        let a_refs: Vec<&[Vec<f64>]> = train_a.iter().map(|a| a.as_slice()).collect();
+        // (row label, pose lags, history time constants, with autoregressive rows)
+        let mut variants: Vec<(String, Vec<usize>, Vec<f64>, bool)> = vec![
+            ("pose+vel+acc".into(), vec![], vec![], true),
             (
-                "linear, + pose lags 1..32 (`--regressor linear`)",
+                "pose lags 1..32".into(),
                 vec![1, 2, 4, 8, 16, 32],
+                vec![],
+                false,
             ),
-        ] {
-            let spec = ControlSpec::fit(&pose_refs, lags)?;
-            let (mut c, mut t) = (Vec::new(), Vec::new());
-            for s in &train {
-                c.extend(spec.controls(&s.poses)?);
-                t.extend(s.fine.iter().map(|f| sub.project(f, k)));
-            }
-            let reg = LinearRegression::fit(&c, &t, ridge)?;
-            let pred: Vec<Vec<f64>> = spec
-                .controls(&test.poses)?
-                .iter()
-                .map(|c| reg.predict(c))
-                .collect();
-            add(si, name.into(), err(&pred));
+        ];
+        for h in histories.iter().filter(|h| !h.is_empty()) {
+            let taus: Vec<String> = h.iter().map(|t| format!("{t}")).collect();
+            variants.push((
+                format!("decayed pose history τ = {}", taus.join(",")),
+                vec![],
+                h.clone(),
+                true,
+            ));
         }
-        for (ctl, lags) in [("", vec![1, 2, 4, 8, 16, 32]), (", no pose lags", vec![])] {
-            let spec = ControlSpec::fit(&pose_refs, lags.clone())?;
+        for (ctl, lags, taus, with_ar) in &variants {
+            let spec =
+                ControlSpec::fit(&pose_refs, lags.clone())?.with_history(&pose_refs, taus)?;
             let train_c: Vec<Vec<Vec<f64>>> = train
                 .iter()
                 .map(|s| spec.controls(&s.poses))
                 .collect::<Result<_, _>>()?;
-            let train_a: Vec<Vec<Vec<f64>>> = train
-                .iter()
-                .map(|s| s.fine.iter().map(|f| sub.project(f, k)).collect())
-                .collect();
             let tc = spec.controls(&test.poses)?;
+            let reg = LinearRegression::fit(&train_c.concat(), &train_a.concat(), ridge)?;
+            let pred: Vec<Vec<f64>> = tc.iter().map(|c| reg.predict(c)).collect();
+            add(si, format!("linear, {ctl}"), err(&pred));
+            add(
+                si,
+                format!("5 nearest neighbours, {ctl}"),
+                err(&nearest_neighbours(
+                    &train_c.concat(),
+                    &train_a.concat(),
+                    &tc,
+                    5,
+                )),
+            );
+            if !with_ar {
+                continue;
+            }
             let seqs: Vec<ControlsAndCoefficients> = train_c
                 .iter()
                 .zip(&train_a)
                 .map(|(c, a)| (c.as_slice(), a.as_slice()))
                 .collect();
-            let a_refs: Vec<&[Vec<f64>]> = train_a.iter().map(|a| a.as_slice()).collect();
             for &k_state in ar_states {
                 let hist = ShapeHistory::fit(&a_refs, k_state.min(k), 2)?;
                 let mut ar = AutoregressiveLinear::fit(&seqs, hist, ridge, 0)?;
                 add(
                     si,
-                    format!(
-                        "AR state {k_state}{ctl}, one step with the true history (not a forecast)"
-                    ),
+                    format!("AR state {k_state}, {ctl}, one step with the true history (not a forecast)"),
                     err(&ar.one_step(&tc, &truth)),
                 );
-                let mut rows_here: Vec<(usize, (f64, f64))> = Vec::new();
+                let mut rows_here: Vec<(usize, Scores)> = Vec::new();
                 if iterations.contains(&0) {
                     rows_here.push((0, err(&ar.rollout(&tc))));
                 }
@@ -491,64 +501,186 @@ fn regression_loso(
                 for &n in iterations {
                     let e = rows_here.iter().find(|r| r.0 == n).map_or(final_e, |r| r.1);
                     let label = if n == 0 {
-                        format!("AR state {k_state}{ctl}, ridge fit, rollout")
+                        format!("AR state {k_state}, {ctl}, ridge fit, rollout")
                     } else {
-                        format!("AR state {k_state}{ctl}, rollout fit {n} it., rollout")
+                        format!("AR state {k_state}, {ctl}, rollout fit {n} it., rollout")
                     };
                     add(si, label, e);
                 }
+                // The rollout fit constrained to a stable recurrence: projected after every step, so the
+                // remaining weights can make up for what the projection takes.
+                for bound in [0.98, 0.95] {
+                    let hist = ShapeHistory::fit(&a_refs, k_state.min(k), 2)?;
+                    let mut stable = AutoregressiveLinear::fit(&seqs, hist, ridge, 0)?;
+                    crease_deep::stable_state::project(&mut stable, bound)?;
+                    for _ in 0..max_iter {
+                        crease_deep::rollout_fit::refine(&mut stable, &seqs, ridge, 1, |_, _| {})?;
+                        crease_deep::stable_state::project(&mut stable, bound)?;
+                    }
+                    add(
+                        si,
+                        format!("AR state {k_state}, {ctl}, rollout fit {max_iter} it. projected to spectral radius ≤ {bound} after every step, rollout"),
+                        err(&stable.rollout(&tc)),
+                    );
+                }
+                // An even blend of the pose-only map and the rollout: whether their errors cancel.
+                let rolled = ar.rollout(&tc);
+                let blend: Vec<Vec<f64>> = pred
+                    .iter()
+                    .zip(&rolled)
+                    .map(|(a, b)| a.iter().zip(b).map(|(x, y)| 0.5 * (x + y)).collect())
+                    .collect();
+                add(
+                    si,
+                    format!(
+                        "mean of linear and AR state {k_state} rollout fit {max_iter} it., {ctl}"
+                    ),
+                    err(&blend),
+                );
+                // The fitted recurrence's spectral radius, and the rollout with it projected below a bound
+                // (stable_state.rs): whether drift comes from an unstable state map.
+                let rho = crease_deep::stable_state::spectral_radius(&ar)?;
+                for bound in [0.95, 0.9, 0.8] {
+                    let mut stable = ar.clone();
+                    crease_deep::stable_state::project(&mut stable, bound)?;
+                    add(
+                        si,
+                        format!("AR state {k_state}, {ctl}, rollout fit {max_iter} it., spectral radius ≤ {bound}, rollout"),
+                        err(&stable.rollout(&tc)),
+                    );
+                }
                 eprintln!(
-                    "{held}: AR state {k_state}{ctl}: rollout loss {:.3e} -> {:.3e} in {} iterations, {secs:.1} s{}",
+                    "{held}: AR state {k_state}, {ctl}: spectral radius {rho:.3}; rollout loss {:.3e} -> {:.3e} in {} iterations, {secs:.1} s{}",
                     report.losses[0],
                     report.losses[report.losses.len() - 1],
                     report.losses.len() - 1,
                     if report.stalled { " (stalled)" } else { "" }
                 );
-                notes.push(serde_json::json!({"held_out": held, "k_state": k_state, "rollout_losses": report.losses, "stalled": report.stalled, "fit_s": secs}));
+                notes.push(serde_json::json!({"held_out": held, "controls": ctl, "k_state": k_state, "spectral_radius": rho, "rollout_losses": report.losses, "stalled": report.stalled, "fit_s": secs}));
             }
         }
         if lstm.epochs > 0 {
-            let spec = ControlSpec::fit(&pose_refs, vec![1, 2, 4, 8, 16, 32])?;
+            // The networks get the paper's control vector (pose, velocity, acceleration) and, for the
+            // autoregressive one, the default regressor's fed-back state (10 coefficients).
+            let spec = ControlSpec::fit(&pose_refs, vec![])?;
             let train_c: Vec<Vec<Vec<f64>>> = train
                 .iter()
                 .map(|s| spec.controls(&s.poses))
                 .collect::<Result<_, _>>()?;
-            let train_a: Vec<Vec<Vec<f64>>> = train
-                .iter()
-                .map(|s| s.fine.iter().map(|f| sub.project(f, k)).collect())
-                .collect();
             let tc = spec.controls(&test.poses)?;
-            let a_refs: Vec<&[Vec<f64>]> = train_a.iter().map(|a| a.as_slice()).collect();
-            for (name, e) in loso_lstm(
-                &train_c, &train_a, &tc, &truth, &a_refs, k, &lstm, &sub, &test,
-            )? {
+            for (name, e, note) in
+                loso_lstm(&train_c, &train_a, &tc, &truth, &a_refs, k, &lstm, &err)?
+            {
                 add(si, name, e);
+                notes.push(serde_json::json!({"held_out": held, "lstm": note}));
             }
         }
         eprintln!("{held} held out: {:.1} s", t_split.elapsed().as_secs_f64());
     }
     print!("| pose-only regressor |");
     for n in &names {
-        print!(" {n} held out: mean / p95 (mm) |");
+        print!(" {n} held out: mean / p95 (mm), MSE (m²) |");
     }
-    println!(" mean over splits (mm) | p95 over splits (mm) |");
-    println!("|---|{}---|---|", "---|".repeat(names.len()));
+    println!(" mean over splits (mm) | p95 over splits (mm) | MSE over splits (m²) |");
+    println!("|---|{}---|---|---|", "---|".repeat(names.len()));
     let mut rows = Vec::new();
     for (name, v) in &table {
-        let mean = v.iter().map(|e| e.0).sum::<f64>() / v.len() as f64;
-        let p95 = v.iter().map(|e| e.1).sum::<f64>() / v.len() as f64;
+        let avg = |f: fn(&Scores) -> f64| v.iter().map(f).sum::<f64>() / v.len() as f64;
+        let (mean, p95, mse) = (avg(|e| e.mean), avg(|e| e.p95), avg(|e| e.mse));
         print!("| {name} |");
         for e in v {
-            print!(" {} / {} |", mm(e.0), mm(e.1));
+            print!(" {} / {}, {:.2e} |", mm(e.mean), mm(e.p95), e.mse);
         }
-        println!(" {} | {} |", mm(mean), mm(p95));
-        rows.push(serde_json::json!({"regressor": name, "per_split_mean_m": v.iter().map(|e| e.0).collect::<Vec<_>>(), "per_split_p95_m": v.iter().map(|e| e.1).collect::<Vec<_>>(), "mean_m": mean, "p95_m": p95}));
+        println!(" {} | {} | {mse:.2e} |", mm(mean), mm(p95));
+        rows.push(serde_json::json!({"regressor": name, "per_split_mean_m": v.iter().map(|e| e.mean).collect::<Vec<_>>(), "per_split_p95_m": v.iter().map(|e| e.p95).collect::<Vec<_>>(), "per_split_coeff_mse": v.iter().map(|e| e.mse).collect::<Vec<_>>(), "mean_m": mean, "p95_m": p95, "coeff_mse": mse}));
     }
     write_json(
         out,
         "regression_loso.json",
-        &serde_json::json!({"splits": names, "ridge": ridge, "rows": rows, "rollout_fits": notes}),
+        &serde_json::json!({"splits": names, "ridge": ridge, "rows": rows, "fits": notes}),
     )
+}
+
+/// One regressor's errors on one held-out sequence: vertex error mean and p95 (m, per frame, averaged over
+/// its frames) and coefficient MSE (m², averaged over the coefficients and frames).
+#[derive(Clone, Copy)]
+struct Scores {
+    mean: f64,
+    p95: f64,
+    mse: f64,
+}
+
+fn scores(sub: &Subspace, pred: &[Vec<f64>], truth: &[Vec<f64>], fine: &[Frame]) -> Scores {
+    let (mean, p95) = mean_err(
+        &pred.iter().map(|c| sub.reconstruct(c)).collect::<Vec<_>>(),
+        fine,
+    );
+    let mse = pred
+        .iter()
+        .zip(truth)
+        .map(|(p, t)| p.iter().zip(t).map(|(a, b)| (a - b).powi(2)).sum::<f64>() / p.len() as f64)
+        .sum::<f64>()
+        / pred.len() as f64;
+    Scores { mean, p95, mse }
+}
+
+/// Local regression in control space: each frame's coefficients are the inverse-distance weighted mean of
+/// those of its `n` nearest training frames, distances over the standardised control vectors.
+fn nearest_neighbours(
+    train: &[Vec<f64>],
+    targets: &[Vec<f64>],
+    query: &[Vec<f64>],
+    n: usize,
+) -> Vec<Vec<f64>> {
+    let norm = Standardizer::fit(train.iter());
+    let xs = norm.apply_all(train);
+    query
+        .iter()
+        .map(|q| {
+            let q = norm.apply(q);
+            let mut d: Vec<(f64, usize)> = xs
+                .iter()
+                .enumerate()
+                .map(|(i, x)| {
+                    (
+                        x.iter()
+                            .zip(&q)
+                            .map(|(a, b)| (a - b).powi(2))
+                            .sum::<f64>()
+                            .sqrt(),
+                        i,
+                    )
+                })
+                .collect();
+            d.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let near = &d[..n.min(d.len())];
+            let w: Vec<f64> = near.iter().map(|(di, _)| 1.0 / (di + 1e-9)).collect();
+            let total: f64 = w.iter().sum();
+            let mut out = vec![0.0; targets[0].len()];
+            for ((_, i), wi) in near.iter().zip(&w) {
+                for (o, t) in out.iter_mut().zip(&targets[*i]) {
+                    *o += wi / total * t;
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// Sets of decayed pose history time constants: `none;3,10,30;5,20` (`none` or empty: no history).
+fn history_sets(arg: Option<String>) -> R<Vec<Vec<f64>>> {
+    arg.unwrap_or("none".into())
+        .split(';')
+        .map(|set| {
+            if set.is_empty() || set == "none" {
+                Ok(vec![])
+            } else {
+                set.split(',')
+                    .map(|t| t.parse::<f64>().map_err(|e| e.into()))
+                    .collect()
+            }
+        })
+        .collect()
 }
 
 /// What the LSTM rows train on and are evaluated with: per training sequence the control vectors and true
@@ -707,7 +839,8 @@ fn lstm_autoregressive(
     ))
 }
 
-/// The two LSTM rows of one leave-one-sequence-out split (pose only; autoregressive with state 25).
+/// The two LSTM rows of one leave-one-sequence-out split (pose only; autoregressive with state 10), with
+/// their training notes (losses, seconds per epoch).
 #[allow(clippy::too_many_arguments)]
 fn loso_lstm(
     train_c: &[Vec<Vec<f64>>],
@@ -717,9 +850,8 @@ fn loso_lstm(
     a_refs: &[&[Vec<f64>]],
     k: usize,
     shape: &LstmShape,
-    sub: &Subspace,
-    test: &TrainingSequence,
-) -> R<Vec<(String, (f64, f64))>> {
+    err: &dyn Fn(&[Vec<f64>]) -> Scores,
+) -> R<Vec<(String, Scores, serde_json::Value)>> {
     let d = LstmData {
         train_c,
         train_a,
@@ -727,30 +859,26 @@ fn loso_lstm(
         truth,
         k,
     };
-    let err = |pred: &[Vec<f64>]| {
-        mean_err(
-            &pred.iter().map(|c| sub.reconstruct(c)).collect::<Vec<_>>(),
-            &test.fine,
-        )
-    };
     let LstmShape {
         epochs,
         layers,
         hidden,
     } = *shape;
-    let (pred, _) = lstm_pose_only(&d, layers, hidden, epochs)?;
+    let (pred, note) = lstm_pose_only(&d, layers, hidden, epochs)?;
     let mut rows = vec![(
-        format!("LSTM {layers}x{hidden}, pose only, {epochs} epochs"),
+        format!("LSTM {layers}x{hidden}, pose+vel+acc, seq 3, {epochs} epochs"),
         err(&pred),
+        note,
     )];
-    let hist = ShapeHistory::fit(a_refs, 25.min(k), 2)?;
-    let (pred, _) = lstm_autoregressive(&d, &hist, layers, hidden, epochs)?;
+    let hist = ShapeHistory::fit(a_refs, 10.min(k), 2)?;
+    let (pred, note) = lstm_autoregressive(&d, &hist, layers, hidden, epochs)?;
     rows.push((
         format!(
-            "LSTM {layers}x{hidden}, AR state 25, DAgger 1, rollout, {epochs}+{} epochs",
+            "LSTM {layers}x{hidden}, AR state 10, pose+vel+acc, seq 3, DAgger 1, rollout, {epochs}+{} epochs",
             epochs / 3
         ),
         err(&pred),
+        note,
     ));
     Ok(rows)
 }

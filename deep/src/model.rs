@@ -22,8 +22,9 @@ use std::sync::Arc;
 
 /// Format written by this build. Bump when the layout or meaning of any file changes.
 /// Version 2 added the autoregressive regressor (`autoregressive.npy`, `ar_scale.npy`, `ar_start.npy`).
-/// Version 3 made the cGAN generator residual (`cgan.residual` in the manifest): an older crease would have
-/// read such a generator as a plain one and written wrong maps, so it must refuse the model instead.
+/// Version 3 made the cGAN generator residual (`cgan.residual` in the manifest) and added the decayed pose
+/// history to the control vector (`control.history`): an older crease would have read such a generator as a
+/// plain one, or built control vectors of the wrong length, so it must refuse the model instead.
 pub const MODEL_VERSION: u32 = 3;
 /// Oldest format this build still reads: a version 1 model differs only by lacking the autoregressive
 /// regressor, so it still runs with the linear or LSTM one; the generator of a version 1 or 2 model has no

@@ -5,6 +5,7 @@
 //! acceleration, and the pose at a few earlier lags. Everything is normalised with statistics of the training
 //! data; constant dimensions (4 of the sleeve's 6) are guarded against a zero variance.
 
+use crate::pose_history::DecayedHistory;
 use crease_core::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -94,6 +95,9 @@ pub struct ControlSpec {
     /// Per pose dimension: mean and scale (1 / std, or 0 for a constant dimension).
     pub mean: Vec<f64>,
     pub scale: Vec<f64>,
+    /// Exponentially decayed pose history features ([`DecayedHistory`]); absent in models before format 3.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub history: Option<DecayedHistory>,
 }
 
 impl ControlSpec {
@@ -124,16 +128,52 @@ impl ControlSpec {
                 }
             })
             .collect();
-        Ok(ControlSpec { lags, mean, scale })
+        Ok(ControlSpec {
+            lags,
+            mean,
+            scale,
+            history: None,
+        })
+    }
+
+    /// Adds decayed pose history features with these time constants (frames; none: no history features),
+    /// standardised on the training poses.
+    pub fn with_history(
+        mut self,
+        sequences: &[&[Vec<f64>]],
+        time_constants: &[f64],
+    ) -> Result<Self> {
+        if time_constants.is_empty() {
+            self.history = None;
+            return Ok(self);
+        }
+        let normed: Vec<Vec<Vec<f64>>> = sequences.iter().map(|s| self.normalise(s)).collect();
+        self.history = Some(DecayedHistory::fit(&normed, time_constants)?);
+        Ok(self)
+    }
+
+    fn normalise(&self, poses: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        poses
+            .iter()
+            .map(|p| {
+                p.iter()
+                    .enumerate()
+                    .map(|(j, x)| (x - self.mean[j]) * self.scale[j])
+                    .collect()
+            })
+            .collect()
     }
 
     pub fn pose_dim(&self) -> usize {
         self.mean.len()
     }
 
-    /// Length of a control vector: pose, velocity, acceleration, one pose per lag, and a constant 1.
+    /// Length of a control vector: pose, velocity, acceleration, one pose per lag, the decayed history, and a
+    /// constant 1.
     pub fn len(&self) -> usize {
-        self.pose_dim() * (3 + self.lags.len()) + 1
+        self.pose_dim() * (3 + self.lags.len())
+            + self.history.as_ref().map_or(0, |h| h.len(self.pose_dim()))
+            + 1
     }
 
     pub fn is_empty(&self) -> bool {
@@ -157,14 +197,8 @@ impl ControlSpec {
                 ),
             ));
         }
-        let norm = |t: usize| -> Vec<f64> {
-            poses[t]
-                .iter()
-                .enumerate()
-                .map(|(j, x)| (x - self.mean[j]) * self.scale[j])
-                .collect()
-        };
-        let normed: Vec<Vec<f64>> = (0..poses.len()).map(norm).collect();
+        let normed = self.normalise(poses);
+        let history = self.history.as_ref().map(|h| h.features(&normed));
         let at = |t: isize| -> &Vec<f64> { &normed[t.max(0) as usize] };
         // Velocity and acceleration in units of one frame, scaled up so they are comparable to the pose.
         const DYN: f64 = 10.0;
@@ -177,6 +211,9 @@ impl ControlSpec {
                 c.extend((0..p0.len()).map(|j| DYN * DYN * (p0[j] - 2.0 * p1[j] + p2[j])));
                 for &lag in &self.lags {
                     c.extend(at(t - lag as isize).iter().copied());
+                }
+                if let Some(h) = &history {
+                    c.extend(h[t as usize].iter().copied());
                 }
                 c.push(1.0);
                 c

@@ -68,6 +68,9 @@ pub struct TrainParams {
     /// Subspace size (capped by the number of training frames).
     pub k: usize,
     pub lags: Vec<usize>,
+    /// Time constants (frames) of the decayed pose history features ([`crate::pose_history`]); none: no
+    /// history features.
+    pub pose_history: Vec<f64>,
     /// Ridge weight of the linear regression, relative to the mean diagonal of ΘᵀΘ.
     pub ridge: f64,
     /// Regressor used by `apply --pose`. The linear and autoregressive ones are always trained (seconds);
@@ -97,6 +100,7 @@ impl Default for TrainParams {
             // with lags 1..32), and the autoregressive regressor feeding back 10 coefficients, fitted for 20
             // steps on its own rollout (7.20 mm).
             lags: vec![],
+            pose_history: vec![],
             ridge: 1e-3,
             regressor: RegressorKind::Autoregressive,
             ar_state: 10,
@@ -210,7 +214,8 @@ pub fn fit(
         frames.len()
     ));
     let pose_refs: Vec<&[Vec<f64>]> = seqs.iter().map(|s| s.poses.as_slice()).collect();
-    let control = ControlSpec::fit(&pose_refs, params.lags.clone())?;
+    let control = ControlSpec::fit(&pose_refs, params.lags.clone())?
+        .with_history(&pose_refs, &params.pose_history)?;
     let mut controls = Vec::new();
     let mut targets = Vec::new();
     let mut per_seq = Vec::new();

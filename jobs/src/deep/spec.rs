@@ -63,6 +63,7 @@ pub struct DeepTrainParams {
     pub ar_state: usize,
     pub ar_rollout_iters: usize,
     pub lags: Vec<usize>,
+    pub pose_history: Vec<f64>,
     pub ridge: f64,
     pub lstm_layers: usize,
     pub lstm_hidden: usize,
@@ -90,6 +91,7 @@ impl Default for DeepTrainParams {
             ar_state: t.ar_state,
             ar_rollout_iters: t.ar_rollout_iters,
             lags: t.lags,
+            pose_history: t.pose_history,
             ridge: t.ridge,
             lstm_layers: t.lstm.layers,
             lstm_hidden: t.lstm.hidden,
@@ -113,6 +115,7 @@ impl DeepTrainParams {
         TrainParams {
             k: self.k,
             lags: self.lags.clone(),
+            pose_history: self.pose_history.clone(),
             ridge: self.ridge,
             regressor: self.regressor,
             ar_state: self.ar_state,

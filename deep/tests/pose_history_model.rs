@@ -1,0 +1,173 @@
+//! Decayed pose history in a stored model: trained with `pose_history`, the control vector carries leaky
+//! averages of the pose, the manifest records them (format version 3), apply rebuilds the same controls from
+//! the pose file, and on a cloth whose shape is a leaky integral of the pose they beat the pose-only map on a
+//! held-out motion. A version 2 model (no history in its manifest) is still read and runs as before.
+
+mod support;
+
+use crease_core::progress::NoProgress;
+use crease_deep::apply::shapes_from_poses;
+use crease_deep::model::{Model, RegressorKind, MODEL_VERSION};
+use crease_deep::train::{train, TrainParams, TrainingSequence};
+use std::path::Path;
+
+/// A tube whose bulge follows a slow leaky integral of the pose (s_t = 0.9 s_{t−1} + 0.3 pose_t): the shape
+/// depends on the last ~10 poses, not on the current one alone. Like the sleeve, it starts at rest: settled
+/// at its first pose.
+fn sequence(dir: &Path, frames: usize, freq: f64, phase: f64) -> TrainingSequence {
+    let (topo, _) = support::tube(16, 8, |_, _| 0.07);
+    let (mut fine, mut poses) = (Vec::new(), Vec::new());
+    let mut s = 3.0 * phase.sin();
+    for t in 0..frames {
+        let a = (freq * t as f64 + phase).sin();
+        s = 0.9 * s + 0.3 * a;
+        poses.push(vec![a, 0.0]);
+        fine.push(
+            support::tube(16, 8, |phi, x| {
+                0.07 + 0.01 * s * (6.0 * x).sin() + 0.002 * a * phi.cos()
+            })
+            .1,
+        );
+    }
+    std::fs::create_dir_all(dir).unwrap();
+    let doc = serde_json::json!({ "pose_vectors": poses });
+    std::fs::write(dir.join("pose.json"), doc.to_string()).unwrap();
+    TrainingSequence {
+        dir: dir.to_path_buf(),
+        topology: topo,
+        coarse: fine.clone(),
+        fine,
+        poses,
+    }
+}
+
+fn params(pose_history: Vec<f64>) -> TrainParams {
+    TrainParams {
+        k: 4,
+        ridge: 1e-6,
+        ar_state: 2,
+        pose_history,
+        resolution: 16,
+        ..Default::default()
+    }
+}
+
+fn mean_vertex_error(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> f64 {
+    let (mut s, mut n) = (0.0, 0.0);
+    for (fa, fb) in a.iter().zip(b) {
+        for (p, q) in fa.iter().zip(fb) {
+            s += ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+            n += 1.0;
+        }
+    }
+    s / n
+}
+
+#[test]
+fn history_features_are_stored_rebuilt_by_apply_and_carry_the_cloths_memory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seqs = vec![
+        sequence(&tmp.path().join("a"), 80, 0.21, 0.0),
+        sequence(&tmp.path().join("b"), 80, 0.13, 1.0),
+    ];
+    let held = sequence(&tmp.path().join("held"), 80, 0.17, 2.0);
+    let pose_file = held.dir.join("pose.json");
+
+    let plain_dir = tmp.path().join("plain");
+    train(&seqs, &params(vec![]), &plain_dir, &NoProgress).unwrap();
+    let hist_dir = tmp.path().join("history");
+    train(&seqs, &params(vec![3.0, 10.0]), &hist_dir, &NoProgress).unwrap();
+    let plain = Model::load(&plain_dir).unwrap();
+    let hist = Model::load(&hist_dir).unwrap();
+    assert_eq!(hist.manifest.version, MODEL_VERSION);
+    assert_eq!(MODEL_VERSION, 3);
+    let h = hist
+        .manifest
+        .control
+        .history
+        .as_ref()
+        .expect("history in the manifest");
+    assert_eq!(h.time_constants, vec![3.0, 10.0]);
+    assert!(plain.manifest.control.history.is_none());
+    // Two time constants × two pose numbers more per control vector.
+    assert_eq!(
+        hist.manifest.control.len(),
+        plain.manifest.control.len() + 4
+    );
+
+    let lin_plain = shapes_from_poses(&plain, &pose_file, RegressorKind::Linear).unwrap();
+    let lin_hist = shapes_from_poses(&hist, &pose_file, RegressorKind::Linear).unwrap();
+    let (e_plain, e_hist) = (
+        mean_vertex_error(&lin_plain, &held.fine),
+        mean_vertex_error(&lin_hist, &held.fine),
+    );
+    eprintln!("held-out linear: pose only {e_plain:.2e} m, with history {e_hist:.2e} m");
+    assert!(
+        e_plain > 3e-4,
+        "the pose alone should not determine the shape"
+    );
+    assert!(
+        e_hist < 0.3 * e_plain,
+        "history {e_hist} vs pose only {e_plain}"
+    );
+    // The autoregressive regressor on the longer control vector runs too and is no worse than pose only.
+    let ar_hist = shapes_from_poses(&hist, &pose_file, RegressorKind::Autoregressive).unwrap();
+    let e_ar = mean_vertex_error(&ar_hist, &held.fine);
+    assert!(
+        e_ar < e_plain,
+        "autoregressive with history {e_ar} vs pose only {e_plain}"
+    );
+
+    // A frame's shape depends on the poses before it only: a change at frame 50 leaves frames 1..49 alone.
+    let mut poses = held.poses.clone();
+    poses[49][0] += 0.5;
+    let changed = tmp.path().join("changed.json");
+    std::fs::write(
+        &changed,
+        serde_json::json!({ "pose_vectors": poses }).to_string(),
+    )
+    .unwrap();
+    let other = shapes_from_poses(&hist, &changed, RegressorKind::Linear).unwrap();
+    assert_eq!(&other[..49], &lin_hist[..49]);
+    assert_ne!(other[49], lin_hist[49]);
+}
+
+#[test]
+fn a_version_2_model_without_history_is_still_read() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seqs = vec![
+        sequence(&tmp.path().join("a"), 30, 0.21, 0.0),
+        sequence(&tmp.path().join("b"), 30, 0.13, 1.0),
+    ];
+    let dir = tmp.path().join("model");
+    train(&seqs, &params(vec![]), &dir, &NoProgress).unwrap();
+    // What version 2 wrote: the same files, no `control.history`.
+    let old = tmp.path().join("v2");
+    std::fs::create_dir_all(&old).unwrap();
+    let mut manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    assert!(manifest["control"].get("history").is_none());
+    manifest["version"] = 2.into();
+    for f in manifest["files"].as_object().unwrap().keys() {
+        std::fs::copy(dir.join(f), old.join(f)).unwrap();
+    }
+    std::fs::write(old.join("manifest.json"), manifest.to_string()).unwrap();
+    let v2 = Model::load(&old).unwrap();
+    let v3 = Model::load(&dir).unwrap();
+    let pose = seqs[0].dir.join("pose.json");
+    for r in [RegressorKind::Linear, RegressorKind::Autoregressive] {
+        assert_eq!(
+            shapes_from_poses(&v2, &pose, r).unwrap(),
+            shapes_from_poses(&v3, &pose, r).unwrap(),
+            "{r:?}"
+        );
+    }
+    // A manifest from a newer format than this build is refused by name.
+    manifest["version"] = (MODEL_VERSION + 1).into();
+    std::fs::write(old.join("manifest.json"), manifest.to_string()).unwrap();
+    let e = Model::load(&old).err().expect("refused").to_string();
+    assert!(
+        e.contains("manifest.json") && e.contains(&format!("version {}", MODEL_VERSION + 1)),
+        "{e}"
+    );
+}

@@ -479,21 +479,7 @@ mod tests {
         let det = VideoFolds::new(rig, VideoParams::default(), vec![1, 2, 3]).unwrap();
         let caster = project::MeshCaster::new(&topo, &p, &cam).unwrap();
         let h = crate::folds::stretch::mean_edge_length(&topo, &p);
-        let view = |pairs: Vec<ProjectedPair>| ViewResult {
-            camera: 0,
-            role: "front",
-            photo: Photo {
-                width: 1,
-                height: 1,
-                gray: vec![0.0],
-                rgb: vec![[0.0; 3]],
-                mask: vec![true],
-                has_alpha: false,
-            },
-            levels: Vec::new(),
-            union: Vec::new(),
-            projected: pairs,
-        };
+        let view = |pairs: Vec<ProjectedPair>| bare_view(0, pairs);
         let fold = || pair(&caster, &cam, 0.3, 0.15);
         let frames = [
             vec![fold()],

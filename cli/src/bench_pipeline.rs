@@ -182,7 +182,7 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
         })
         .to_string(),
     )?;
-    let mut costs = rt.block_on(sequential_costs(&spec, &dir.join("cache-sequential")))?;
+    let (mut costs, timed) = rt.block_on(sequential_costs(&spec, &dir.join("cache-sequential")))?;
     // The per-anchor task kinds, on the anchors the stretch job just detected.
     let spec = JobSpec::from_json_str(
         &json!({
@@ -195,7 +195,7 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
         })
         .to_string(),
     )?;
-    let per_anchor = rt.block_on(sequential_costs(&spec, &dir.join("cache-sequential")))?;
+    let (per_anchor, _) = rt.block_on(sequential_costs(&spec, &dir.join("cache-sequential")))?;
     for kind in ["weight-block", "reduce"] {
         if let Some(c) = per_anchor.get(kind) {
             costs.insert(format!("{kind} (p-a)"), c.clone());
@@ -241,6 +241,21 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
         "",
         mb(traffic) / frames as f64
     );
+    // Where the stretch job's wall goes: no schedule on `workers` workers beats the longest dependency chain
+    // (each task at its one-at-a-time cost) nor the summed work / workers.
+    let (path_seconds, chain) = critical_path(&timed);
+    let spread = per_frame(seq_work) / workers as f64;
+    println!(
+        "\nstretch job, tasks one at a time: critical path {:.3} s/frame, summed work / {workers} workers {:.3} \
+         s/frame; the cluster job's wall was {:.3} s/frame",
+        per_frame(path_seconds),
+        spread,
+        rows[0].3
+    );
+    println!("critical path (s/frame per task):");
+    for (key, seconds) in &chain {
+        println!("  {key:<28} {:>8.3}", per_frame(*seconds));
+    }
     println!(
         "machine load during the run: {}",
         std::fs::read_to_string("/proc/loadavg")
@@ -257,6 +272,10 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
                 "work_seconds_per_frame": work, "wall_seconds_per_frame": wall,
                 "peak_rss_bytes": peak, "anchors": anchors,
             })).collect::<Vec<_>>(),
+            "critical_path": {
+                "seconds_per_frame": per_frame(path_seconds),
+                "tasks": chain.iter().map(|(k, s)| json!({"task": k, "seconds": s})).collect::<Vec<_>>(),
+            },
             "per_task": costs.iter().map(|(k, c)| (k.clone(), json!({
                 "tasks": c.tasks, "seconds": c.seconds, "bytes_read": c.read, "bytes_written": c.written,
             }))).collect::<serde_json::Map<_, _>>(),
@@ -281,12 +300,44 @@ struct KindCost {
     written: u64,
 }
 
+/// One task run on its own: key, dependencies and work seconds.
+type Timed = (String, Vec<String>, f64);
+
+/// The longest chain of dependent tasks (by their one-at-a-time seconds): its total and its tasks in order.
+fn critical_path(tasks: &[Timed]) -> (f64, Vec<(String, f64)>) {
+    // Tasks are listed in an order where dependencies come first (plan order, expansions appended).
+    let mut best: BTreeMap<&str, (f64, Option<&str>)> = BTreeMap::new();
+    for (key, deps, seconds) in tasks {
+        let before = deps
+            .iter()
+            .filter_map(|d| best.get(d.as_str()).map(|(s, _)| (*s, d.as_str())))
+            .max_by(|a, b| a.0.total_cmp(&b.0));
+        let (start, prev) = before.map_or((0.0, None), |(s, d)| (s, Some(d)));
+        best.insert(key, (start + seconds, prev));
+    }
+    let Some((mut at, (total, _))) = best
+        .iter()
+        .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
+        .map(|(k, v)| (*k, *v))
+    else {
+        return (0.0, Vec::new());
+    };
+    let own: BTreeMap<&str, f64> = tasks.iter().map(|(k, _, s)| (k.as_str(), *s)).collect();
+    let mut path = vec![(at.to_string(), own[at])];
+    while let Some(prev) = best[at].1 {
+        path.push((prev.to_string(), own[prev]));
+        at = prev;
+    }
+    path.reverse();
+    (total, path)
+}
+
 /// Executes every task of `spec` one at a time (plan order, expanding as the coordinator does) and measures
 /// each: wall time and the process's read/write byte counters around it.
 async fn sequential_costs(
     spec: &JobSpec,
     cache: &std::path::Path,
-) -> Result<BTreeMap<String, KindCost>> {
+) -> Result<(BTreeMap<String, KindCost>, Vec<Timed>)> {
     let info = inspect_input(spec).await?;
     let mut pending = plan(spec, &info)?;
     let ctx = ExecContext {
@@ -294,6 +345,7 @@ async fn sequential_costs(
         cache_dir: cache.to_path_buf(),
     };
     let mut costs: BTreeMap<String, KindCost> = BTreeMap::new();
+    let mut timed = Vec::new();
     let mut i = 0;
     while i < pending.len() {
         let task = pending[i].clone();
@@ -310,9 +362,10 @@ async fn sequential_costs(
         c.seconds += seconds;
         c.read += r1.saturating_sub(r0);
         c.written += w1.saturating_sub(w0);
+        timed.push((task.key.clone(), task.deps.clone(), seconds));
         if task.expands {
             pending.extend(expand(spec, &info, &task.key, &out).context("expanding the plan")?);
         }
     }
-    Ok(costs)
+    Ok((costs, timed))
 }

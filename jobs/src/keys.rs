@@ -14,6 +14,9 @@ pub const STRETCH_PLOT: &str = "stretch.png";
 pub const ANCHORS: &str = "anchors.json";
 /// Control lines of the detected folds as OBJ polylines (fold detection jobs only).
 pub const CONTROL_LINES: &str = "folds/control_lines.obj";
+/// The detected anchors as the job's own tasks read them: the binary form of `anchors.json`
+/// (`crease_core::folds::anchors::binary`), the same values bit for bit without a decimal round trip.
+pub const ANCHORS_BIN: &str = ".crease-work/folds/anchors.bin";
 /// What the detection found beyond the anchors (JSON; finalize copies it into `report.json`).
 pub const FOLD_SUMMARY: &str = ".crease-work/folds/summary.json";
 
@@ -41,9 +44,9 @@ pub fn position_task(first_frame: usize) -> String {
 pub const FINALIZE_TASK: &str = "finalize";
 
 // Storage keys of intermediates.
-/// Detected anchors of the frames starting at `first_frame` (JSON list of `FrameAnchors`).
+/// Detected anchors of the frames starting at `first_frame` (`FrameAnchors` in the binary anchors form).
 pub fn fold_chunk(first_frame: usize) -> String {
-    format!("{WORK_DIR}/folds/f{first_frame:06}.json")
+    format!("{WORK_DIR}/folds/f{first_frame:06}.bin")
 }
 /// Seconds the detection of the chunk starting at `first_frame` took (sidecar; differs between runs).
 pub fn fold_chunk_timing(first_frame: usize) -> String {
@@ -58,9 +61,9 @@ pub fn fold_steps(frame: usize) -> String {
 pub fn fold_phases(pass: &str, frame: usize) -> String {
     format!("{WORK_DIR}/folds/phases/{pass}/f{frame:06}.npy")
 }
-/// Stretch detector: the tracing chunk starting at `first_frame` (JSON `TracedChunk`).
+/// Stretch detector: the tracing chunk starting at `first_frame` (a `TracedChunk` in the binary anchors form).
 pub fn fold_trace_chunk(first_frame: usize) -> String {
-    format!("{WORK_DIR}/folds/trace/f{first_frame:06}.json")
+    format!("{WORK_DIR}/folds/trace/f{first_frame:06}.bin")
 }
 /// Partial blend of one anchor block: (n, 4) f64 rows `node, x, y, z`.
 pub fn block_partial(window: usize, block: usize) -> String {

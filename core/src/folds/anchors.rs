@@ -13,6 +13,8 @@
 //! ```
 //! `frame` is the 0-based position in the sequence. Frames without anchors may be omitted.
 
+pub mod binary;
+
 use crate::error::{Error, Result};
 use crate::vec3::{self, V3};
 use serde::{Deserialize, Serialize};

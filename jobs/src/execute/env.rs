@@ -20,6 +20,10 @@ use std::sync::{Arc, Mutex};
 #[allow(clippy::type_complexity)]
 static ANCHORS: Mutex<Vec<(PathBuf, u64, Arc<AnchorSet>)>> = Mutex::new(Vec::new());
 
+/// Recently read detected anchors (see [`TaskEnv::anchors`]), keyed by the stored file and a hash of its bytes.
+#[allow(clippy::type_complexity)]
+static DETECTED: Mutex<Vec<(PathBuf, u64, Arc<AnchorSet>)>> = Mutex::new(Vec::new());
+
 /// Size and modification time of a file, hashed: what the per-process caches key on.
 fn file_stamp(path: &Path) -> u64 {
     let m = std::fs::metadata(path).ok();
@@ -197,17 +201,32 @@ impl<'a> TaskEnv<'a> {
             }
             #[allow(unreachable_patterns)]
             _ => {
-                let bytes = self.get(keys::ANCHORS)?;
-                let text = String::from_utf8_lossy(&bytes);
-                let label = PathBuf::from(self.out.describe(keys::ANCHORS));
-                AnchorSet::parse(&text, Some(&label), n_frames, n_triangles)
-                    .map_err(|e| TaskError::from_core("detected anchors", e))
+                let (bytes, stamp) = self.detected_anchors_bytes()?;
+                let label = PathBuf::from(self.out.describe(keys::ANCHORS_BIN));
+                let stamp = stamp ^ ((n_frames as u64) << 32) ^ n_triangles as u64;
+                // Keyed by the stored bytes' hash, not a time: object stores have none worth trusting.
+                let mut cache = DETECTED.lock().unwrap_or_else(|p| p.into_inner());
+                if let Some((_, _, a)) = cache.iter().find(|(p, s, _)| *p == label && *s == stamp) {
+                    return Ok(AnchorSet::clone(a));
+                }
+                let set = AnchorSet::from_binary(&bytes, &label, n_frames, n_triangles)
+                    .map_err(|e| TaskError::fatal(format!("detected anchors: {e}")))?;
+                cache.insert(0, (label, stamp, Arc::new(set.clone())));
+                cache.truncate(2);
+                Ok(set)
             }
         }
     }
 
+    /// The binary detected anchors `fold-merge` stored, and a hash of their bytes.
+    fn detected_anchors_bytes(&self) -> Result<(Bytes, u64), TaskError> {
+        let bytes = self.get(keys::ANCHORS_BIN)?;
+        let stamp = fnv_words(&bytes);
+        Ok((bytes, stamp))
+    }
+
     /// A fingerprint of the job's anchors as they are now: the anchors file's size and modification time, or
-    /// the bytes of the detected `anchors.json` (what the window cache keys on besides the spec and input).
+    /// the bytes of the detected anchors (what the window cache keys on besides the spec and input).
     pub fn anchors_fingerprint(&self) -> Result<u64, TaskError> {
         match &self.job.folds {
             FoldSpec::None => Ok(0),
@@ -218,7 +237,7 @@ impl<'a> TaskEnv<'a> {
                 Ok(file_stamp(&path))
             }
             #[allow(unreachable_patterns)]
-            _ => Ok(fnv(&self.get(keys::ANCHORS)?)),
+            _ => Ok(self.detected_anchors_bytes()?.1),
         }
     }
 
@@ -320,6 +339,19 @@ fn staging_err(path: &Path, e: std::io::Error) -> TaskError {
     } else {
         TaskError::transient(format!("staging {}: {e}", path.display()))
     }
+}
+
+/// FNV-1a over 8-byte little-endian words (the tail zero-padded) and the length: a content hash of large
+/// intermediates at a fraction of the byte-wise cost.
+fn fnv_words(bytes: &[u8]) -> u64 {
+    let mut chunks = bytes.chunks_exact(8);
+    let mut h = (&mut chunks).fold(0xcbf29ce484222325u64, |h, c| {
+        (h ^ u64::from_le_bytes(c.try_into().expect("8 bytes"))).wrapping_mul(0x100000001b3)
+    });
+    let mut tail = [0u8; 8];
+    tail[..chunks.remainder().len()].copy_from_slice(chunks.remainder());
+    h = (h ^ u64::from_le_bytes(tail)).wrapping_mul(0x100000001b3);
+    (h ^ bytes.len() as u64).wrapping_mul(0x100000001b3)
 }
 
 fn fnv(bytes: &[u8]) -> u64 {

@@ -1,17 +1,19 @@
 //! Fold-detection tasks, generic over [`crease_core::folds::FoldDetector`]: `detect` runs the job's detector on
 //! a frame chunk (or the whole sequence), stores its anchors and writes the inspection files the detector drew
-//! for those frames (overlays); `merge` assembles the anchors into `anchors.json` and the control lines into
-//! `folds/control_lines.obj`, whose per-frame anchor counts let the planner size the weight blocks.
+//! for those frames (overlays); `merge` assembles the anchors into `anchors.json` (and its binary form, which
+//! the later tasks read) and the control lines into `folds/control_lines.obj`, whose per-frame anchor counts let the planner size the weight blocks.
 
 use super::env::TaskEnv;
 use crate::detect::{detection_chunks, detector, granularity};
 use crate::error::TaskError;
 use crate::keys;
 use crate::spec::FoldSpec;
+use crease_core::folds::anchors::binary;
 use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors};
 use crease_core::mesh::io::OpenedSequence;
 use serde_json::{json, Value};
 use std::ops::Range;
+use std::path::Path;
 
 fn job_detector(
     env: &TaskEnv,
@@ -67,7 +69,7 @@ pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>
     }
     let seconds = clock.elapsed().as_secs_f64();
     let key = keys::fold_chunk(frames.start);
-    env.put_json(&key, &found)?;
+    env.put(&key, binary::frames_to_binary(&found))?;
     let timing = keys::fold_chunk_timing(frames.start);
     env.put_json(
         &timing,
@@ -113,12 +115,18 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             set.n_frames()
         )));
     }
-    // What the weight tasks will read back: count from the file's own parse, so planning and solving agree.
-    let text = set.to_json();
-    let label = std::path::PathBuf::from(env.out.describe(keys::ANCHORS));
-    let back = AnchorSet::parse(&text, Some(&label), n, n_tri)
-        .map_err(|e| TaskError::from_core("fold merge", e))?;
-    env.put(keys::ANCHORS, text)?;
+    // The job's own tasks read the binary form; `anchors.json` is written once, for people and other tools.
+    // Counts come from reading the stored form back as the weight tasks will, so planning and solving agree.
+    let bin = set.to_binary();
+    let back = AnchorSet::from_binary(
+        &bin,
+        Path::new(&env.out.describe(keys::ANCHORS_BIN)),
+        n,
+        n_tri,
+    )
+    .map_err(|e| TaskError::from_core("fold merge", e))?;
+    env.put(keys::ANCHORS_BIN, bin)?;
+    env.put(keys::ANCHORS, set.to_json())?;
     // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
     env.put(keys::CONTROL_LINES, back.control_lines_obj())?;
     // What finalize puts into report.json as `fold_detection`.
@@ -135,6 +143,7 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     env.put_json(keys::FOLD_SUMMARY, &summary)?;
     let counts: Vec<usize> = (0..n).map(|t| back.frame(t).len()).collect();
     written.extend([
+        keys::ANCHORS_BIN.to_string(),
         keys::ANCHORS.to_string(),
         keys::CONTROL_LINES.to_string(),
         keys::FOLD_SUMMARY.to_string(),
@@ -161,7 +170,10 @@ fn gather_chunks(
     let mut per_frame: Vec<Value> = Vec::with_capacity(n);
     for r in chunks(env, n) {
         env.check_cancelled()?;
-        let chunk: Vec<FrameAnchors> = env.get_json(&keys::fold_chunk(r.start))?;
+        let key = keys::fold_chunk(r.start);
+        let bytes = env.get(&key)?;
+        let chunk = binary::frames_from_binary(&bytes, Path::new(&env.out.describe(&key)))
+            .map_err(|e| TaskError::fatal(e.to_string()))?;
         let seconds = chunk_seconds(env, r.start)?;
         for f in &chunk {
             per_frame.push(json!({

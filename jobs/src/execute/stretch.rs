@@ -1,5 +1,5 @@
-//! The stretch detector's tasks ([`crate::stretch_tasks`]): step records, phase codes and traced chunks go
-//! through storage as `.npy` and JSON under [`keys`]; the computation is
+//! The stretch detector's tasks ([`crate::stretch_tasks`]): step records and phase codes go through storage as
+//! `.npy`, traced chunks in the binary anchors form, under [`keys`]; the computation is
 //! [`crease_core::folds::stretch::split`], so these functions only move data and name what is missing.
 
 use super::env::TaskEnv;
@@ -16,6 +16,7 @@ use crease_core::mesh::FrameSource;
 use serde_json::{json, Value};
 use std::cell::RefCell;
 use std::ops::Range;
+use std::path::Path;
 
 fn detector(env: &TaskEnv, n: usize) -> Result<StretchDetector, TaskError> {
     crate::detect::stretch_detector(env.job, n).ok_or_else(|| {
@@ -183,7 +184,7 @@ pub fn trace(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
     let chunk = carry.finish(&label, r)?;
     let seconds = clock.elapsed().as_secs_f64();
     let key = keys::fold_trace_chunk(frames.start);
-    env.put_json(&key, &chunk)?;
+    env.put(&key, chunk.to_binary())?;
     let timing = keys::fold_chunk_timing(frames.start);
     env.put_json(
         &timing,
@@ -218,7 +219,10 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
         let tracer = RefCell::new(tracer);
         let mut read_chunk = |r: &Range<usize>| -> Result<TracedChunk, TaskError> {
             env.check_cancelled()?;
-            let chunk: TracedChunk = env.get_json(&keys::fold_trace_chunk(r.start))?;
+            let key = keys::fold_trace_chunk(r.start);
+            let bytes = env.get(&key)?;
+            let chunk = TracedChunk::from_binary(&bytes, Path::new(&env.out.describe(&key)))
+                .map_err(|e| TaskError::fatal(e.to_string()))?;
             let seconds = super::folds::chunk_seconds(env, r.start)?;
             if chunk.first != r.start || chunk.frames.len() != r.len() {
                 return Err(TaskError::fatal(format!(

@@ -155,13 +155,12 @@ fn unknown_key(key: &str, tasks: &[TaskDef]) -> JobError {
     ))
 }
 
-/// Anchors per frame from the `anchors.json` that `fold-merge` wrote, parsed as the weight tasks parse it.
+/// Anchors per frame from the detected anchors that `fold-merge` stored, read as the weight tasks read them.
 async fn detected_counts(job: &JobSpec, info: &InputInfo) -> Result<Vec<usize>, JobError> {
     let out = Storage::open(&job.output)?;
-    let bytes = out.get(keys::ANCHORS).await?;
-    let text = String::from_utf8_lossy(&bytes);
-    let label = std::path::PathBuf::from(out.describe(keys::ANCHORS));
-    let set = AnchorSet::parse(&text, Some(&label), info.n_frames, info.n_triangles)
-        .map_err(|e| JobError::storage(out.describe(keys::ANCHORS), e))?;
+    let bytes = out.get(keys::ANCHORS_BIN).await?;
+    let label = std::path::PathBuf::from(out.describe(keys::ANCHORS_BIN));
+    let set = AnchorSet::from_binary(&bytes, &label, info.n_frames, info.n_triangles)
+        .map_err(|e| JobError::storage(out.describe(keys::ANCHORS_BIN), e))?;
     Ok((0..info.n_frames).map(|t| set.frame(t).len()).collect())
 }

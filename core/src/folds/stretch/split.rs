@@ -25,6 +25,8 @@
 //!
 //! Then [`StretchDetector::finish`] (temporal coherence, `folds.png`) as in the single run.
 
+pub mod file;
+
 use super::overlay::OverlayFrame;
 use super::phases::{integrated_signal, step_dominants, PhaseClock, Restart, Signal};
 use super::smooth::FrameGeometry;

@@ -72,6 +72,8 @@
 //! | `preview.png`, `stretch.png` | finalize | before/after preview, stretch per frame and pass |
 //! | `export/<job name>.glb`, `.usda`, `.mdd`, `.pc2` | finalize | the `[export]` formats ([`export_spec`]) |
 //! | `report.json` | finalize, **last** | `"complete": true`, parameters, per-window stats, stretch, timings |
+//! | `.crease-work/folds/anchors.bin` | fold-merge | the detected anchors as the later tasks read them (binary, docs/formats.md) |
+//! | `.crease-work/folds/fFFFFFF.bin`, `folds/trace/fFFFFFF.bin` | fold-detect | a detection or tracing chunk's anchors (binary) |
 //! | `.crease-work/weights/wWWWW/bBBBBB.npy` | weight-block | partial blend, (n, 4) f64 rows `node, x, y, z` |
 //! | `.crease-work/fields/wWWWW/fFFFFFF.npy` | weight-window / reduce | window field at one frame, (triangles, 3) f64 |
 //! | `.crease-work/positions/fFFFFFF.npy` | position | output positions, (vertices, 3) f64 |

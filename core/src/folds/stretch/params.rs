@@ -75,10 +75,12 @@ pub struct StretchParams {
 pub enum Flattening {
     /// Unfolding from the seed outwards, each vertex at the mean of where its laid-out triangles put it
     /// ([`super::unfold`]): exact on developable patches, no solve, several times cheaper tracing than LSCM.
-    #[default]
+    /// Not the default: on the sleeve sample its fold figures are 0.007–0.008 below LSCM's
+    /// (docs/benchmarks.md).
     Unfold,
     /// Least-squares conformal map, one sparse Cholesky solve per seed ([`super::lscm`]): spreads the
     /// distortion of a curved patch over all of it instead of outwards from the seed.
+    #[default]
     Lscm,
 }
 
@@ -126,7 +128,7 @@ impl Default for StretchParams {
             min_length: 2.0,
             temporal_radius: 2,
             seed_memory: false,
-            flattening: Flattening::Unfold,
+            flattening: Flattening::Lscm,
         }
     }
 }

@@ -63,6 +63,9 @@ pub struct BenchArgs {
     /// Run only the stretch-folds stage (geometric fold estimation, Chen 2011).
     #[arg(long)]
     pub stretch_folds_only: bool,
+    /// Patch flattening of the stretch-folds stage's tracing (`unfold` or `lscm`; default: the detector's).
+    #[arg(long, value_parser = ["unfold", "lscm"])]
+    pub stretch_flattening: Option<String>,
     /// Image for the video edge stage (default: a 640x480 render of the demo's folded ground truth with the
     /// synthetic-video shading, which has folds to pair).
     #[arg(long)]
@@ -383,7 +386,15 @@ fn aux_stages(a: &BenchArgs) -> Result<()> {
 fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
     use crease_core::folds::stretch::StretchDetector;
     let frames = a.frames.clamp(4, 12);
-    println!("\nstretch folds (Chen 2011), seconds per frame over {frames} frames of a compressed sleeve");
+    let flattening = match &a.stretch_flattening {
+        Some(how) => how.parse()?,
+        None => crease_core::folds::stretch::StretchParams::default().flattening,
+    };
+    println!(
+        "\nstretch folds (Chen 2011), seconds per frame over {frames} frames of a compressed sleeve \
+         ({} flattening)",
+        flattening.name()
+    );
     println!(
         "{:>8} {:>10} {:>10} {:>10} {:>10} {:>12}",
         "tris", "s/frame", "tracing", "folds/f", "anchors/f", "seeds tried/f"
@@ -392,7 +403,9 @@ fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
         let seq = synth::compressed_tube(size, frames, 0.3, -1.0)?;
         let (mut folds, mut anchors, mut seeds) = (0usize, 0usize, 0usize);
         let t = Instant::now();
-        let tracing = StretchDetector::default().run_timed(&seq, &NoProgress, |_, _, _, f| {
+        let mut detector = StretchDetector::default();
+        detector.params.flattening = flattening;
+        let tracing = detector.run_timed(&seq, &NoProgress, |_, _, _, f| {
             folds += f.folds.len();
             anchors += f.anchors.len();
             seeds += f.seeds_tried;

@@ -65,6 +65,11 @@ pub struct StretchArgs {
     /// Try the previous frame's fold seeds first (Chen's seed memory); makes tracing sequential over time.
     #[arg(long = "stretch-seed-memory", default_value_t = StretchParams::default().seed_memory)]
     pub seed_memory: bool,
+    /// Patch flattening of fold tracing: `unfold` (default: unfolding from the seed, no solve) or `lscm`
+    /// (least-squares conformal map, one sparse solve per seed).
+    #[arg(long = "stretch-flattening", default_value = StretchParams::default().flattening.name(),
+          value_parser = ["unfold", "lscm"])]
+    pub flattening: String,
     /// Levels of midpoint subdivision before detection (0 = none); output is then on the subdivided mesh,
     /// original vertices first.
     #[arg(long, default_value_t = 0)]
@@ -91,6 +96,7 @@ impl StretchArgs {
             min_length: self.min_length,
             temporal_radius: self.temporal_radius,
             seed_memory: self.seed_memory,
+            flattening: self.flattening.parse().unwrap_or_default(),
         }
     }
 

@@ -3,8 +3,9 @@
 //! parameterisation. The result is anchors for the space-time deformation of Popa et al. 2009 §5.
 //!
 //! Module map: [`tensor`] §2.1/§4.2 (Jacobian, SVD, dominant direction), [`smooth`] §4.2 (outliers,
-//! smoothing), [`phases`] §4.3 (continuity eq. 4.2, integration against the phase's first frame), [`lscm`] and
-//! [`trace`] §4.4 (parameterisation, seeds, axis, control lines, region of influence eq. 4.3, anchors §4.5).
+//! smoothing), [`phases`] §4.3 (continuity eq. 4.2, integration against the phase's first frame), [`unfold`],
+//! [`lscm`] and [`trace`] §4.4 (parameterisation, seeds, axis, control lines, region of influence eq. 4.3,
+//! anchors §4.5).
 //!
 //! Memory is O(triangles) at any sequence length (§6.1): frames are streamed, each pass keeps one reference
 //! layout per triangle, and the backward pass's per-frame signal (8 bytes per triangle and frame) is spilled
@@ -21,8 +22,9 @@ pub mod split;
 pub mod symbolic;
 pub mod tensor;
 pub mod trace;
+pub mod unfold;
 
-pub use params::StretchParams;
+pub use params::{Flattening, StretchParams};
 pub use trace::{FrameFolds, TracedFold};
 
 use super::{Artifact, FoldDetector, FrameAnchors, Granularity};
@@ -32,6 +34,7 @@ use crate::progress::Progress;
 use crate::vec3::{self, V3};
 use overlay::OverlayFrame;
 use phases::{PhaseTracker, Signal};
+use rayon::prelude::*;
 use smooth::FrameGeometry;
 use std::io::{Read, Seek, SeekFrom, Write};
 use std::ops::Range;
@@ -69,15 +72,31 @@ pub(crate) fn backward_record(sig: &Signal, geom: &FrameGeometry, i: usize) -> (
 /// The fold signal of triangle `i`: the forward pass's `sig`, or the backward pass's `record` where it shrank
 /// more.
 pub(crate) fn combine(sig: &mut Signal, geom: &FrameGeometry, i: usize, record: (f32, f32)) {
+    combine_one(
+        &mut sig.shrink[i],
+        &mut sig.dir[i],
+        (geom.e1[i], geom.e2[i]),
+        record,
+    );
+}
+
+/// [`combine`] on one triangle's signal, so that the frame's triangles can be combined in parallel.
+#[inline]
+fn combine_one(shrink: &mut f64, dir: &mut V3, (e1, e2): (V3, V3), record: (f32, f32)) {
     let s = record.0 as f64;
-    if s > sig.shrink[i] {
+    if s > *shrink {
         let a = record.1 as f64;
-        sig.shrink[i] = s;
-        sig.dir[i] = vec3::add(
-            vec3::scale(geom.e1[i], a.cos()),
-            vec3::scale(geom.e2[i], a.sin()),
-        );
+        *shrink = s;
+        *dir = vec3::add(vec3::scale(e1, a.cos()), vec3::scale(e2, a.sin()));
     }
+}
+
+/// One triangle's backward record as stored in the spill file: little-endian shrinkage then angle.
+fn decode_record(b: &[u8]) -> (f32, f32) {
+    (
+        f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+        f32::from_le_bytes([b[4], b[5], b[6], b[7]]),
+    )
 }
 
 impl StretchDetector {
@@ -145,11 +164,14 @@ impl StretchDetector {
                 let cur = source.read_frame(t)?;
                 let geom = FrameGeometry::new(&topo, &cur);
                 let sig = tracker.step(&topo, &prev, &cur, &geom, params);
-                for i in 0..nt {
-                    let (shrink, angle) = backward_record(&sig, &geom, i);
-                    buf[8 * i..8 * i + 4].copy_from_slice(&shrink.to_le_bytes());
-                    buf[8 * i + 4..8 * i + 8].copy_from_slice(&angle.to_le_bytes());
-                }
+                buf.par_chunks_mut(8)
+                    .with_min_len(4096)
+                    .enumerate()
+                    .for_each(|(i, b)| {
+                        let (shrink, angle) = backward_record(&sig, &geom, i);
+                        b[..4].copy_from_slice(&shrink.to_le_bytes());
+                        b[4..].copy_from_slice(&angle.to_le_bytes());
+                    });
                 spill
                     .seek(SeekFrom::Start((record * t) as u64))
                     .and_then(|_| spill.write_all(&buf))
@@ -188,12 +210,15 @@ impl StretchDetector {
                     .seek(SeekFrom::Start((record * t) as u64))
                     .and_then(|_| spill.read_exact(&mut buf))
                     .map_err(spill_err)?;
-                for i in 0..nt {
-                    let s = f32::from_le_bytes(buf[8 * i..8 * i + 4].try_into().expect("4 bytes"));
-                    let a =
-                        f32::from_le_bytes(buf[8 * i + 4..8 * i + 8].try_into().expect("4 bytes"));
-                    combine(&mut sig, &geom, i, (s, a));
-                }
+                sig.shrink
+                    .par_iter_mut()
+                    .zip(sig.dir.par_iter_mut())
+                    .zip(buf.par_chunks(8))
+                    .with_min_len(4096)
+                    .enumerate()
+                    .for_each(|(i, ((shrink, dir), b))| {
+                        combine_one(shrink, dir, (geom.e1[i], geom.e2[i]), decode_record(b));
+                    });
             }
             let field = trace::FrameField {
                 topo: &topo,

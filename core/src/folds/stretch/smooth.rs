@@ -27,6 +27,7 @@ pub struct FrameGeometry {
 }
 
 impl FrameGeometry {
+    /// Per triangle in parallel (twice per frame, once per pass).
     pub fn new(topo: &Topology, p: &[V3]) -> Self {
         let n = topo.n_triangles();
         let mut g = FrameGeometry {
@@ -36,18 +37,24 @@ impl FrameGeometry {
             areas: Vec::with_capacity(n),
             centroids: Vec::with_capacity(n),
         };
-        for tri in topo.triangles() {
-            let q = tri.map(|v| p[v as usize]);
-            let c = vec3::cross(vec3::sub(q[1], q[0]), vec3::sub(q[2], q[0]));
-            let (e1, e2, nrm) = super::tensor::local_frame(q);
+        let per: Vec<(V3, V3, V3, f64, V3)> = topo
+            .triangles()
+            .par_iter()
+            .with_min_len(4096)
+            .map(|tri| {
+                let q = tri.map(|v| p[v as usize]);
+                let c = vec3::cross(vec3::sub(q[1], q[0]), vec3::sub(q[2], q[0]));
+                let (e1, e2, nrm) = super::tensor::local_frame(q);
+                let centroid = vec3::scale(vec3::add(vec3::add(q[0], q[1]), q[2]), 1.0 / 3.0);
+                (nrm, e1, e2, 0.5 * vec3::norm(c), centroid)
+            })
+            .collect();
+        for (nrm, e1, e2, area, centroid) in per {
             g.normals.push(nrm);
             g.e1.push(e1);
             g.e2.push(e2);
-            g.areas.push(0.5 * vec3::norm(c));
-            g.centroids.push(vec3::scale(
-                vec3::add(vec3::add(q[0], q[1]), q[2]),
-                1.0 / 3.0,
-            ));
+            g.areas.push(area);
+            g.centroids.push(centroid);
         }
         g
     }
@@ -62,16 +69,27 @@ pub fn remove_outliers(
 ) -> usize {
     let mut dropped = 0;
     let mut logs: Vec<(usize, f64)> = Vec::with_capacity(field.len());
-    for (i, f) in field.iter_mut().enumerate() {
-        if let Some(t) = f {
-            let (v, _) = t.dominant(normals[i]);
-            let c = absolute_change(v);
-            if c.is_nan() || c > max_change {
-                *f = None;
+    // Per triangle (in parallel): no data, out of range (`Some(None)`), or the log-change.
+    let verdicts: Vec<Option<Option<f64>>> = field
+        .par_iter()
+        .zip(normals.par_iter())
+        .with_min_len(4096)
+        .map(|(f, n)| {
+            f.map(|t| {
+                let (v, _) = t.dominant(*n);
+                let c = absolute_change(v);
+                (!(c.is_nan() || c > max_change)).then(|| v.ln())
+            })
+        })
+        .collect();
+    for (i, verdict) in verdicts.into_iter().enumerate() {
+        match verdict {
+            None => {}
+            Some(None) => {
+                field[i] = None;
                 dropped += 1;
-            } else {
-                logs.push((i, v.ln()));
             }
+            Some(Some(l)) => logs.push((i, l)),
         }
     }
     let n = logs.len();

@@ -3,10 +3,10 @@
 //! * **Seeds** come from a priority queue of integrated shrinkage (absolute change), largest first, one at a
 //!   time; with `seed_memory` on, seeds of the previous frame go first (the thesis' seed memory; off by default,
 //!   see [`StretchParams::seed_memory`]).
-//! * **Axis** ([`FoldTracer::axis`]): the patch around the seed is flattened with [`super::lscm`]; from the
-//!   seed's centroid a line is marched in the plane perpendicular to the shrinkage direction, following each
-//!   crossed triangle's own direction, in both senses, until the shrinkage fades below `fade` of the seed's or
-//!   the direction turns by more than `max_turn`.
+//! * **Axis** ([`FoldTracer::axis`]): the patch around the seed is flattened ([`super::unfold`] by default,
+//!   [`super::lscm`] on request); from the seed's centroid a line is marched in the plane perpendicular to the
+//!   shrinkage direction, following each crossed triangle's own direction, in both senses, until the shrinkage
+//!   fades below `fade` of the seed's or the direction turns by more than `max_turn`.
 //! * **Control lines** ([`FoldTracer::control_lines`]) at ± width/2 beside the axis, width = `fold_width / |v|`
 //!   (inversely proportional to the absolute change), located on the traced mesh as (triangle, barycentric)
 //!   samples, so that they can be realised on a finer mesh than the one traced ([`super::realise`]).
@@ -22,11 +22,12 @@
 //!   the length the capture lost.
 
 use super::lscm::lscm_with;
-use super::params::StretchParams;
+use super::params::{Flattening, StretchParams};
 use super::smooth::FrameGeometry;
 use super::speculate::{Entry, Outcome, SeedPool, SeedQueue};
 use super::symbolic::SymbolicCache;
 use super::tensor::shape;
+use super::unfold::{PatchRef, Unfolder};
 use crate::mesh::{Topology, NONE};
 use crate::vec3::{self, V3};
 use std::collections::BinaryHeap;
@@ -100,8 +101,9 @@ pub struct FoldTracer {
 pub(super) struct SeedWork {
     tri_local: Vec<u32>,
     vert_local: Vec<u32>,
-    /// Shared by the pool's [`SeedWork`]s.
+    /// Shared by the pool's [`SeedWork`]s (LSCM flattening only).
     patterns: Arc<SymbolicCache>,
+    unfolder: Unfolder,
     /// Control-line samples per axis step: 2^levels when the lines are realised on a mesh subdivided `levels`
     /// times, so that every fine triangle they cross is sampled.
     density: usize,
@@ -270,6 +272,7 @@ impl SeedWork {
             tri_local: vec![NONE; n_triangles],
             vert_local: vec![NONE; n_vertices],
             patterns,
+            unfolder: Unfolder::default(),
             density: 1 << levels.min(8),
         }
     }
@@ -282,7 +285,7 @@ impl SeedWork {
         s: usize,
         centroid: V3,
     ) -> Outcome {
-        let patch = self.patch(f, s, params.patch_radius * f.h)?;
+        let patch = self.patch(f, s, params.patch_radius * f.h, params.flattening)?;
         let out = self.axis(f, params, s, &patch).map(|axis| {
             let fold = self.control_lines(f, params, s, &patch, &axis, centroid);
             let reach = params.alpha * f.shrink[s] * f.h;
@@ -293,9 +296,9 @@ impl SeedWork {
     }
 
     /// Triangles whose centroid lies within `radius` of the seed's (breadth-first, so the patch is connected),
-    /// flattened with LSCM. Fills `tri_local` / `vert_local`; [`Self::release`] clears them. The pins are chosen
-    /// by vertex index, not by corner order, so a flipped triangle gives the mirrored flattening.
-    fn patch(&mut self, f: &FrameField, s: usize, radius: f64) -> Option<Patch> {
+    /// flattened by `how`. Fills `tri_local` / `vert_local`; [`Self::release`] clears them. Either flattening
+    /// is laid out from vertex indices, not corner order, so a flipped triangle gives the mirrored flattening.
+    fn patch(&mut self, f: &FrameField, s: usize, radius: f64, how: Flattening) -> Option<Patch> {
         let (topo, geom) = (f.topo, f.geom);
         let c0 = geom.centroids[s];
         let mut tris = vec![s as u32];
@@ -315,28 +318,43 @@ impl SeedWork {
             }
         }
         let mut verts = Vec::new();
-        let mut local_tris = Vec::with_capacity(tris.len());
         for &t in &tris {
-            let tri = topo.triangles()[t as usize];
-            local_tris.push(tri.map(|v| {
+            for v in topo.triangles()[t as usize] {
                 if self.vert_local[v as usize] == NONE {
                     self.vert_local[v as usize] = verts.len() as u32;
                     verts.push(v);
                 }
-                self.vert_local[v as usize]
-            }));
+            }
         }
-        let pos: Vec<V3> = verts.iter().map(|&v| f.p[v as usize]).collect();
-        let seed_min = *topo.triangles()[s].iter().min().expect("three");
-        let pin0 = self.vert_local[seed_min as usize] as usize;
-        let pin1 = (0..pos.len())
-            .max_by(|&a, &b| {
-                let da = vec3::norm(vec3::sub(pos[a], pos[pin0]));
-                let db = vec3::norm(vec3::sub(pos[b], pos[pin0]));
-                da.total_cmp(&db).then(verts[b].cmp(&verts[a]))
-            })
-            .unwrap_or(pin0);
-        let patch_uv = lscm_with(&pos, &local_tris, (pin0, pin1), Some(&self.patterns));
+        let patch_uv = match how {
+            Flattening::Unfold => self.unfolder.unfold(
+                &PatchRef {
+                    topo,
+                    p: f.p,
+                    tri_local: &self.tri_local,
+                    vert_local: &self.vert_local,
+                    verts: &verts,
+                },
+                s,
+            ),
+            Flattening::Lscm => {
+                let local_tris: Vec<[u32; 3]> = tris
+                    .iter()
+                    .map(|&t| topo.triangles()[t as usize].map(|v| self.vert_local[v as usize]))
+                    .collect();
+                let pos: Vec<V3> = verts.iter().map(|&v| f.p[v as usize]).collect();
+                let seed_min = *topo.triangles()[s].iter().min().expect("three");
+                let pin0 = self.vert_local[seed_min as usize] as usize;
+                let pin1 = (0..pos.len())
+                    .max_by(|&a, &b| {
+                        let da = vec3::norm(vec3::sub(pos[a], pos[pin0]));
+                        let db = vec3::norm(vec3::sub(pos[b], pos[pin0]));
+                        da.total_cmp(&db).then(verts[b].cmp(&verts[a]))
+                    })
+                    .unwrap_or(pin0);
+                lscm_with(&pos, &local_tris, (pin0, pin1), Some(&self.patterns))
+            }
+        };
         let patch = Patch {
             tris,
             verts,
@@ -651,13 +669,30 @@ impl SeedWork {
         }
     }
 
-    /// Region of influence (eq. 4.3): the patch triangles within `reach` of the axis, in the plane.
+    /// Region of influence (eq. 4.3): the patch triangles within `reach` of the axis, in the plane. Most of a
+    /// patch lies beyond reach of the axis' bounding box, which rules a triangle out without looking at the
+    /// axis' segments one by one.
     fn region(&self, f: &FrameField, patch: &Patch, axis: &Axis, reach: f64) -> Vec<u32> {
         let axis_uv: Vec<[f64; 2]> = axis.iter().map(|a| a.0).collect();
+        // Beyond this margin outside the box no point of the axis is within reach, rounding included.
+        let margin = reach * (1.0 + 1e-9) + 1e-12 * f.h;
+        let (lo, hi) = axis_uv.iter().fold(
+            ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+            |(lo, hi), q| {
+                (
+                    [lo[0].min(q[0]), lo[1].min(q[1])],
+                    [hi[0].max(q[0]), hi[1].max(q[1])],
+                )
+            },
+        );
         let mut region = Vec::new();
         for &t in &patch.tris {
             let c = self.uv_centroid(f.topo, patch, t as usize);
-            if dist_to_polyline(c, &axis_uv) <= reach {
+            let outside = c[0] < lo[0] - margin
+                || c[0] > hi[0] + margin
+                || c[1] < lo[1] - margin
+                || c[1] > hi[1] + margin;
+            if !outside && within_polyline(c, &axis_uv, reach) {
                 region.push(t);
             }
         }
@@ -665,23 +700,35 @@ impl SeedWork {
     }
 }
 
+/// Whether `q` lies within `reach` of the polyline `line` in the plane: `dist_to_polyline(q, line) <= reach`,
+/// stopping at the first segment close enough.
+fn within_polyline(q: [f64; 2], line: &[[f64; 2]], reach: f64) -> bool {
+    if line.len() == 1 {
+        return norm2([q[0] - line[0][0], q[1] - line[0][1]]) <= reach;
+    }
+    line.windows(2)
+        .any(|w| dist_to_segment(q, w[0], w[1]) <= reach)
+}
+
+fn dist_to_segment(q: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let ab = [b[0] - a[0], b[1] - a[1]];
+    let l2 = ab[0] * ab[0] + ab[1] * ab[1];
+    let t = if l2 > 0.0 {
+        (((q[0] - a[0]) * ab[0] + (q[1] - a[1]) * ab[1]) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    norm2([q[0] - a[0] - t * ab[0], q[1] - a[1] - t * ab[1]])
+}
+
 /// Distance from `q` to the polyline `line` in the plane.
+#[cfg(test)]
 fn dist_to_polyline(q: [f64; 2], line: &[[f64; 2]]) -> f64 {
     if line.len() == 1 {
         return norm2([q[0] - line[0][0], q[1] - line[0][1]]);
     }
     line.windows(2)
-        .map(|w| {
-            let (a, b) = (w[0], w[1]);
-            let ab = [b[0] - a[0], b[1] - a[1]];
-            let l2 = ab[0] * ab[0] + ab[1] * ab[1];
-            let t = if l2 > 0.0 {
-                (((q[0] - a[0]) * ab[0] + (q[1] - a[1]) * ab[1]) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            norm2([q[0] - a[0] - t * ab[0], q[1] - a[1] - t * ab[1]])
-        })
+        .map(|w| dist_to_segment(q, w[0], w[1]))
         .fold(f64::INFINITY, f64::min)
 }
 
@@ -716,6 +763,30 @@ mod tests {
             ..p
         };
         assert!((fold_angle(1.05, 1.0, &lin) - 0.2).abs() < 1e-12);
+    }
+
+    /// The region test (bounding box, then the first segment within reach) agrees with the distance to the
+    /// whole polyline, for points on both sides of the reach.
+    #[test]
+    fn within_polyline_is_the_polyline_distance_test() {
+        let line: Vec<[f64; 2]> = (0..20)
+            .map(|i| {
+                let x = i as f64 * 0.4;
+                [x, (x * 0.7).sin()]
+            })
+            .collect();
+        let mut near = 0;
+        for i in 0..400 {
+            let q = [(i % 20) as f64 * 0.45 - 0.5, (i / 20) as f64 * 0.2 - 2.0];
+            for reach in [0.0, 0.3, 1.0] {
+                let inside = dist_to_polyline(q, &line) <= reach;
+                assert_eq!(within_polyline(q, &line, reach), inside, "{q:?} {reach}");
+                near += inside as usize;
+            }
+        }
+        assert!(near > 50 && near < 800, "{near}");
+        assert!(within_polyline([0.0, 0.1], &line[..1], 0.2));
+        assert!(!within_polyline([0.0, 0.3], &line[..1], 0.2));
     }
 
     #[test]

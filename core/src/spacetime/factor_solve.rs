@@ -141,13 +141,12 @@ impl Block<'_> {
         let (size, ld, m) = (self.y.len(), self.ld, self.pattern.len());
         let cols: [&[f64]; G] =
             std::array::from_fn(|j| &self.vals[(c0 + j) * ld..(c0 + j) * ld + size + m]);
-        for j in 0..G {
-            let d = cols[j][c0 + j];
+        for (j, col) in cols.iter().enumerate() {
+            let d = col[c0 + j];
             let yc = self.y[c0 + j];
             let yc = [yc[0] / d, yc[1] / d, yc[2] / d];
             self.y[c0 + j] = yc;
-            for r in j + 1..G {
-                let l = cols[j][c0 + r];
+            for (r, &l) in (j + 1..G).zip(&col[c0 + j + 1..c0 + G]) {
                 let yr = &mut self.y[c0 + r];
                 yr[0] -= l * yc[0];
                 yr[1] -= l * yc[1];
@@ -157,17 +156,16 @@ impl Block<'_> {
         let yg: [Row; G] = std::array::from_fn(|j| self.y[c0 + j]);
         let sum = |r: usize| {
             let mut acc = [0.0; 3];
-            for j in 0..G {
-                let l = cols[j][r];
-                acc[0] += l * yg[j][0];
-                acc[1] += l * yg[j][1];
-                acc[2] += l * yg[j][2];
+            for (col, yj) in cols.iter().zip(&yg) {
+                let l = col[r];
+                acc[0] += l * yj[0];
+                acc[1] += l * yj[1];
+                acc[2] += l * yj[2];
             }
             acc
         };
-        for r in c0 + G..size {
+        for (r, yr) in self.y.iter_mut().enumerate().skip(c0 + G) {
             let acc = sum(r);
-            let yr = &mut self.y[r];
             yr[0] -= acc[0];
             yr[1] -= acc[1];
             yr[2] -= acc[2];
@@ -190,29 +188,27 @@ impl Block<'_> {
             std::array::from_fn(|j| &self.vals[(c0 + j) * ld..(c0 + j) * ld + size + m]);
         let mut acc: [Row; G] = std::array::from_fn(|j| self.y[c0 + j]);
         let mut sub = |r: usize, x: Row| {
-            for j in 0..G {
-                let l = cols[j][r];
-                acc[j][0] -= l * x[0];
-                acc[j][1] -= l * x[1];
-                acc[j][2] -= l * x[2];
+            for (col, a) in cols.iter().zip(acc.iter_mut()) {
+                let l = col[r];
+                a[0] -= l * x[0];
+                a[1] -= l * x[1];
+                a[2] -= l * x[2];
             }
         };
-        for r in c0 + G..size {
-            sub(r, self.y[r]);
+        for (r, &yr) in self.y.iter().enumerate().skip(c0 + G) {
+            sub(r, yr);
         }
         for (k, &i) in self.pattern.iter().enumerate() {
             sub(size + k, tail[i - self.tail_start]);
         }
-        for j in (0..G).rev() {
-            let mut a = acc[j];
-            for r in j + 1..G {
-                let l = cols[j][c0 + r];
+        for (j, (col, mut a)) in cols.iter().zip(acc).enumerate().rev() {
+            for (r, &l) in (j + 1..G).zip(&col[c0 + j + 1..c0 + G]) {
                 let yr = self.y[c0 + r];
                 a[0] -= l * yr[0];
                 a[1] -= l * yr[1];
                 a[2] -= l * yr[2];
             }
-            let d = cols[j][c0 + j];
+            let d = col[c0 + j];
             self.y[c0 + j] = [a[0] / d, a[1] / d, a[2] / d];
         }
     }

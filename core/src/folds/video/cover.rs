@@ -258,9 +258,10 @@ mod tests {
         let mut added = cover.added().to_vec();
         added.sort();
         assert_eq!(added, vec![1, 3], "{cover:?}");
-        // Front and back see two thirds of the tube within 60°; with the sides, all of it.
+        // Front and back see about two thirds of the tube within 60° (a little less: the cameras are at a finite
+        // distance, and the tube's columns are 14° wide); with the sides, all of it.
         assert!(
-            (cover.primary_fraction - 2.0 / 3.0).abs() < 0.05,
+            cover.primary_fraction > 0.55 && cover.primary_fraction < 0.7,
             "{}",
             cover.primary_fraction
         );

@@ -274,9 +274,8 @@ mod tests {
             vec3::scale(s, 1.0 / 3.0)
         };
         let (mut sides, mut fronts) = (0, 0);
-        for t in 0..topo.n_triangles() {
+        for (t, &n) in normals.iter().enumerate() {
             let c = centroid(t);
-            let n = normals[t];
             let allowed: Vec<usize> = (0..4).filter(|&k| cover.allows(k, t as u32)).collect();
             if n[0].abs() >= 0.7 {
                 // Seen squarely by the front or the back view: both primary views may anchor it.

@@ -89,6 +89,10 @@ pub struct VideoArgs {
     /// triangle takes the anchors of the camera that sees it most squarely.
     #[arg(long)]
     pub all_views: bool,
+    /// Analyse only the front and back views (Popa et al.). By default, cameras that see squarely what those
+    /// two see only obliquely (the sides of a tube in a ring of cameras) are added, each anchoring only that part.
+    #[arg(long)]
+    pub front_back_views: bool,
     /// Frames on each side over which anchors are matched and their angles averaged, 0 = off [default: 2].
     #[arg(long)]
     pub temporal_radius: Option<usize>,
@@ -126,6 +130,7 @@ impl VideoArgs {
             temporal_radius: self.temporal_radius.unwrap_or(d.temporal_radius),
             lighting_residual: !self.raw_darkness,
             all_views: self.all_views,
+            cover_views: !self.front_back_views,
             skip_border: self.skip_border,
             ..d
         }

@@ -13,6 +13,7 @@
 pub mod blur;
 pub mod cameras;
 pub mod canny;
+pub mod cover;
 pub mod edges;
 pub mod merge;
 pub mod orient;
@@ -214,14 +215,44 @@ impl VideoFolds {
                 .into_iter()
                 .filter_map(|(role, cam)| Some((role, cam?)))
                 .collect();
+        let seeing = |cam: usize| views::coverage(&self.rig, cam, positions) > 0.0;
+        let mut cover = None;
+        let mut ready: Vec<Option<project::MeshCaster>> =
+            (0..self.rig.cameras.len()).map(|_| None).collect();
         if self.params.all_views {
             for cam in 0..self.rig.cameras.len() {
-                if !roles.iter().any(|r| r.1 == cam)
-                    && views::coverage(&self.rig, cam, positions) > 0.0
-                {
+                if !roles.iter().any(|r| r.1 == cam) && seeing(cam) {
                     roles.push(("side", cam));
                 }
             }
+        } else if self.params.cover_views {
+            for (cam, slot) in ready.iter_mut().enumerate() {
+                if seeing(cam) {
+                    *slot = Some(project::MeshCaster::new(
+                        topo,
+                        positions,
+                        &self.rig.cameras[cam].camera,
+                    )?);
+                }
+            }
+            let candidates: Vec<(usize, &project::MeshCaster)> = ready
+                .iter()
+                .enumerate()
+                .filter_map(|(c, m)| Some((c, m.as_ref()?)))
+                .collect();
+            let primary: Vec<usize> = roles.iter().map(|r| r.1).collect();
+            let chosen = cover::cover_frame(
+                topo,
+                positions,
+                &candidates,
+                &primary,
+                self.params.square_cos,
+                self.params.min_cover_gain,
+            );
+            for &cam in chosen.added() {
+                roles.push(("side", cam));
+            }
+            cover = Some(chosen);
         }
         let mut views = Vec::new();
         let mut casters = Vec::new();
@@ -248,8 +279,10 @@ impl VideoFolds {
                 photo
             };
             let (levels, union) = image_pairs(&photo, &self.params);
-            let mut caster =
-                project::MeshCaster::new(topo, positions, &self.rig.cameras[cam].camera)?;
+            let mut caster = match ready[cam].take() {
+                Some(c) => c,
+                None => project::MeshCaster::new(topo, positions, &self.rig.cameras[cam].camera)?,
+            };
             caster.skip_border = self.params.skip_border;
             let projected: Vec<ProjectedPair> = union
                 .iter()
@@ -269,7 +302,12 @@ impl VideoFolds {
             let h_frame = crate::folds::stretch::mean_edge_length(topo, positions);
             ownership::Ownership::new(topo, positions, &casters, h_frame)
         });
-        let anchors = self.frame_anchors(topo, positions, t, &views, h, owners.as_ref());
+        let keep = |v: usize, tri: u32| match (&owners, &cover) {
+            (Some(o), _) => o.owns(v, tri),
+            (None, Some(c)) => c.allows(views[v].camera, tri),
+            (None, None) => true,
+        };
+        let anchors = self.frame_anchors(topo, positions, t, &views, h, &keep);
         Ok(FrameAnalysis {
             frame: t,
             views,
@@ -278,8 +316,8 @@ impl VideoFolds {
         })
     }
 
-    /// Anchors of a frame from its projected pairs (best pairs first; a triangle keeps its first anchor). With
-    /// `owners`, a view's anchors are kept only on the triangles that view owns ([`ownership`]).
+    /// Anchors of a frame from its projected pairs (best pairs first; a triangle keeps its first anchor). View
+    /// `v`'s anchor on triangle `tri` is kept only where `keep(v, tri)` ([`ownership`], [`cover`]).
     fn frame_anchors(
         &self,
         topo: &Topology,
@@ -287,7 +325,7 @@ impl VideoFolds {
         t: usize,
         views: &[ViewResult],
         h: f64,
-        owners: Option<&ownership::Ownership>,
+        keep: &dyn Fn(usize, u32) -> bool,
     ) -> FrameAnchors {
         let normals = geometry::triangle_normals(topo, positions);
         let all: Vec<(usize, &ProjectedPair)> = views
@@ -302,7 +340,7 @@ impl VideoFolds {
             let angle = project::pair_angle(p.width, h, &self.params);
             for hits in [&p.a, &p.b] {
                 for a in project::edge_anchors(hits, &normals, angle) {
-                    if owners.is_some_and(|o| !o.owns(v, a.triangle)) {
+                    if !keep(v, a.triangle) {
                         continue;
                     }
                     if seen.insert(a.triangle) {
@@ -488,7 +526,7 @@ mod tests {
         ];
         let mut angles = Vec::new();
         for (t, pairs) in frames.into_iter().enumerate() {
-            let fa = det.frame_anchors(&topo, &p, t, &[view(pairs)], h, None);
+            let fa = det.frame_anchors(&topo, &p, t, &[view(pairs)], h, &|_, _| true);
             // The fold's triangles lie left of x = 0.5.
             let mine: Vec<f64> = fa
                 .anchors
@@ -560,7 +598,7 @@ mod tests {
         );
         assert!((a_square - a_slanted).abs() > 0.1, "{a_square} {a_slanted}");
         let alone = |v: ViewResult| -> HashMap<u32, f64> {
-            det.frame_anchors(&topo, &p, 0, &[v], h, None)
+            det.frame_anchors(&topo, &p, 0, &[v], h, &|_, _| true)
                 .anchors
                 .iter()
                 .map(|a| (a.triangle, a.angle))
@@ -584,8 +622,8 @@ mod tests {
             bare_view(1, vec![slanted.clone()]),
         ];
         let ba = [bare_view(1, vec![slanted]), bare_view(0, vec![square])];
-        let fa = det.frame_anchors(&topo, &p, 0, &ab, h, Some(&own_ab));
-        let fb = det.frame_anchors(&topo, &p, 0, &ba, h, Some(&own_ba));
+        let fa = det.frame_anchors(&topo, &p, 0, &ab, h, &|v, t| own_ab.owns(v, t));
+        let fb = det.frame_anchors(&topo, &p, 0, &ba, h, &|v, t| own_ba.owns(v, t));
         assert_eq!(fa.anchors, fb.anchors);
         // The square camera sees the whole flat sheet more squarely: its anchors are kept, the slanted
         // camera's are dropped, also on the triangles only the slanted camera anchored.
@@ -593,7 +631,7 @@ mod tests {
         assert_eq!(got, only_square);
         assert!(only_slanted.keys().any(|t| !only_square.contains_key(t)));
         // Without the ownership test the first view wins, as with Popa's two views.
-        let first = det.frame_anchors(&topo, &p, 0, &ba, h, None);
+        let first = det.frame_anchors(&topo, &p, 0, &ba, h, &|_, _| true);
         assert!(shared.iter().all(|t| first
             .anchors
             .iter()

@@ -70,9 +70,20 @@ pub struct VideoParams {
     /// to the image (spherical harmonics, [`super::shading`]) rather than in the raw image.
     pub lighting_residual: bool,
     /// Analyse every camera that sees the garment, each triangle taking the anchors of the camera that sees it
-    /// most squarely ([`super::ownership`]). Off by default (the front and back views of Popa et al. §4): it
-    /// helps the tube-like sleeve and hurts the sheet (docs/fidelity-folds.md).
+    /// most squarely ([`super::ownership`]). Off by default: it helps the tube-like sleeve and hurts the sheet
+    /// (docs/fidelity-folds.md); `cover_views` helps the sleeve without hurting the sheet.
     pub all_views: bool,
+    /// Choose the views by coverage ([`super::cover`]): the front and back views, plus, greedily, the cameras
+    /// that see squarely a part of the garment they see only obliquely; those cameras anchor only that part.
+    /// On by default (docs/fidelity-folds.md: it lifts the sleeve and leaves the sheet as it was); `false`
+    /// gives Popa's two views. Ignored when `all_views` is set.
+    pub cover_views: bool,
+    /// |cos| between a triangle's normal and the viewing ray from which a camera sees the triangle squarely
+    /// (0.5 = 60°: a fold's width appears halved).
+    pub square_cos: f64,
+    /// Smallest fraction of the garment's area, seen squarely by a camera and by no view chosen so far, for that
+    /// camera to be added.
+    pub min_cover_gain: f64,
     /// Frames on each side over which anchors are matched and their angles averaged (`crate::folds::temporal`);
     /// 0 leaves each frame's anchors as detected.
     pub temporal_radius: usize,
@@ -108,6 +119,9 @@ impl Default for VideoParams {
             wide_width: 6.0,
             lighting_residual: true,
             all_views: false,
+            cover_views: true,
+            square_cos: 0.5,
+            min_cover_gain: 0.1,
             temporal_radius: 2,
             stable_normal_rings: 8,
         }
@@ -184,6 +198,8 @@ impl VideoParams {
             return Err(Error::param("silhouette_margin", "must be >= 0"));
         }
         frac("silhouette_cos", self.silhouette_cos)?;
+        frac("square_cos", self.square_cos)?;
+        frac("min_cover_gain", self.min_cover_gain)?;
         frac("max_off_garment", self.max_off_garment)?;
         for (name, a) in [
             ("narrow_angle", self.narrow_angle_deg),
@@ -234,6 +250,24 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("canny_high"));
+        for (name, bad) in [
+            (
+                "square_cos",
+                VideoParams {
+                    square_cos: 1.5,
+                    ..Default::default()
+                },
+            ),
+            (
+                "min_cover_gain",
+                VideoParams {
+                    min_cover_gain: f64::NAN,
+                    ..Default::default()
+                },
+            ),
+        ] {
+            assert!(bad.validate().unwrap_err().to_string().contains(name));
+        }
         let bad = VideoParams {
             radii: vec![],
             ..Default::default()

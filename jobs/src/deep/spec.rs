@@ -14,6 +14,8 @@ use std::path::PathBuf;
 
 /// What a deep job does. `input` is the first training directory (`train`), or the pose file or coarse
 /// sequence the model runs on (`apply`); `output` receives the model or the DESIGN §7 frames.
+// A spec is parsed once per job and moved rarely: the training parameters' size does not matter here.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "task", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum DeepSpec {

@@ -242,8 +242,7 @@ fn a_fixed_weight_is_stored_and_a_bad_one_refused_before_anything_is_written() {
             ..params()
         };
         let e = train(&seqs, &bad, &out, &NoProgress)
-            .err()
-            .expect("refused")
+            .expect_err("refused")
             .to_string();
         assert!(e.contains("blend_weight"), "{e}");
         assert!(!out.exists(), "nothing written for a refused weight");

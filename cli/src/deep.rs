@@ -77,8 +77,9 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 200)]
     pub k: usize,
     /// Regressor `apply --pose` uses: autoregressive (pose and its own previous shapes, rolled out from the
-    /// first frame), linear (pose only) or lstm. The linear and autoregressive ones are always trained.
-    #[arg(long, default_value = "autoregressive")]
+    /// first frame), linear (pose only), blend (a weighted mean of those two) or lstm. The linear,
+    /// autoregressive and blend ones are always trained.
+    #[arg(long, default_value = "blend")]
     pub regressor: RegressorKind,
     /// Leading shape coefficients the autoregressive regressor feeds back (capped at --k).
     #[arg(long, default_value_t = 10)]
@@ -86,6 +87,12 @@ pub struct TrainArgs {
     /// Steps of the autoregressive regressor's fit on its own rollout after the ridge fit (0: ridge only).
     #[arg(long, default_value_t = 20)]
     pub ar_rollout_iters: usize,
+    /// Weight of the autoregressive rollout in the blend regressor (0..=1; the linear map gets the rest).
+    #[arg(long, default_value_t = 0.5)]
+    pub blend_weight: f64,
+    /// Fit the blend weight by an inner leave-one-out over the training directories instead.
+    #[arg(long)]
+    pub blend_fit: bool,
     /// Pose lags (frames) in the control vector, e.g. 1,2,4,8,16,32 (default: none; the pose, its velocity
     /// and acceleration).
     #[arg(long, value_delimiter = ',')]
@@ -158,7 +165,7 @@ pub struct ApplyArgs {
     /// Normal map space: world (default) or tangent.
     #[arg(long, default_value = "world")]
     pub space: Space,
-    /// Override the model's regressor for --pose: linear, autoregressive or lstm.
+    /// Override the model's regressor for --pose: linear, autoregressive, blend or lstm.
     #[arg(long)]
     pub regressor: Option<RegressorKind>,
     /// Write the coarse maps without the cGAN.
@@ -274,6 +281,8 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
         regressor: a.regressor,
         ar_state: a.ar_state,
         ar_rollout_iters: a.ar_rollout_iters,
+        blend_weight: a.blend_weight,
+        blend_fit: a.blend_fit,
         lstm: LstmConfig {
             layers: a.lstm_layers,
             hidden: a.lstm_hidden,

@@ -164,7 +164,7 @@ fn train_apply_writes_the_output_contract_deterministically() {
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
-    assert_eq!(manifest["version"], 3);
+    assert_eq!(manifest["version"], 4);
     // The synthetic shapes are affine in the two pose numbers that move (a, b): the subspace keeps only
     // components with non-negligible variance, so k is capped at that rank.
     assert_eq!(manifest["k"], 2);
@@ -262,7 +262,7 @@ fn obj_vertices(path: &Path) -> Vec<[f64; 3]> {
 }
 
 #[test]
-fn apply_rolls_out_the_autoregressive_regressor_by_default() {
+fn apply_rolls_out_the_autoregressive_regressor_and_blends_it_by_default() {
     let tmp = tempfile::tempdir().unwrap();
     let a = training_dir(tmp.path(), "a", 16, 0.0);
     let b = training_dir(tmp.path(), "b", 16, 1.0);
@@ -285,7 +285,8 @@ fn apply_rolls_out_the_autoregressive_regressor_by_default() {
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
-    assert_eq!(manifest["regressor"], "autoregressive");
+    assert_eq!(manifest["regressor"], "blend", "the default");
+    assert_eq!(manifest["blend"]["weight"], 0.5);
     // k is capped at the data's rank (2), and the fed-back state at k.
     assert_eq!(manifest["autoregressive"]["k_state"], 2);
     assert!(manifest["files"]["autoregressive.npy"].is_object());
@@ -307,12 +308,19 @@ fn apply_rolls_out_the_autoregressive_regressor_by_default() {
         ok(&args);
         out
     };
-    let rolled = apply("out-ar", &[]);
+    let rolled = apply("out-ar", &["--regressor", "autoregressive"]);
     assert_eq!(
         tree_bytes(&rolled),
         tree_bytes(&apply("out-ar-2", &["--regressor", "autoregressive"])),
-        "the default is the autoregressive regressor, and it is deterministic"
+        "the rollout is deterministic"
     );
+    let default = tree_bytes(&apply("out-default", &[]));
+    assert_eq!(
+        default,
+        tree_bytes(&apply("out-blend", &["--regressor", "blend"])),
+        "the default is the blend regressor"
+    );
+    assert_ne!(default, tree_bytes(&rolled), "the blend is not the rollout");
     // The rollout follows the training sequence's ripples (4 mm) and bulge (10 mm) from pose alone: far closer
     // to each frame than the training mean shape (the model's template.obj) is.
     let dist = |x: &[[f64; 3]], y: &[[f64; 3]]| -> f64 {
@@ -347,6 +355,7 @@ fn apply_rolls_out_the_autoregressive_regressor_by_default() {
     o.insert("version".into(), 1.into());
     o.insert("regressor".into(), "linear".into());
     o.remove("autoregressive");
+    o.remove("blend");
     for f in o["files"].as_object().unwrap().keys() {
         std::fs::copy(model.join(f), old.join(f)).unwrap();
     }
@@ -367,6 +376,22 @@ fn apply_rolls_out_the_autoregressive_regressor_by_default() {
         .concat(),
         &["manifest.json", "no autoregressive regressor", "version 1"],
     );
+    // A blend weight that is not a weight is refused before anything is written.
+    let bad = tmp.path().join("bad-blend");
+    fails(
+        &[
+            "deep",
+            "train",
+            "--data",
+            s(&a),
+            "--out",
+            s(&bad),
+            "--blend-weight",
+            "1.5",
+        ],
+        &["blend_weight", "1.5"],
+    );
+    assert!(!bad.exists());
 }
 
 #[test]
@@ -536,7 +561,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
     }
     let m = std::fs::read_to_string(old.join("manifest.json"))
         .unwrap()
-        .replace("\"version\": 3", "\"version\": 99");
+        .replace("\"version\": 4", "\"version\": 99");
     std::fs::write(old.join("manifest.json"), m).unwrap();
     fails(
         &[
@@ -549,7 +574,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
             "--out",
             s(&tmp.path().join("o4")),
         ],
-        &["manifest.json", "version 99", "versions 1 to 3"],
+        &["manifest.json", "version 99", "versions 1 to 4"],
     );
 
     // A half-written model (no manifest) is not a model; a damaged file is caught by the manifest.

@@ -96,6 +96,14 @@ pub fn shapes_from_poses(
             .as_ref()
             .ok_or_else(|| model.missing_regressor(regressor))?
             .rollout(&controls),
+        RegressorKind::Blend => {
+            let (ar, blend) = match (&model.autoregressive, &model.manifest.blend) {
+                (Some(ar), Some(b)) => (ar, b),
+                _ => return Err(model.missing_regressor(regressor)),
+            };
+            let linear: Vec<Vec<f64>> = controls.iter().map(|c| model.linear.predict(c)).collect();
+            crate::blend::mix(&linear, &ar.rollout(&controls), blend.weight)
+        }
         RegressorKind::Lstm => {
             let net = model
                 .lstm

@@ -10,6 +10,7 @@ pub mod adam;
 pub mod apply;
 pub mod autoregress;
 pub mod bake;
+pub mod blend;
 pub mod cgan;
 pub mod cgan_data;
 pub mod contract;

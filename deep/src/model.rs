@@ -25,10 +25,13 @@ use std::sync::Arc;
 /// Version 3 made the cGAN generator residual (`cgan.residual` in the manifest) and added the decayed pose
 /// history to the control vector (`control.history`): an older crease would have read such a generator as a
 /// plain one, or built control vectors of the wrong length, so it must refuse the model instead.
-pub const MODEL_VERSION: u32 = 3;
+/// Version 4 added the blend regressor (`blend` in the manifest: its weight); a version 3 crease could not
+/// parse a manifest whose `regressor` is `blend`, so it must see a version it refuses by name.
+pub const MODEL_VERSION: u32 = 4;
 /// Oldest format this build still reads: a version 1 model differs only by lacking the autoregressive
 /// regressor, so it still runs with the linear or LSTM one; the generator of a version 1 or 2 model has no
-/// `residual` field and runs as the plain generator it was trained as.
+/// `residual` field and runs as the plain generator it was trained as; models before version 4 have no blend
+/// weight and refuse the blend regressor by name.
 pub const MODEL_VERSION_MIN: u32 = 1;
 pub const MODEL_FORMAT: &str = "crease-deep-model";
 
@@ -40,6 +43,8 @@ pub enum RegressorKind {
     /// Pose and the model's own previous shape coefficients, rolled out from the first frame.
     Autoregressive,
     Lstm,
+    /// Weighted mean of the linear map and the autoregressive rollout ([`crate::blend`]).
+    Blend,
 }
 
 impl RegressorKind {
@@ -48,6 +53,7 @@ impl RegressorKind {
             RegressorKind::Linear => "linear",
             RegressorKind::Autoregressive => "autoregressive",
             RegressorKind::Lstm => "lstm",
+            RegressorKind::Blend => "blend",
         }
     }
 }
@@ -59,8 +65,9 @@ impl std::str::FromStr for RegressorKind {
             "linear" => Ok(RegressorKind::Linear),
             "autoregressive" => Ok(RegressorKind::Autoregressive),
             "lstm" => Ok(RegressorKind::Lstm),
+            "blend" => Ok(RegressorKind::Blend),
             _ => Err(format!(
-                "unknown regressor `{s}` (linear, autoregressive or lstm)"
+                "unknown regressor `{s}` (linear, autoregressive, blend or lstm)"
             )),
         }
     }
@@ -87,6 +94,9 @@ pub struct Manifest {
     /// weights `autoregressive.npy`); absent in version 1 models.
     #[serde(default)]
     pub autoregressive: Option<ArSpec>,
+    /// The blend regressor's weight and how it was chosen; absent before version 4.
+    #[serde(default)]
+    pub blend: Option<crate::blend::BlendSpec>,
     /// Training standard deviation of each coefficient (the LSTM's output units).
     pub coeff_scale: Vec<f64>,
     /// Normal map resolution the model (and its cGAN) works at.
@@ -463,6 +473,28 @@ impl Model {
         if manifest.cgan.is_some() {
             read("cgan.safetensors")?;
         }
+        match &manifest.blend {
+            Some(b) => crate::blend::check_weight(b.weight)
+                .map_err(|e| Error::format(&mpath, None, format!("`blend.weight`: {e}")))?,
+            None if manifest.version >= 4 => {
+                return Err(Error::format(
+                    &mpath,
+                    None,
+                    format!(
+                        "format version {} manifest without the `blend` field it requires",
+                        manifest.version
+                    ),
+                ))
+            }
+            None => {}
+        }
+        if manifest.blend.is_some() && manifest.autoregressive.is_none() {
+            return Err(Error::format(
+                &mpath,
+                None,
+                "has a `blend` weight but no autoregressive regressor to blend",
+            ));
+        }
         Ok(Model {
             manifest,
             topology,
@@ -481,6 +513,7 @@ impl Model {
             RegressorKind::Linear => true,
             RegressorKind::Autoregressive => self.autoregressive.is_some(),
             RegressorKind::Lstm => self.lstm.is_some(),
+            RegressorKind::Blend => self.autoregressive.is_some() && self.manifest.blend.is_some(),
         };
         if has {
             Ok(())
@@ -492,7 +525,7 @@ impl Model {
     /// The error for a regressor the model lacks.
     pub fn missing_regressor(&self, kind: RegressorKind) -> Error {
         let why = match kind {
-            RegressorKind::Autoregressive => format!(
+            RegressorKind::Autoregressive | RegressorKind::Blend => format!(
                 "format version {} models have none; retrain it with this crease",
                 self.manifest.version
             ),

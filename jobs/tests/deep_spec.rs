@@ -43,11 +43,9 @@ fn train_and_apply_specs_parse_with_the_cli_defaults() {
             assert_eq!(params.cgan_epochs, 2);
             assert_eq!(params.resolution, 256, "crease deep train's default");
             assert_eq!(params.cgan_filters, 64);
-            assert_eq!(
-                params.regressor,
-                crease_deep::model::RegressorKind::Autoregressive
-            );
+            assert_eq!(params.regressor, crease_deep::model::RegressorKind::Blend);
             assert_eq!((params.ar_state, params.ar_rollout_iters), (10, 20));
+            assert_eq!((params.blend_weight, params.blend_fit), (0.5, false));
             assert!(params.lags.is_empty());
         }
         other => panic!("{other:?}"),

@@ -199,7 +199,7 @@ fn deep_jobs_on_two_workers_write_the_bytes_of_the_single_node_commands() {
     );
     assert!(m_ref["files"]["cgan.safetensors"].is_object());
     // The default regressor: the pose chunks below each roll it out from the first frame.
-    assert_eq!(m_ref["regressor"], "autoregressive");
+    assert_eq!(m_ref["regressor"], "blend");
     assert!(m_ref["files"]["autoregressive.npy"].is_object());
     for (f, _) in m_ref["files"].as_object().unwrap() {
         assert!(

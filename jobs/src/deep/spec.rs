@@ -14,6 +14,8 @@ use std::path::PathBuf;
 
 /// What a deep job does. `input` is the first training directory (`train`), or the pose file or coarse
 /// sequence the model runs on (`apply`); `output` receives the model or the DESIGN §7 frames.
+// A spec is parsed once per job and moved rarely: the training parameters' size does not matter here.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "task", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum DeepSpec {
@@ -62,6 +64,8 @@ pub struct DeepTrainParams {
     pub regressor: RegressorKind,
     pub ar_state: usize,
     pub ar_rollout_iters: usize,
+    pub blend_weight: f64,
+    pub blend_fit: bool,
     pub lags: Vec<usize>,
     pub pose_history: Vec<f64>,
     pub ridge: f64,
@@ -90,6 +94,8 @@ impl Default for DeepTrainParams {
             regressor: t.regressor,
             ar_state: t.ar_state,
             ar_rollout_iters: t.ar_rollout_iters,
+            blend_weight: t.blend_weight,
+            blend_fit: t.blend_fit,
             lags: t.lags,
             pose_history: t.pose_history,
             ridge: t.ridge,
@@ -120,6 +126,8 @@ impl DeepTrainParams {
             regressor: self.regressor,
             ar_state: self.ar_state,
             ar_rollout_iters: self.ar_rollout_iters,
+            blend_weight: self.blend_weight,
+            blend_fit: self.blend_fit,
             lstm: LstmConfig {
                 layers: self.lstm_layers,
                 hidden: self.lstm_hidden,

@@ -19,6 +19,9 @@ use faer::sparse::linalg::SymbolicSupernodalParams;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, MatMut, Par, Side};
 
+/// faer's supernode relaxation table: (supernode size, allowed fill fraction) pairs.
+type Relaxation<'a> = &'a [(usize, f64)];
+
 /// This thread's CPU time in seconds (CLOCK_THREAD_CPUTIME_ID): on a loaded machine, time slices given to
 /// other processes are not counted, which wall time would add at random.
 fn cpu_now() -> f64 {
@@ -71,7 +74,7 @@ fn main() -> crease_core::Result<()> {
     let (cp, ri) = sys.pattern();
     let n = cp.len() - 1;
     let pattern = SymbolicSparseColMatRef::new_checked(n, n, cp, None, ri);
-    let relaxations: [(&str, Option<&[(usize, f64)]>); 4] = [
+    let relaxations: [(&str, Option<Relaxation>); 4] = [
         ("faer default", None),
         ("none", Some(&[])),
         (

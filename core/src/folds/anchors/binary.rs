@@ -203,7 +203,7 @@ impl<'a> Reader<'a> {
 
     /// Exactly `n` `f64`s (`n` already checked by [`Reader::count`] or known).
     pub fn f64s(&mut self, n: usize, what: &str) -> Result<Vec<f64>> {
-        let raw = self.take(n.checked_mul(8).unwrap_or(usize::MAX), what)?;
+        let raw = self.take(n.saturating_mul(8), what)?;
         Ok(raw
             .chunks_exact(8)
             .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
@@ -337,10 +337,7 @@ pub fn read_frames(r: &mut Reader) -> Result<Vec<FrameAnchors>> {
             .ok_or_else(|| r.error(format!("control line {k}: point count overflows")))?;
         lengths.push(len);
     }
-    let points = r.f64s(
-        n_points.checked_mul(3).unwrap_or(usize::MAX),
-        "control line points",
-    )?;
+    let points = r.f64s(n_points.saturating_mul(3), "control line points")?;
     let mut points = points.chunks_exact(3).map(|c| [c[0], c[1], c[2]]);
     let mut lengths = lengths.into_iter();
     Ok(frames

@@ -56,17 +56,6 @@ fn array(dir: &Path, name: &str) -> (Vec<usize>, Vec<f64>) {
     npy::from_bytes::<f64>(&p, &std::fs::read(&p).unwrap()).unwrap()
 }
 
-fn mean_vertex_error(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> f64 {
-    let (mut s, mut n) = (0.0, 0.0);
-    for (fa, fb) in a.iter().zip(b) {
-        for (p, q) in fa.iter().zip(fb) {
-            s += ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
-            n += 1.0;
-        }
-    }
-    s / n
-}
-
 #[test]
 fn stored_rollout_equals_a_hand_rolled_loop_and_beats_the_pose_only_map() {
     let tmp = tempfile::tempdir().unwrap();
@@ -120,14 +109,14 @@ fn stored_rollout_equals_a_hand_rolled_loop_and_beats_the_pose_only_map() {
     let pose_file = held.dir.join("pose.json");
     let rolled = shapes_from_poses(&model, &pose_file, RegressorKind::Autoregressive).unwrap();
     assert_eq!(rolled.len(), 60);
-    let diff = mean_vertex_error(&rolled, &by_hand);
+    let diff = support::mean_vertex_error(&rolled, &by_hand);
     assert!(diff < 1e-12, "rollout vs hand-rolled loop: {diff}");
 
     // On the held-out motion the history matters: the rollout is closer to the truth than the pose-only map.
     let linear = shapes_from_poses(&model, &pose_file, RegressorKind::Linear).unwrap();
     let (e_ar, e_lin) = (
-        mean_vertex_error(&rolled, &held.fine),
-        mean_vertex_error(&linear, &held.fine),
+        support::mean_vertex_error(&rolled, &held.fine),
+        support::mean_vertex_error(&linear, &held.fine),
     );
     eprintln!("held-out mean vertex error: autoregressive {e_ar:.2e} m, linear {e_lin:.2e} m");
     assert!(

@@ -39,17 +39,6 @@ fn copy_model(from: &Path, to: &Path) {
     }
 }
 
-fn mean_vertex_error(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> f64 {
-    let (mut s, mut n) = (0.0, 0.0);
-    for (fa, fb) in a.iter().zip(b) {
-        for (p, q) in fa.iter().zip(fb) {
-            s += ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
-            n += 1.0;
-        }
-    }
-    s / n
-}
-
 #[test]
 fn the_blend_mixes_the_stored_parts_by_its_weight_and_its_ends_are_the_parts() {
     let tmp = tempfile::tempdir().unwrap();
@@ -122,10 +111,10 @@ fn the_blend_mixes_the_stored_parts_by_its_weight_and_its_ends_are_the_parts() {
     // default is the fixed 0.5; docs/deepwrinkles.md has the sleeve's figures.)
     let even_mixed = shapes(&even, RegressorKind::Blend);
     let (e_lin, e_ar, e_fit, e_even) = (
-        mean_vertex_error(&lin, &held.fine),
-        mean_vertex_error(&ar, &held.fine),
-        mean_vertex_error(&mixed, &held.fine),
-        mean_vertex_error(&even_mixed, &held.fine),
+        support::mean_vertex_error(&lin, &held.fine),
+        support::mean_vertex_error(&ar, &held.fine),
+        support::mean_vertex_error(&mixed, &held.fine),
+        support::mean_vertex_error(&even_mixed, &held.fine),
     );
     eprintln!(
         "fitted weight {w:.3} (folds {folds:?}); held-out error: linear {e_lin:.2e}, autoregressive {e_ar:.2e}, fitted blend {e_fit:.2e}, even blend {e_even:.2e} m"

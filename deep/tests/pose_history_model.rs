@@ -52,17 +52,6 @@ fn params(pose_history: Vec<f64>) -> TrainParams {
     }
 }
 
-fn mean_vertex_error(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> f64 {
-    let (mut s, mut n) = (0.0, 0.0);
-    for (fa, fb) in a.iter().zip(b) {
-        for (p, q) in fa.iter().zip(fb) {
-            s += ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
-            n += 1.0;
-        }
-    }
-    s / n
-}
-
 #[test]
 fn history_features_are_stored_rebuilt_by_apply_and_carry_the_cloths_memory() {
     let tmp = tempfile::tempdir().unwrap();
@@ -98,8 +87,8 @@ fn history_features_are_stored_rebuilt_by_apply_and_carry_the_cloths_memory() {
     let lin_plain = shapes_from_poses(&plain, &pose_file, RegressorKind::Linear).unwrap();
     let lin_hist = shapes_from_poses(&hist, &pose_file, RegressorKind::Linear).unwrap();
     let (e_plain, e_hist) = (
-        mean_vertex_error(&lin_plain, &held.fine),
-        mean_vertex_error(&lin_hist, &held.fine),
+        support::mean_vertex_error(&lin_plain, &held.fine),
+        support::mean_vertex_error(&lin_hist, &held.fine),
     );
     eprintln!("held-out linear: pose only {e_plain:.2e} m, with history {e_hist:.2e} m");
     assert!(
@@ -112,7 +101,7 @@ fn history_features_are_stored_rebuilt_by_apply_and_carry_the_cloths_memory() {
     );
     // The autoregressive regressor on the longer control vector runs too and is no worse than pose only.
     let ar_hist = shapes_from_poses(&hist, &pose_file, RegressorKind::Autoregressive).unwrap();
-    let e_ar = mean_vertex_error(&ar_hist, &held.fine);
+    let e_ar = support::mean_vertex_error(&ar_hist, &held.fine);
     assert!(
         e_ar < e_plain,
         "autoregressive with history {e_ar} vs pose only {e_plain}"

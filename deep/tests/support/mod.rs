@@ -85,3 +85,16 @@ pub fn leaky_sequence(
         poses,
     }
 }
+
+/// Mean Euclidean distance between corresponding vertices of two equally long frame sequences: the
+/// millimetre figure the regression tables report.
+pub fn mean_vertex_error(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> f64 {
+    let (mut s, mut n) = (0.0, 0.0);
+    for (fa, fb) in a.iter().zip(b) {
+        for (p, q) in fa.iter().zip(fb) {
+            s += ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+            n += 1.0;
+        }
+    }
+    s / n
+}

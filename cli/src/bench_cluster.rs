@@ -5,10 +5,20 @@
 //! efficiency = work time / (workers × wall time), and the per-task overhead outside the task's own work
 //! (dispatch, gRPC, payload handling and intermediate storage I/O), measured as the coordinator-side attempt
 //! wall time minus the worker-reported work time, averaged over tasks.
+//!
+//! In the same process it times the in-process per-anchor deformation of the same input and anchors (the
+//! `crease bench --modes per-anchor` run) before the first cluster run and after each, so the cluster /
+//! in-process ratio holds on a loaded machine; and after each cluster run it prints where the time went: work
+//! per task kind, the weight-block and reduce phases (`crease_jobs::phase_times`; the workers run in this
+//! process) and the workers' time outside any task.
 
 use crate::bench::BenchArgs;
 use anyhow::{bail, Context, Result};
+use crease_core::mesh::MemorySink;
+use crease_core::progress::NoProgress;
+use crease_core::spacetime::{deform, DeformParams, WeightMode};
 use serde_json::json;
+use std::time::Instant;
 
 pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
     let triangles = a.cluster_triangles;
@@ -23,7 +33,18 @@ pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
     );
     let (seq, anchors) = crate::bench::case_input(triangles, a.frames, a.anchors)?;
     crease_core::synth::write_demo(&dir, &seq, &anchors)?;
-    drop(seq);
+    let params = DeformParams {
+        mode: WeightMode::PerAnchor,
+        anchor_block: a.cluster_anchor_block,
+        ..Default::default()
+    };
+    // The in-process run the cluster is compared with: the same deformation, per-anchor, in this process.
+    let in_process = || -> Result<f64> {
+        let t = Instant::now();
+        let mut sink = MemorySink::default();
+        deform(&seq, &anchors, &params, &mut sink, &NoProgress, &[])?;
+        Ok(t.elapsed().as_secs_f64())
+    };
     let threads = rayon::current_num_threads();
     println!(
         "crease bench --cluster: {} triangles, {} frames, {} anchors/frame, per-anchor mode, anchor block {}, \
@@ -46,6 +67,9 @@ pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
         .build()?;
     let mut rows = Vec::new();
     let mut first_wall: Option<f64> = None;
+    eprintln!("in-process reference");
+    let mut refs = vec![in_process()?];
+    let mut breakdowns = Vec::new();
     for &n in &a.cluster_workers {
         if n == 0 {
             bail!("--cluster-workers: 0 workers");
@@ -60,8 +84,11 @@ pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
             "partition": { "anchor_block": a.cluster_anchor_block },
             "preview": { "size": 64 },
         });
-        let crate::bench_jobs::JobRun { status, wall } =
-            crate::bench_jobs::run_job(&rt, &spec, n, 1, dir.join("cache"))?;
+        crease_jobs::phase_times::take();
+        let run = crate::bench_jobs::run_job(&rt, &spec, n, 1, dir.join("cache"))?;
+        let phases = crease_jobs::phase_times::take();
+        let by_kind = run.work_by_kind();
+        let crate::bench_jobs::JobRun { status, wall } = run;
         let tasks = status.tasks.len().max(1) as f64;
         let work: f64 = status.tasks.iter().map(|t| t.work_seconds).sum();
         let overhead: f64 = status
@@ -83,17 +110,57 @@ pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
             first_wall.get_or_insert(wall).to_owned() / wall,
             overhead * 1e3
         );
+        let attempts: f64 = status.tasks.iter().map(|t| t.wall_seconds).sum();
         rows.push(json!({
             "workers": n, "tasks": status.tasks.len(), "wall_seconds": wall, "work_seconds": work,
             "tasks_per_second": tasks / wall, "frames_per_second": a.frames as f64 / wall,
             "efficiency": efficiency, "overhead_seconds_per_task": overhead,
+            "work_by_kind": by_kind.iter().map(|(k, (c, s))| (k.clone(), json!({"tasks": c, "seconds": s})))
+                .collect::<serde_json::Map<_, _>>(),
+            "phases": phases.iter().map(|(p, c, s)| json!({"phase": p, "samples": c, "seconds": s}))
+                .collect::<Vec<_>>(),
+            "outside_tasks_seconds": (n as f64 * wall - attempts).max(0.0),
         }));
+        breakdowns.push((n, wall, by_kind, phases, attempts));
         let _ = std::fs::remove_dir_all(&out);
+        eprintln!("in-process reference");
+        refs.push(in_process()?);
+    }
+    let reference = crate::bench::median(refs.clone());
+    println!(
+        "\nin-process per-anchor deformation of the same input and anchors (this process, one run before the \
+         first cluster run and one after each): {} s; median {reference:.2} s",
+        refs.iter()
+            .map(|r| format!("{r:.2}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    for (n, wall, by_kind, phases, attempts) in &breakdowns {
+        println!(
+            "\n{n} worker(s): wall {wall:.2} s = {:.2}x in-process; worker time outside tasks (idle, dispatch, \
+             gRPC) {:.2} s of {:.2}",
+            wall / reference,
+            (*n as f64 * wall - attempts).max(0.0),
+            *n as f64 * wall
+        );
+        for (kind, (count, seconds)) in by_kind {
+            println!(
+                "  {kind:<14} {count:>5} tasks {seconds:>8.2} s work {:>8.1} ms/task",
+                seconds / (*count).max(1) as f64 * 1e3
+            );
+        }
+        for (phase, count, seconds) in phases {
+            println!(
+                "    {phase:<44} {seconds:>8.2} s {:>8.2} ms each",
+                seconds / (*count).max(1) as f64 * 1e3
+            );
+        }
     }
     if let Some(path) = &a.json {
         let doc = json!({
             "triangles": triangles, "frames": a.frames, "anchors_per_frame": a.anchors,
             "anchor_block": a.cluster_anchor_block, "threads": threads, "runs": rows,
+            "in_process_seconds": refs, "in_process_median_seconds": reference,
         });
         std::fs::write(path, serde_json::to_string_pretty(&doc)?)
             .with_context(|| format!("writing {}", path.display()))?;

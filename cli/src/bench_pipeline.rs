@@ -30,7 +30,16 @@ use std::time::Instant;
 
 /// Task kinds grouped into the stages the table prints.
 const STAGES: &[(&str, &[&str])] = &[
-    ("detection", &["fold-detect", "fold-merge"]),
+    (
+        "detection",
+        &[
+            "fold-steps",
+            "fold-phases",
+            "fold-detect",
+            "fold-merge",
+            "fold-files",
+        ],
+    ),
     ("weights", &["weight-window", "weight-block", "reduce"]),
     ("positioning", &["position"]),
     ("finalize", &["finalize"]),

@@ -38,7 +38,7 @@ pub struct TaskRunArgs {
     /// `weights/w0001/slot0of4`).
     #[arg(long, conflicts_with_all = ["stage", "index"], required_unless_present = "stage")]
     task: Option<String>,
-    /// Stage of the task (fold-steps, fold-phases, fold-detect, fold-merge, weights, reduce, position,
+    /// Stage of the task (fold-steps, fold-phases, fold-detect, fold-merge, fold-files, weights, reduce, position,
     /// finalize), with --index.
     #[arg(long, requires = "index")]
     stage: Option<String>,

@@ -69,11 +69,12 @@ pub fn job_summary(s: &pb::JobStatus) -> Value {
 }
 
 /// Stages of the task graph in the order they run; a kind not listed here sorts after them.
-const STAGES: [(&str, &str); 9] = [
+const STAGES: [(&str, &str); 10] = [
     ("fold-steps", "fold steps (stretch)"),
     ("fold-phases", "fold phases (stretch)"),
     ("fold-detect", "fold detection"),
     ("fold-merge", "fold merge"),
+    ("fold-files", "fold files"),
     ("weight-block", "weights (anchor blocks)"),
     ("weight-window", "weights (windows)"),
     ("reduce", "reduce"),

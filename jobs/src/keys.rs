@@ -25,6 +25,9 @@ pub fn fold_detect_task(first_frame: usize) -> String {
     format!("folds/f{first_frame:06}")
 }
 pub const FOLD_MERGE_TASK: &str = "folds/merge";
+/// Writes the user-facing fold files (`anchors.json`, `folds/control_lines.obj`) from `anchors.bin`, beside
+/// the deformation tasks rather than before them.
+pub const FOLD_FILES_TASK: &str = "folds/files";
 pub fn fold_steps_task(first_frame: usize) -> String {
     format!("folds/steps/f{first_frame:06}")
 }

@@ -61,14 +61,15 @@
 //! its frames; `finalize` depends on all positioning tasks. When folds are detected, `fold-detect` tasks (one per
 //! frame chunk, or one for the whole sequence, as [`FoldDetector::granularity`](crease_core::folds::FoldDetector)
 //! says) and a `fold-merge` task come first; `fold-merge` is marked `expands` and [`expand`] adds the rest once
-//! the anchor counts are known. Adding a detector is one match arm in [`detect::detector`].
+//! the anchor counts are known, with a `fold-files` task that writes the user-facing anchor files beside the
+//! weight tasks (finalize waits for it). Adding a detector is one match arm in [`detect::detector`].
 //!
 //! # Storage layout (all keys relative to the job's `output`)
 //!
 //! | key | written by | content |
 //! | --- | --- | --- |
 //! | `<input file names>` | position (OBJ/PLY frames), finalize (OBJ + PC2) | the output sequence in the input's layout |
-//! | `anchors.json` | fold-merge | detected anchors (detection jobs only) |
+//! | `anchors.json`, `folds/control_lines.obj` | fold-files | detected anchors and their control lines (detection jobs only) |
 //! | `preview.png`, `stretch.png` | finalize | before/after preview, stretch per frame and pass |
 //! | `export/<job name>.glb`, `.usda`, `.mdd`, `.pc2` | finalize | the `[export]` formats ([`export_spec`]) |
 //! | `report.json` | finalize, **last** | `"complete": true`, parameters, per-window stats, stretch, timings |
@@ -134,7 +135,7 @@ pub mod task;
 
 pub use confine::StorageRoots;
 pub use error::{JobError, TaskError};
-pub use execute::{execute, window_cache, ExecContext};
+pub use execute::{execute, phase_times, window_cache, ExecContext};
 pub use failure::{FailureKind, Policy};
 pub use inspect::{inspect_input, InputInfo};
 pub use limits::JobLimits;

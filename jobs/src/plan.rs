@@ -4,6 +4,7 @@
 //!   fold-detect (per frame chunk, or one)  ─► fold-merge ─┐            (only when folds are detected;
 //!                                                         │             stretch: see `stretch_tasks`)
 //!                                                         ▼ expand
+//!   fold-files (anchors.json, control lines) ─────────────────────────────────────────────► finalize
 //!   weight-block (window, anchor block) ─► reduce (window) ─┐          (per-anchor mode)
 //!   weight-window (window) ─────────────────────────────────┤          (fused mode)
 //!                                                           ▼
@@ -13,7 +14,9 @@
 //! When the anchors are known at submit (an anchors file, or none), [`plan`] returns the whole graph. When
 //! they are detected, the anchor count of each window — and with it the number of weight blocks — is only
 //! known once detection is done, so [`plan`] returns the detection tasks and a `fold-merge` task marked
-//! `expands`, and [`expand`] returns the rest once `fold-merge` has succeeded.
+//! `expands`, and [`expand`] returns the rest once `fold-merge` has succeeded: the deformation tasks and a
+//! `fold-files` task that writes the user-facing anchor files. Nothing but finalize waits for `fold-files`,
+//! so it runs beside the weight tasks instead of lengthening the chain every deformation task waits on.
 
 use crate::detect;
 use crate::error::JobError;
@@ -103,12 +106,22 @@ pub fn expand(
             info.n_frames
         )));
     }
-    Ok(deformation_tasks(
-        job,
-        info.n_frames,
-        &counts,
-        &[keys::FOLD_MERGE_TASK.to_string()],
-    ))
+    let merge = [keys::FOLD_MERGE_TASK.to_string()];
+    // First in the list, so that a worker left free by the first weight tasks picks it up at once.
+    let mut tasks = vec![TaskDef {
+        key: keys::FOLD_FILES_TASK.to_string(),
+        spec: TaskSpec::FoldFiles { job: job.clone() },
+        deps: merge.to_vec(),
+        expands: false,
+    }];
+    tasks.extend(deformation_tasks(job, info.n_frames, &counts, &merge));
+    if let Some(finalize) = tasks
+        .iter_mut()
+        .find(|t| matches!(t.spec, TaskSpec::Finalize { .. }))
+    {
+        finalize.deps.push(keys::FOLD_FILES_TASK.to_string());
+    }
+    Ok(tasks)
 }
 
 /// Storage keys (relative to the job's output) that must all exist before the job may be marked done.

@@ -8,7 +8,7 @@
 //!
 //! Tracing dominates (it flattens a patch per seed), so the chunk size `k` is set from the triangle count for
 //! tasks of some seconds each; step chunks do about a quarter of the work per frame, so they take four times
-//! as many frames.
+//! as many frames (at most half the sequence, so that two workers share them).
 
 use crate::inspect::InputInfo;
 use crate::keys;
@@ -40,12 +40,12 @@ pub fn trace_chunks(job: &JobSpec, n_frames: usize, n_triangles: usize) -> Vec<R
     chunk_ranges(n_frames, trace_frames_per_chunk(job, n_frames, n_triangles))
 }
 
-/// The step chunks of the job.
+/// The step chunks of the job: four tracing chunks' worth of frames each, but no more than half the sequence.
+/// Every later task of the job waits for the steps, so a short sequence in one step chunk kept all workers but
+/// one idle at the start of the job; split in two, two workers share them. Any chunking gives the same bits.
 pub fn step_chunks(job: &JobSpec, n_frames: usize, n_triangles: usize) -> Vec<Range<usize>> {
-    chunk_ranges(
-        n_frames,
-        4 * trace_frames_per_chunk(job, n_frames, n_triangles),
-    )
+    let per_chunk = 4 * trace_frames_per_chunk(job, n_frames, n_triangles);
+    chunk_ranges(n_frames, per_chunk.min(n_frames.div_ceil(2)).max(1))
 }
 
 /// The detection tasks and the merge (marked `expands`) of a stretch job. `n_triangles` is the traced

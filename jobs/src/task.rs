@@ -21,8 +21,13 @@ pub enum TaskSpec {
     /// Stretch detector: the phase test over the whole sequence from the step records (the tracing chunks are
     /// `FoldDetect` tasks after it).
     FoldPhases { job: JobSpec },
-    /// Gather the detected anchors into `anchors.json`; its success expands the graph with the weight tasks.
+    /// Gather the detected anchors into their binary form (`anchors.bin`, what the later tasks read); its
+    /// success expands the graph with the weight tasks.
     FoldMerge { job: JobSpec },
+    /// Write the user-facing `anchors.json` and `folds/control_lines.obj` from `anchors.bin`: no deformation
+    /// task needs them, so they are written beside the weight tasks, off the job's critical path; finalize
+    /// (and with it `report.json`) waits for them.
+    FoldFiles { job: JobSpec },
     /// Per-anchor mode: the anchor columns of block `block` of window `window` → partial blend.
     WeightBlock {
         job: JobSpec,
@@ -53,6 +58,7 @@ impl TaskSpec {
             TaskSpec::FoldSteps { .. } => "fold-steps",
             TaskSpec::FoldPhases { .. } => "fold-phases",
             TaskSpec::FoldMerge { .. } => "fold-merge",
+            TaskSpec::FoldFiles { .. } => "fold-files",
             TaskSpec::WeightBlock { .. } => "weight-block",
             TaskSpec::WeightWindow { .. } => "weight-window",
             TaskSpec::Reduce { .. } => "reduce",
@@ -71,6 +77,7 @@ impl TaskSpec {
             | TaskSpec::FoldSteps { job, .. }
             | TaskSpec::FoldPhases { job }
             | TaskSpec::FoldMerge { job }
+            | TaskSpec::FoldFiles { job }
             | TaskSpec::WeightBlock { job, .. }
             | TaskSpec::WeightWindow { job, .. }
             | TaskSpec::Reduce { job, .. }

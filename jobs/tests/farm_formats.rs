@@ -130,6 +130,7 @@ fn farm_graph_mirrors_the_planner_and_slots_cover_detected_blocks() {
             "fold-phases",
             "fold-detect",
             "fold-merge",
+            "fold-files",
             "weights",
             "reduce",
             "position",
@@ -148,12 +149,22 @@ fn farm_graph_mirrors_the_planner_and_slots_cover_detected_blocks() {
         g.stage(Stage::FoldMerge).unwrap().depends_on,
         [Stage::FoldDetect]
     );
-    // 9 frames at 180 triangles: tracing chunks of 5 frames (half the sequence), step chunks of 20.
+    // 9 frames at 180 triangles: tracing chunks of 5 frames (half the sequence); step chunks of 4 × 5 frames,
+    // but at most half the sequence, so two workers share them too.
     assert_eq!(g.stage(Stage::FoldDetect).unwrap().tasks.len(), 2);
-    assert_eq!(g.stage(Stage::FoldSteps).unwrap().tasks.len(), 1);
+    assert_eq!(g.stage(Stage::FoldSteps).unwrap().tasks.len(), 2);
     let weights = g.stage(Stage::Weights).unwrap();
     assert_eq!(weights.tasks.len(), 4 * 4);
     assert_eq!(weights.depends_on, [Stage::FoldMerge]);
+    // The user-facing anchor files are written beside the weights; only finalize waits for them.
+    assert_eq!(
+        g.stage(Stage::FoldFiles).unwrap().depends_on,
+        [Stage::FoldMerge]
+    );
+    assert_eq!(
+        g.stage(Stage::Finalize).unwrap().depends_on,
+        [Stage::FoldMerge, Stage::FoldFiles, Stage::Position]
+    );
     let reduce1 = &g.stage(Stage::Reduce).unwrap().tasks[1];
     assert_eq!(reduce1.key, "reduce/w0001");
     for s in 0..4 {

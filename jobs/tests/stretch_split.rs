@@ -103,6 +103,19 @@ async fn split_is_single(seed_memory: bool) {
         assert!(count(|t| matches!(t, TaskSpec::FoldSteps { .. })) >= 1);
         let expected = crease_jobs::stretch_tasks::trace_chunks(&s, 11, 900).len();
         assert_eq!(traces, expected, "{partition}: tracing tasks");
+        // The user-facing anchor files are written off the chain: after the merge, and only finalize waits.
+        assert_eq!(count(|t| matches!(t, TaskSpec::FoldFiles { .. })), 1);
+        for t in &run.tasks {
+            let waits = t
+                .deps
+                .iter()
+                .any(|d| d == crease_jobs::keys::FOLD_FILES_TASK);
+            let is_finalize = matches!(t.spec, TaskSpec::Finalize { .. });
+            assert_eq!(waits, is_finalize, "{partition}: {} and fold-files", t.key);
+            if matches!(t.spec, TaskSpec::FoldFiles { .. }) {
+                assert_eq!(t.deps, [crease_jobs::keys::FOLD_MERGE_TASK]);
+            }
+        }
         let out = root.join(format!("out{i}"));
         let t = tree(&out);
         assert!(

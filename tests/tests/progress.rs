@@ -30,12 +30,14 @@ fn fold_detection_reports_its_frames() {
         .unwrap();
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
-    // The step records of all six frames in one chunk.
-    assert!(
-        err.contains("[folds/steps/f000000] started: 6 steps"),
-        "{err}"
-    );
-    assert!(err.contains("[folds/steps/f000000] 6/6"), "{err}");
+    // The step records of the six frames in two chunks of half the sequence each.
+    for first in ["f000000", "f000003"] {
+        assert!(
+            err.contains(&format!("[folds/steps/{first}] started: 3 steps")),
+            "{err}"
+        );
+        assert!(err.contains(&format!("[folds/steps/{first}] 3/3")), "{err}");
+    }
     // The phase task: two passes over the six frames, five frame steps each.
     assert!(err.contains("[folds/phases] started: 10 steps"), "{err}");
     assert!(err.contains("[folds/phases] 10/10"), "{err}");

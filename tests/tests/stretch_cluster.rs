@@ -52,7 +52,12 @@ fn split_stretch_detection_on_two_workers_matches_crease_run() {
             .entry(t["kind"].as_str().unwrap_or("").to_string())
             .or_default() += 1;
     }
-    assert_eq!(kinds.get("fold-steps"), Some(&1), "{kinds:?}");
+    assert_eq!(
+        kinds.get("fold-steps"),
+        Some(&2),
+        "step chunks of at most half the sequence: {kinds:?}"
+    );
+    assert_eq!(kinds.get("fold-files"), Some(&1), "{kinds:?}");
     assert_eq!(kinds.get("fold-phases"), Some(&1), "{kinds:?}");
     assert_eq!(
         kinds.get("fold-detect"),

@@ -1,7 +1,12 @@
 //! Fold-detection tasks, generic over [`crease_core::folds::FoldDetector`]: `detect` runs the job's detector on
 //! a frame chunk (or the whole sequence), stores its anchors and writes the inspection files the detector drew
-//! for those frames (overlays); `merge` assembles the anchors into `anchors.json` (and its binary form, which
-//! the later tasks read) and the control lines into `folds/control_lines.obj`, whose per-frame anchor counts let the planner size the weight blocks.
+//! for those frames (overlays); `merge` assembles the anchors into their binary form (`anchors.bin`, which the
+//! later tasks read and whose per-frame anchor counts let the planner size the weight blocks); `files` writes
+//! the user-facing `anchors.json` and `folds/control_lines.obj` from it.
+//!
+//! Why two tasks: `merge` is on every detection job's critical path (all deformation tasks wait for it), and
+//! the text of the two user files (tens of MB at paper scale) was the larger part of it. No task reads them,
+//! so `files` runs beside the weight tasks and only finalize (which writes `report.json`) waits for it.
 
 use super::env::TaskEnv;
 use crate::detect::{detection_chunks, detector, granularity};
@@ -115,8 +120,9 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             set.n_frames()
         )));
     }
-    // The job's own tasks read the binary form; `anchors.json` is written once, for people and other tools.
-    // Counts come from reading the stored form back as the weight tasks will, so planning and solving agree.
+    // The job's own tasks read the binary form; `anchors.json` is written from it by the `fold-files` task, for
+    // people and other tools. Counts come from reading the stored form back as the weight tasks will, so
+    // planning and solving agree.
     let bin = set.to_binary();
     let back = AnchorSet::from_binary(
         &bin,
@@ -126,9 +132,6 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     )
     .map_err(|e| TaskError::from_core("fold merge", e))?;
     env.put(keys::ANCHORS_BIN, bin)?;
-    env.put(keys::ANCHORS, set.to_json())?;
-    // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
-    env.put(keys::CONTROL_LINES, back.control_lines_obj())?;
     // What finalize puts into report.json as `fold_detection`.
     let mut summary = json!({ "source": d.name(), "anchors": back.total() });
     if let (Some(s), Some(extra)) = (summary.as_object_mut(), summary_extra.as_object_mut()) {
@@ -144,14 +147,61 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let counts: Vec<usize> = (0..n).map(|t| back.frame(t).len()).collect();
     written.extend([
         keys::ANCHORS_BIN.to_string(),
-        keys::ANCHORS.to_string(),
-        keys::CONTROL_LINES.to_string(),
         keys::FOLD_SUMMARY.to_string(),
     ]);
     Ok((
         json!({ "anchors_per_frame": counts, "anchors": back.total() }),
         written,
     ))
+}
+
+/// `anchors.json` and `folds/control_lines.obj` from the `anchors.bin` that `merge` stored: the bytes `merge`
+/// used to write itself. `anchors.json` holds the stored values as they are (they were validated, and their
+/// axes normalised, once, before `merge` stored them; validating again could move a normalised axis by an ulp).
+pub fn files(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
+    let opened = env.open_input()?;
+    let n = opened.source.n_frames();
+    let n_tri = opened.source.topology().n_triangles();
+    env.check_cancelled()?;
+    let bytes = env.get(keys::ANCHORS_BIN)?;
+    let label = env.out.describe(keys::ANCHORS_BIN);
+    let path = Path::new(&label);
+    let bad = |e: crease_core::Error| TaskError::fatal(format!("fold files: {e}"));
+    let stored = {
+        let mut r = binary::Reader::open(path, &bytes, binary::Kind::AnchorSet).map_err(bad)?;
+        let frames = binary::read_frames(&mut r).map_err(bad)?;
+        r.end().map_err(bad)?;
+        frames
+    };
+    // Read as the weight tasks read it, which checks it against the input and gives the control lines.
+    let set = AnchorSet::from_binary(&bytes, path, n, n_tri).map_err(bad)?;
+    drop(bytes);
+    env.check_cancelled()?;
+    env.put(keys::ANCHORS, anchors_json(&stored))?;
+    // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
+    env.put(keys::CONTROL_LINES, set.control_lines_obj())?;
+    Ok((
+        json!({ "anchors": set.total() }),
+        vec![keys::ANCHORS.to_string(), keys::CONTROL_LINES.to_string()],
+    ))
+}
+
+/// The anchors file (`AnchorSet::to_json`'s format: version 1, frames without anchors or lines left out) of
+/// frames as they were stored, without validating them again.
+fn anchors_json(frames: &[FrameAnchors]) -> String {
+    #[derive(serde::Serialize)]
+    struct File<'a> {
+        version: u32,
+        frames: Vec<&'a FrameAnchors>,
+    }
+    let file = File {
+        version: 1,
+        frames: frames
+            .iter()
+            .filter(|f| !f.anchors.is_empty() || !f.control_lines.is_empty())
+            .collect(),
+    };
+    serde_json::to_string(&file).expect("anchors serialise")
 }
 
 /// The anchors of every detection chunk in frame order, finished by the detector's [`FoldDetector::settle`],
@@ -201,4 +251,56 @@ pub(super) fn chunk_seconds(env: &TaskEnv, first: usize) -> Result<f64, TaskErro
         .get("seconds")
         .and_then(Value::as_f64)
         .ok_or_else(|| TaskError::fatal(format!("{}: no `seconds`", env.out.describe(&key))))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::anchors_json;
+    use crease_core::folds::anchors::binary;
+    use crease_core::folds::{Anchor, AnchorSet, FrameAnchors};
+    use std::path::Path;
+
+    /// `fold-files` writes what `AnchorSet::to_json` wrote in `merge` before: same format, same values (read
+    /// from the binary form as stored, not validated again).
+    #[test]
+    fn anchors_json_from_the_binary_form_is_the_sets_json() {
+        let axis = |i: usize| {
+            let v = [0.3 + i as f64 * 0.01, -0.7, 0.2 * i as f64 + 0.1];
+            let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            [v[0] / n, v[1] / n, v[2] / n]
+        };
+        let frames: Vec<FrameAnchors> = (0..5)
+            .map(|f| FrameAnchors {
+                frame: f,
+                anchors: if f == 1 {
+                    vec![]
+                } else {
+                    (0..f + 1)
+                        .map(|i| Anchor {
+                            triangle: (7 * i + f) as u32,
+                            axis: axis(i + f),
+                            angle: 0.1 * i as f64 - 0.33,
+                        })
+                        .collect()
+                },
+                control_lines: if f == 3 {
+                    vec![]
+                } else {
+                    vec![vec![[0.1, 0.2 * f as f64, 1e-17]; f + 1]]
+                },
+                detection: None,
+            })
+            .chain(std::iter::once(FrameAnchors {
+                frame: 5,
+                ..Default::default()
+            }))
+            .collect();
+        let set = AnchorSet::from_frame_anchors(frames, 100, None).unwrap();
+        let bin = set.to_binary();
+        let mut r =
+            binary::Reader::open(Path::new("a.bin"), &bin, binary::Kind::AnchorSet).unwrap();
+        let stored = binary::read_frames(&mut r).unwrap();
+        r.end().unwrap();
+        assert_eq!(anchors_json(&stored), set.to_json());
+    }
 }

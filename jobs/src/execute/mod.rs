@@ -15,6 +15,7 @@ mod exact;
 mod export;
 mod finalize;
 mod folds;
+pub mod phase_times;
 mod position;
 mod stretch;
 mod weights;
@@ -87,6 +88,7 @@ fn run_kind(
         TaskSpec::FoldSteps { frames, .. } => stretch::steps(&env, frames.clone())?,
         TaskSpec::FoldPhases { .. } => stretch::phases(&env)?,
         TaskSpec::FoldMerge { .. } => folds::merge(&env)?,
+        TaskSpec::FoldFiles { .. } => folds::files(&env)?,
         TaskSpec::WeightWindow { window, .. } => weights::fused_window(&env, *window)?,
         TaskSpec::WeightBlock { window, block, .. } => {
             weights::anchor_block(&env, *window, *block)?

@@ -7,8 +7,9 @@ use super::exact;
 use crate::error::TaskError;
 use crate::inspect::{output_files, output_sink, writes_frames};
 use crate::keys;
+use crease_core::mesh::io::OpenedSequence;
 use crease_core::mesh::FrameSource;
-use crease_core::spacetime::position::PositionSystem;
+use crease_core::spacetime::position::{Pinning, PositionSystem};
 use crease_core::spacetime::stages::{self, PositionedFrame};
 use crease_core::spacetime::windows::Window;
 use crease_core::vec3::V3;
@@ -16,6 +17,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
 use std::ops::Range;
+use std::sync::{Arc, Mutex};
 
 /// Seconds each step of one frame took (sidecar; the only intermediate whose bytes differ between runs).
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
@@ -48,10 +50,8 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     }
     let topo = source.topology().clone();
     let n_tri = topo.n_triangles();
-    let clock = std::time::Instant::now();
-    let system = PositionSystem::new(topo.clone(), env.params.pinning, env.params.screen())
-        .map_err(|e| TaskError::from_core(&label, e))?;
-    let symbolic = clock.elapsed().as_secs_f64();
+    let (system, symbolic) = position_system(env, &opened, &label)?;
+    let system = system.as_ref();
     let windows = env.windows(n);
     let passes = env.params.stretch_passes;
     env.progress().begin("position", frames.len() as u64);
@@ -85,7 +85,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                     return Err(TaskError::cancelled());
                 }
                 let r = stages::position_frame(
-                    &system,
+                    system,
                     source,
                     t,
                     phi,
@@ -143,6 +143,57 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
         json!({ "frames": [frames.start, frames.end], "stretch_final": stretch_final }),
         written,
     ))
+}
+
+/// A positioning system this process built: (input, pinning, screen bits, system).
+type BuiltSystem = (
+    Arc<OpenedSequence>,
+    Pinning,
+    Option<u64>,
+    Arc<PositionSystem>,
+);
+
+/// Positioning systems built by this process, most recent first.
+static SYSTEMS: Mutex<Vec<BuiltSystem>> = Mutex::new(Vec::new());
+
+/// The input's positioning system (its sparsity pattern and symbolic Cholesky analysis, AMD ordering included)
+/// and the seconds spent building it (0 when it was already built). `crease run` in one process builds it once
+/// per sequence; a job's positioning chunks each needed it again, so a worker now keeps the last two it built,
+/// keyed by the very same opened input (an input changed on disk is reopened, see `TaskEnv::open_input`, and
+/// then misses) and the parameters the system depends on. The system is immutable once built, so sharing it
+/// cannot change what a task computes.
+fn position_system(
+    env: &TaskEnv,
+    opened: &Arc<OpenedSequence>,
+    label: &str,
+) -> Result<(Arc<PositionSystem>, f64), TaskError> {
+    let (pinning, screen) = (env.params.pinning, env.params.screen());
+    let screen_bits = screen.map(f64::to_bits);
+    let found = |systems: &[BuiltSystem]| {
+        systems
+            .iter()
+            .find(|(o, p, s, _)| Arc::ptr_eq(o, opened) && *p == pinning && *s == screen_bits)
+            .map(|(_, _, _, sys)| Arc::clone(sys))
+    };
+    if let Some(sys) = found(&SYSTEMS.lock().unwrap_or_else(|p| p.into_inner())) {
+        return Ok((sys, 0.0));
+    }
+    // Built outside the lock; two tasks that miss together both build, and the second insert wins (equal).
+    let clock = std::time::Instant::now();
+    let topo = opened.source.topology().clone();
+    let sys = Arc::new(
+        PositionSystem::new(topo, pinning, screen).map_err(|e| TaskError::from_core(label, e))?,
+    );
+    let seconds = clock.elapsed().as_secs_f64();
+    let mut systems = SYSTEMS.lock().unwrap_or_else(|p| p.into_inner());
+    if found(&systems).is_none() {
+        systems.insert(
+            0,
+            (Arc::clone(opened), pinning, screen_bits, Arc::clone(&sys)),
+        );
+        systems.truncate(2);
+    }
+    Ok((sys, seconds))
 }
 
 /// The cross-faded rotation-vector field of frame `t`, from the stored fields of the windows covering it.

@@ -4,6 +4,7 @@
 
 use super::env::TaskEnv;
 use super::exact;
+use super::phase_times::Lap;
 use super::window_cache::{self, WindowEntry};
 use crate::error::TaskError;
 use crate::keys;
@@ -92,6 +93,7 @@ pub fn fused_window(env: &TaskEnv, k: usize) -> Result<(Value, Vec<String>), Tas
 /// Per-anchor mode: block `b` of window `k` → its partial blend. The window's problem and block workspaces
 /// come from the worker's [`window_cache`] when an earlier block of the same window left them there.
 pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<String>), TaskError> {
+    let mut lap = Lap::start();
     let opened = env.open_input()?;
     let n = opened.source.n_frames();
     let n_tri = opened.source.topology().n_triangles();
@@ -103,6 +105,7 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
         &(k as u64).to_le_bytes(),
     ]);
     env.check_cancelled()?;
+    lap.lap("weight-block: open input, cache key");
     let clock = Instant::now();
     let (entry, hit) = window_cache::get_or_build(key, &opened, || {
         let anchors = env.anchors(n, n_tri)?;
@@ -127,14 +130,17 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
         ))
     })?;
     let mut ws = entry.take_workspace();
+    lap.lap("weight-block: window (cache hit, or build)");
     let partial = stages::anchor_block(problem, range.clone(), &env.params, &mut ws)
         .map_err(|e| TaskError::from_core(&format!("{} block {b}", label(k, &w)), e))?;
     entry.give_back(ws);
     let seconds = clock.elapsed().as_secs_f64();
+    lap.lap("weight-block: solve");
     let mut rows = Vec::with_capacity(partial.nodes.len() * 4);
     for (&g, v) in partial.nodes.iter().zip(&partial.values) {
         rows.extend_from_slice(&[g as f64, v[0], v[1], v[2]]);
     }
+    lap.lap("weight-block: encode");
     let stats = BlockStats {
         columns: range.len(),
         iterations: partial.iterations,
@@ -145,6 +151,7 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
     let (pk, sk) = (keys::block_partial(k, b), keys::block_stats(k, b));
     env.put_npy(&pk, &[partial.nodes.len(), 4], &rows)?;
     env.put_json(&sk, &stats)?;
+    lap.lap("weight-block: write");
     let mut summary = serde_json::to_value(&stats).unwrap_or_default();
     if let Some(o) = summary.as_object_mut() {
         o.insert(
@@ -157,6 +164,7 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
 
 /// Per-anchor mode: window `k`'s field as the sum of its blocks' partial blends, in block order.
 pub fn reduce(env: &TaskEnv, k: usize) -> Result<(Value, Vec<String>), TaskError> {
+    let mut lap = Lap::start();
     let opened = env.open_input()?;
     let topo = opened.source.topology().clone();
     let n = opened.source.n_frames();
@@ -179,11 +187,13 @@ pub fn reduce(env: &TaskEnv, k: usize) -> Result<(Value, Vec<String>), TaskError
         seconds: 0.0,
     };
     env.progress().begin("reduce", n_blocks as u64);
+    lap.lap("reduce: open input, anchors");
     for b in 0..n_blocks {
         env.check_cancelled()?;
         let key = keys::block_partial(k, b);
         let (shape, rows) = env.get_npy::<f64>(&key)?;
         let stats: BlockStats = env.get_json(&keys::block_stats(k, b))?;
+        lap.lap("reduce: read partials");
         if shape.len() != 2 || shape[1] != 4 {
             return Err(TaskError::fatal(format!(
                 "{}: shape {shape:?}, expected (n, 4)",
@@ -211,11 +221,14 @@ pub fn reduce(env: &TaskEnv, k: usize) -> Result<(Value, Vec<String>), TaskError
         stages::reduce_into(&mut field, &mut cg, &mut record.node_updates, &partial);
         record.seconds += stats.seconds;
         env.progress().advance("reduce", 1);
+        lap.lap("reduce: decode and sum");
     }
     env.progress().end("reduce");
     record.cg_iterations = cg.iterations;
     record.max_relative_residual = cg.relative_residual;
-    write_window(env, k, w, n_tri, &field, &record)
+    let written = write_window(env, k, w, n_tri, &field, &record);
+    lap.lap("reduce: write field");
+    written
 }
 
 /// Stores a window's field frame by frame plus its statistics.

@@ -21,11 +21,12 @@ use serde_json::json;
 pub const DEFAULT_BLOCK_SLOTS: usize = 4;
 
 /// The stages, in graph order. Names are the farm's step names.
-pub const STAGES: [Stage; 8] = [
+pub const STAGES: [Stage; 9] = [
     Stage::FoldSteps,
     Stage::FoldPhases,
     Stage::FoldDetect,
     Stage::FoldMerge,
+    Stage::FoldFiles,
     Stage::Weights,
     Stage::Reduce,
     Stage::Position,
@@ -40,6 +41,8 @@ pub enum Stage {
     FoldPhases,
     FoldDetect,
     FoldMerge,
+    /// The user-facing anchor files (one task, beside the weights; finalize waits for it).
+    FoldFiles,
     Weights,
     Reduce,
     Position,
@@ -54,6 +57,7 @@ impl Stage {
             Stage::FoldPhases => "fold-phases",
             Stage::FoldDetect => "fold-detect",
             Stage::FoldMerge => "fold-merge",
+            Stage::FoldFiles => "fold-files",
             Stage::Weights => "weights",
             Stage::Reduce => "reduce",
             Stage::Position => "position",
@@ -68,6 +72,7 @@ impl Stage {
             Stage::FoldPhases => "FoldPhases",
             Stage::FoldDetect => "FoldDetect",
             Stage::FoldMerge => "FoldMerge",
+            Stage::FoldFiles => "FoldFiles",
             Stage::Weights => "Weights",
             Stage::Reduce => "Reduce",
             Stage::Position => "Position",
@@ -87,6 +92,7 @@ impl Stage {
             TaskSpec::FoldPhases { .. } => Stage::FoldPhases,
             TaskSpec::FoldDetect { .. } => Stage::FoldDetect,
             TaskSpec::FoldMerge { .. } => Stage::FoldMerge,
+            TaskSpec::FoldFiles { .. } => Stage::FoldFiles,
             TaskSpec::WeightBlock { .. } | TaskSpec::WeightWindow { .. } => Stage::Weights,
             TaskSpec::Reduce { .. } => Stage::Reduce,
             TaskSpec::Position { .. } => Stage::Position,

@@ -74,13 +74,13 @@ pub struct StretchParams {
 #[serde(rename_all = "lowercase")]
 pub enum Flattening {
     /// Unfolding from the seed outwards, each vertex at the mean of where its laid-out triangles put it
-    /// ([`super::unfold`]): exact on developable patches, no solve, several times cheaper tracing than LSCM.
-    /// Not the default: on the sleeve sample its fold figures are 0.007–0.008 below LSCM's
-    /// (docs/benchmarks.md).
+    /// ([`super::unfold`]): exact on developable patches, no solve. A patch too curved to unfold without
+    /// triangles folding over is flattened by LSCM instead (a fifth of the patches on the sleeve sample), which
+    /// keeps the fold figures of LSCM at a fraction of its tracing cost (docs/benchmarks.md).
+    #[default]
     Unfold,
     /// Least-squares conformal map, one sparse Cholesky solve per seed ([`super::lscm`]): spreads the
     /// distortion of a curved patch over all of it instead of outwards from the seed.
-    #[default]
     Lscm,
 }
 
@@ -128,7 +128,7 @@ impl Default for StretchParams {
             min_length: 2.0,
             temporal_radius: 2,
             seed_memory: false,
-            flattening: Flattening::Lscm,
+            flattening: Flattening::Unfold,
         }
     }
 }

@@ -3,10 +3,11 @@
 //! * **Seeds** come from a priority queue of integrated shrinkage (absolute change), largest first, one at a
 //!   time; with `seed_memory` on, seeds of the previous frame go first (the thesis' seed memory; off by default,
 //!   see [`StretchParams::seed_memory`]).
-//! * **Axis** ([`FoldTracer::axis`]): the patch around the seed is flattened ([`super::lscm`] by default;
-//!   on request [`super::unfold`], with LSCM where unfolding folds triangles over); from the seed's centroid a line is marched in the plane perpendicular to the
-//!   shrinkage direction, following each crossed triangle's own direction, in both senses, until the shrinkage
-//!   fades below `fade` of the seed's or the direction turns by more than `max_turn`.
+//! * **Axis** ([`FoldTracer::axis`]): the patch around the seed is flattened ([`super::lscm`] by default; on
+//!   request [`super::unfold`], with LSCM where unfolding folds triangles over); from the seed's centroid a line
+//!   is marched in the plane perpendicular to the shrinkage direction, following each crossed triangle's own
+//!   direction, in both senses, until the shrinkage fades below `fade` of the seed's or the direction turns by
+//!   more than `max_turn`.
 //! * **Control lines** ([`FoldTracer::control_lines`]) at ± width/2 beside the axis, width = `fold_width / |v|`
 //!   (inversely proportional to the absolute change), located on the traced mesh as (triangle, barycentric)
 //!   samples, so that they can be realised on a finer mesh than the one traced ([`super::realise`]).
@@ -712,8 +713,8 @@ impl SeedWork {
 /// triangles closing it fold over. Such a patch is flattened by LSCM instead: on the sleeve sample a fifth of
 /// the patches fold over, and there the overlapping triangles' centroids land beside the axis and inflate the
 /// region of influence (8 % more triangles than LSCM's, axes 3.6 % shorter), while on the patches that
-/// unfold cleanly the two flattenings trace regions, axes and anchors within 0.3 % (docs/benchmarks.md). The flipped mesh gives the
-/// mirrored layout, so the verdict does not depend on the winding.
+/// unfold cleanly the two flattenings trace regions, axes and anchors within 0.3 % (docs/benchmarks.md,
+/// "issue14-trace"). The flipped mesh gives the mirrored layout, so the verdict does not depend on the winding.
 fn unfolds_without_overlap(
     topo: &Topology,
     tris: &[u32],

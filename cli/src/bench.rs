@@ -396,12 +396,13 @@ fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
         flattening.name()
     );
     println!(
-        "{:>8} {:>10} {:>10} {:>10} {:>10} {:>12}",
-        "tris", "s/frame", "tracing", "folds/f", "anchors/f", "seeds tried/f"
+        "{:>8} {:>10} {:>10} {:>10} {:>10} {:>12} {:>9}",
+        "tris", "s/frame", "tracing", "folds/f", "anchors/f", "seeds tried/f", "peak MiB"
     );
     for &size in &a.sizes {
         let seq = synth::compressed_tube(size, frames, 0.3, -1.0)?;
         let (mut folds, mut anchors, mut seeds) = (0usize, 0usize, 0usize);
+        reset_peak_rss();
         let t = Instant::now();
         let mut detector = StretchDetector::default();
         detector.params.flattening = flattening;
@@ -412,14 +413,18 @@ fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
             Ok(())
         })?;
         let per = |x: usize| x as f64 / frames as f64;
+        let seconds = t.elapsed().as_secs_f64();
+        // The process's peak since the reset: the sequence, the detector's buffers and the tracing scratch.
+        let peak = peak_rss().unwrap_or(0) as f64 / (1 << 20) as f64;
         println!(
-            "{:>8} {:>10.3} {:>10.3} {:>10.1} {:>10.1} {:>12.1}",
+            "{:>8} {:>10.3} {:>10.3} {:>10.1} {:>10.1} {:>12.1} {:>9.0}",
             seq.topology.n_triangles(),
-            t.elapsed().as_secs_f64() / frames as f64,
+            seconds / frames as f64,
             tracing / frames as f64,
             per(folds),
             per(anchors),
-            per(seeds)
+            per(seeds),
+            peak
         );
     }
     Ok(())

@@ -74,9 +74,10 @@ pub struct StretchParams {
 #[serde(rename_all = "lowercase")]
 pub enum Flattening {
     /// Unfolding from the seed outwards, each vertex at the mean of where its laid-out triangles put it
-    /// ([`super::unfold`]): exact on developable patches, no solve, several times cheaper tracing than LSCM.
-    /// Not the default: on the sleeve sample its fold figures are 0.007–0.008 below LSCM's
-    /// (docs/benchmarks.md).
+    /// ([`super::unfold`]): exact on developable patches, no solve. A patch too curved to unfold without
+    /// triangles folding over (a fifth of the patches on the sleeve sample) is flattened by LSCM instead. Not
+    /// the default: its fold figures stay 0.002–0.004 below LSCM's on both public stretch cases
+    /// (docs/benchmarks.md, "issue14-trace").
     Unfold,
     /// Least-squares conformal map, one sparse Cholesky solve per seed ([`super::lscm`]): spreads the
     /// distortion of a curved patch over all of it instead of outwards from the seed.

@@ -141,7 +141,8 @@ pub fn remove_outliers(
 
 /// What one triangle adds to its own and its neighbours' means in one sweep, computed once per sweep rather
 /// than once per neighbour (each triangle is read by up to four means): the area weight (0 for no data), the
-/// weighted principal values, the direction weight (area × anisotropy) and the Γ direction.
+/// weighted principal values, the direction weight (area × anisotropy) and the Γ direction. A sweep writes its
+/// triangles' shares for the next sweep straight away, so the field itself is written once, by the last.
 #[derive(Clone, Copy)]
 struct Share {
     w: f64,
@@ -149,6 +150,8 @@ struct Share {
     small: f64,
     wd: f64,
     dir: V3,
+    /// Whether the triangle has data (its direction is then the fallback when its neighbours give none).
+    some: bool,
 }
 
 impl Share {
@@ -162,6 +165,7 @@ impl Share {
                     small: area * t.small,
                     wd: area * aniso,
                     dir: t.dir_big,
+                    some: true,
                 }
             }
             None => Share {
@@ -170,6 +174,7 @@ impl Share {
                 small: 0.0,
                 wd: 0.0,
                 dir: [0.0; 3],
+                some: false,
             },
         }
     }
@@ -213,62 +218,76 @@ pub fn smooth(
     iterations: usize,
 ) -> Vec<Tensor> {
     let adj = topo.tri_adj();
-    let mut cur: Vec<Option<Tensor>> = field.to_vec();
-    let mut shares: Vec<Share> = Vec::with_capacity(cur.len());
-    for _ in 0..iterations {
-        cur.par_iter()
-            .zip(geom.areas.par_iter())
-            .with_min_len(4096)
-            .map(|(&t, &a)| Share::of(t, a))
-            .collect_into_vec(&mut shares);
-        cur = (0..cur.len())
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|i| {
-                let (e1, e2) = (geom.e1[i], geom.e2[i]);
-                let (mut wsum, mut big, mut small) = (0.0, 0.0, 0.0);
-                let (mut c2, mut s2) = (0.0, 0.0);
-                let mut add = |j: usize| {
-                    let sh = &shares[j];
-                    if sh.w > 0.0 {
-                        wsum += sh.w;
-                        big += sh.big;
-                        small += sh.small;
-                        let (c, s) = doubled_angle(sh.dir, e1, e2);
-                        c2 += sh.wd * c;
-                        s2 += sh.wd * s;
-                    }
-                };
-                add(i);
-                for &j in &adj[i] {
-                    if j != NONE {
-                        add(j as usize);
-                    }
-                }
-                if wsum <= 0.0 {
-                    return None;
-                }
-                let dir = if c2 * c2 + s2 * s2 > 0.0 {
-                    half_angle_direction(c2, s2, e1, e2)
-                } else {
-                    cur[i].map(|t| t.dir_big).unwrap_or(e1)
-                };
-                Some(Tensor {
-                    big: big / wsum,
-                    small: small / wsum,
-                    dir_big: dir,
-                })
-            })
+    // One Jacobi update of triangle i from the previous sweep's shares.
+    let update = |shares: &[Share], i: usize| -> Option<Tensor> {
+        let (e1, e2) = (geom.e1[i], geom.e2[i]);
+        let (mut wsum, mut big, mut small) = (0.0, 0.0, 0.0);
+        let (mut c2, mut s2) = (0.0, 0.0);
+        let mut add = |j: usize| {
+            let sh = &shares[j];
+            if sh.w > 0.0 {
+                wsum += sh.w;
+                big += sh.big;
+                small += sh.small;
+                let (c, s) = doubled_angle(sh.dir, e1, e2);
+                c2 += sh.wd * c;
+                s2 += sh.wd * s;
+            }
+        };
+        add(i);
+        for &j in &adj[i] {
+            if j != NONE {
+                add(j as usize);
+            }
+        }
+        if wsum <= 0.0 {
+            return None;
+        }
+        let dir = if c2 * c2 + s2 * s2 > 0.0 {
+            half_angle_direction(c2, s2, e1, e2)
+        } else if shares[i].some {
+            shares[i].dir
+        } else {
+            e1
+        };
+        Some(Tensor {
+            big: big / wsum,
+            small: small / wsum,
+            dir_big: dir,
+        })
+    };
+    let identity = |i: usize| Tensor {
+        dir_big: geom.e1[i],
+        ..Tensor::IDENTITY
+    };
+    if iterations == 0 {
+        return field
+            .iter()
+            .enumerate()
+            .map(|(i, t)| t.unwrap_or_else(|| identity(i)))
             .collect();
     }
-    cur.into_iter()
-        .enumerate()
-        .map(|(i, t)| {
-            t.unwrap_or(Tensor {
-                dir_big: geom.e1[i],
-                ..Tensor::IDENTITY
-            })
-        })
+    let mut shares: Vec<Share> = Vec::with_capacity(field.len());
+    field
+        .par_iter()
+        .zip(geom.areas.par_iter())
+        .with_min_len(4096)
+        .map(|(&t, &a)| Share::of(t, a))
+        .collect_into_vec(&mut shares);
+    // Every sweep but the last writes the shares the next one reads.
+    let mut next: Vec<Share> = Vec::with_capacity(field.len());
+    for _ in 1..iterations {
+        (0..field.len())
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|i| Share::of(update(&shares, i), geom.areas[i]))
+            .collect_into_vec(&mut next);
+        std::mem::swap(&mut shares, &mut next);
+    }
+    (0..field.len())
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|i| update(&shares, i).unwrap_or_else(|| identity(i)))
         .collect()
 }
 

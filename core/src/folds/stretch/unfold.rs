@@ -1,10 +1,11 @@
-//! Flattening a fold seed's patch by unfolding it (issue 14): the default patch parameterisation of tracing,
-//! in place of one sparse LSCM solve per seed ([`super::lscm`], kept as `flattening = "lscm"`).
+//! Flattening a fold seed's patch by unfolding it (issue 14; `flattening = "unfold"`): a patch parameterisation
+//! of tracing without the sparse LSCM solve per seed ([`super::lscm`], the default). Tracing falls back to LSCM
+//! for a patch whose unfolded layout folds triangles over (`trace.rs`, `unfolds_without_overlap`).
 //!
 //! Vertices are laid out from the seed outwards, in order of their 3D distance from the seed triangle's
 //! centroid. A vertex can be placed once some patch triangle holds it and two vertices already laid out; each
-//! such triangle puts it where the triangle's own 3D shape and size put it beside that edge. The vertex goes to the mean of what all those triangles say rather than
-//! where the first one puts it: a single chain of triangles carries its shear outwards and bends the plane
+//! such triangle puts it where the triangle's own 3D shape and size put it beside that edge. The vertex goes to
+//! the mean of what all those triangles say rather than where the first one puts it: a single chain of triangles carries its shear outwards and bends the plane
 //! under a fold axis, while the mean over every upwind triangle spreads it (a discrete upwind exponential map).
 //!
 //! On a developable patch every triangle agrees and the layout is exact; there is no solve, so a patch costs a

@@ -72,7 +72,7 @@ fn mean_normal_error(topo: &Topology, a: &[V3], b: &[V3], keep: impl Fn(usize) -
 fn captured_case() -> (Sequence, AnchorSet, Vec<V3>) {
     let (topo, flat) = sheet(42, 24);
     let truth = ripple(&flat);
-    let captured = TaubinFilter::captured(&topo).apply(&truth);
+    let captured = TaubinFilter::capture(&topo).apply(&truth);
     let topo = Arc::new(topo);
     let anchors: Vec<Anchor> = (0..topo.n_triangles())
         .filter(|&t| {

@@ -65,9 +65,9 @@ pub struct DeformArgs {
     /// lowest-index vertex fixed.
     #[arg(long, default_value = "centroid", value_parser = parse_pinning)]
     pub pinning: Pinning,
-    /// Fold restoration gain: where the deformation put folds, the captured surface's residual under the
-    /// capture filter is added this many times along its normal (the folds the capture smoothed but did not
-    /// erase). 0 = off.
+    /// Fold restoration: Van Cittert steps of the deconvolution of the capture filter, added along the
+    /// captured normal where the deformation put folds (the folds the capture smoothed but did not erase; a
+    /// fold the capture kept a fraction T of comes back as 1 − (1 − T)^(steps + 1)). 0 = off, at most 20.
     #[arg(long, default_value_t = crease_core::spacetime::params::DEFAULT_FOLD_RESTORE)]
     pub fold_restore: f64,
 }

@@ -72,18 +72,20 @@ pub struct DeformParams {
     /// How the unscreened system (`shape_cutoff` 0) removes its translational null space; the screened one
     /// has none and keeps each component's area-weighted mean displacement at zero by itself.
     pub pinning: Pinning,
-    /// Fold restoration gain (see [`super::restore`]): where the deformation tilted the surface, the captured
-    /// surface's residual under the capture filter is added this many times along its normal, giving back in
-    /// place the fold amplitude the capture smoothed away. 0 turns it off.
+    /// Fold restoration (see [`super::restore`]): Van Cittert steps of the deconvolution of the capture filter
+    /// whose result is added along the captured normal where the deformation tilted the surface, giving back in
+    /// place the fold amplitude the capture smoothed away (a fractional part is a last partial step; one step is
+    /// the captured residue added once). 0 turns it off.
     pub fold_restore: f64,
 }
 
-/// Largest fold restoration gain accepted: 1/T for a fold the capture kept 5% of; below that the residual is
-/// noise rather than cloth.
+/// Most fold restoration steps accepted: the deconvolution then multiplies what the capture kept of a fold by
+/// at most 21, the inverse of a fold the capture kept 5% of; below that the residue is noise rather than cloth.
 pub const MAX_FOLD_RESTORE: f64 = 20.0;
 
-/// Default fold restoration gain (docs/fidelity-folds.md, "Restoring the folds the capture kept").
-pub const DEFAULT_FOLD_RESTORE: f64 = 2.0;
+/// Default fold restoration steps (docs/fidelity-folds.md, "Restoring the folds the capture kept" and
+/// "The restoration undoes the capture filter").
+pub const DEFAULT_FOLD_RESTORE: f64 = 5.0;
 
 impl Default for DeformParams {
     fn default() -> Self {
@@ -183,7 +185,7 @@ impl DeformParams {
     /// The fold restoration the positioning ends with ([`super::restore`]).
     pub fn restoration(&self) -> super::restore::Restoration {
         super::restore::Restoration {
-            gain: self.fold_restore,
+            steps: self.fold_restore,
             reference_tilt: super::restore::REFERENCE_TILT_DEG.to_radians(),
         }
     }

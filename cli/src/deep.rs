@@ -104,6 +104,16 @@ pub struct TrainArgs {
     /// Ridge weight of the linear regression (relative).
     #[arg(long, default_value_t = 1e-3)]
     pub ridge: f64,
+    /// Pose features of the regression: rigid (per object: location, sine and cosine of its angles and their
+    /// products), raw (the pose numbers), or auto (rigid when pose.json names its numbers OBJ.location.x …
+    /// OBJ.rotation_euler.z, raw otherwise).
+    #[arg(long, default_value = "auto")]
+    pub pose_features: crease_deep::pose_features::PoseFeatureMode,
+    /// Also train the subspace and regressions on the training data reflected in a coordinate plane (x, y or
+    /// z = 0), poses reflected to match; auto: in the plane where the first training frame is symmetric, if
+    /// any and the poses have rigid names; none: no reflection.
+    #[arg(long, default_value = "auto")]
+    pub mirror: crease_deep::mirror::MirrorMode,
     /// LSTM layers of the encoder and of the decoder (paper: 4).
     #[arg(long, default_value_t = 4)]
     pub lstm_layers: usize,
@@ -278,6 +288,8 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
         lags: a.lags,
         pose_history: a.pose_history,
         ridge: a.ridge,
+        pose_features: a.pose_features,
+        mirror: a.mirror,
         regressor: a.regressor,
         ar_state: a.ar_state,
         ar_rollout_iters: a.ar_rollout_iters,

@@ -37,6 +37,7 @@ fn sequence(dir: &Path, frames: usize, freq: f64, phase: f64) -> TrainingSequenc
         coarse: fine.clone(),
         fine,
         poses,
+        pose_names: None,
     }
 }
 

@@ -60,6 +60,12 @@ pub struct RegisterArgs {
     /// ICP iterations per scan.
     #[arg(long, default_value_t = 30)]
     pub iterations: usize,
+    /// Scan points averaged into each vertex's data target (1: the nearest point alone).
+    #[arg(long, default_value_t = RegisterParams::default().target_points)]
+    pub target_points: usize,
+    /// Floor of ω_r and ω_s, which are halved whenever the energy stalls.
+    #[arg(long, default_value_t = RegisterParams::default().min_weight)]
+    pub min_weight: f64,
     /// No progress bar or summary lines (errors are still printed).
     #[arg(long)]
     pub quiet: bool,
@@ -242,6 +248,8 @@ fn register(a: RegisterArgs) -> Result<()> {
         w_bound: a.w_bound,
         node_spacing: a.node_spacing,
         iterations: a.iterations,
+        target_points: a.target_points,
+        min_weight: a.min_weight,
         ..Default::default()
     };
     let progress = CliProgress::new(a.quiet);

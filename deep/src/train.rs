@@ -119,6 +119,9 @@ impl Default for TrainParams {
             lags: vec![],
             pose_history: vec![],
             ridge: 1e-3,
+            // Rigid pose features and the mirror: over the three splits the default blend went from 6.85 mm
+            // (raw pose, no mirror) to 5.27 mm with the features and 4.45 mm with both; on data without
+            // rigid pose names or without a symmetric first frame both fall back to what they were.
             pose_features: PoseFeatureMode::Auto,
             mirror: MirrorMode::Auto,
             // The blend of the linear map and the autoregressive rollout, evenly weighted: 6.85 mm over the

@@ -71,7 +71,7 @@ impl std::str::FromStr for PoseFeatureMode {
 /// Object names of a rigid layout (`OBJ.location.x` … `OBJ.rotation_euler.z` per object), or `None` when the
 /// names have another layout.
 pub fn rigid_objects(names: &[String]) -> Option<Vec<String>> {
-    if names.is_empty() || names.len() % 6 != 0 {
+    if names.is_empty() || !names.len().is_multiple_of(6) {
         return None;
     }
     names

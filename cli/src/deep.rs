@@ -60,6 +60,12 @@ pub struct RegisterArgs {
     /// ICP iterations per scan.
     #[arg(long, default_value_t = 30)]
     pub iterations: usize,
+    /// Scan points averaged into each vertex's data target (1: the nearest point alone).
+    #[arg(long, default_value_t = RegisterParams::default().target_points)]
+    pub target_points: usize,
+    /// Floor of ω_r and ω_s, which are halved whenever the energy stalls.
+    #[arg(long, default_value_t = RegisterParams::default().min_weight)]
+    pub min_weight: f64,
     /// No progress bar or summary lines (errors are still printed).
     #[arg(long)]
     pub quiet: bool,
@@ -104,6 +110,16 @@ pub struct TrainArgs {
     /// Ridge weight of the linear regression (relative).
     #[arg(long, default_value_t = 1e-3)]
     pub ridge: f64,
+    /// Pose features of the regression: rigid (per object: location, sine and cosine of its angles and their
+    /// products), raw (the pose numbers), or auto (rigid when pose.json names its numbers OBJ.location.x …
+    /// OBJ.rotation_euler.z, raw otherwise).
+    #[arg(long, default_value = "auto")]
+    pub pose_features: crease_deep::pose_features::PoseFeatureMode,
+    /// Also train the subspace and regressions on the training data reflected in a coordinate plane (x, y or
+    /// z = 0), poses reflected to match; auto: in the plane where the first training frame is symmetric, if
+    /// any and the poses have rigid names; none: no reflection.
+    #[arg(long, default_value = "auto")]
+    pub mirror: crease_deep::mirror::MirrorMode,
     /// LSTM layers of the encoder and of the decoder (paper: 4).
     #[arg(long, default_value_t = 4)]
     pub lstm_layers: usize,
@@ -232,6 +248,8 @@ fn register(a: RegisterArgs) -> Result<()> {
         w_bound: a.w_bound,
         node_spacing: a.node_spacing,
         iterations: a.iterations,
+        target_points: a.target_points,
+        min_weight: a.min_weight,
         ..Default::default()
     };
     let progress = CliProgress::new(a.quiet);
@@ -278,6 +296,8 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
         lags: a.lags,
         pose_history: a.pose_history,
         ridge: a.ridge,
+        pose_features: a.pose_features,
+        mirror: a.mirror,
         regressor: a.regressor,
         ar_state: a.ar_state,
         ar_rollout_iters: a.ar_rollout_iters,

@@ -4,8 +4,9 @@
 //! cargo run --release -p crease-deep --example deep_report -- subspace   DATA OUT [held-out]
 //! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT [held-out] [epochs] [layers] [hidden] [ridge] [AR states, e.g. 10,25,50]
 //! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT all [epochs] [layers] [hidden] [ridge] [AR states] [rollout-fit iterations, e.g. 0,5,20,50] [history time constants, e.g. "none;3,10,30"] [all|blend: every row, or only the linear, AR and blend rows]
+//! cargo run --release -p crease-deep --example deep_report -- fitloso    DATA OUT "features,mirror,ridge[,lstm LAYERSxHIDDENxEPOCHS];…"
 //! cargo run --release -p crease-deep --example deep_report -- cgan       DATA OUT [held-out] [epochs] [res] [filters] [ridge] [AR state] [variants, e.g. captured,captured_notemp,subspace200,subspace50,regression] [batch] [minutes per variant] [learning rate]
-//! cargo run --release -p crease-deep --example deep_report -- register   DATA OUT [frames]
+//! cargo run --release -p crease-deep --example deep_report -- register   DATA OUT [frames] [target points] [min weight] [iterations]
 //! cargo run --release -p crease-deep --example deep_report -- score      APPLY_OUT GT CAPTURED
 //! ```
 //!
@@ -43,6 +44,11 @@ fn main() -> R<()> {
             &arg(1).ok_or("DATA")?,
             &arg(2).ok_or("OUT")?,
             &arg(3).unwrap_or("seed_3".into()),
+        ),
+        "fitloso" => fit_loso(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            &arg(3).unwrap_or("raw,none,1e-3;auto,auto,1e-3".into()),
         ),
         "regression" if arg(3).as_deref() == Some("all") => regression_loso(
             &arg(1).ok_or("DATA")?,
@@ -104,6 +110,15 @@ fn main() -> R<()> {
             &arg(1).ok_or("DATA")?,
             &arg(2).ok_or("OUT")?,
             arg(3).map_or(Ok(5), |s| s.parse())?,
+            RegisterParams {
+                target_points: arg(4)
+                    .map_or(Ok(RegisterParams::default().target_points), |s| s.parse())?,
+                min_weight: arg(5)
+                    .map_or(Ok(RegisterParams::default().min_weight), |s| s.parse())?,
+                iterations: arg(6)
+                    .map_or(Ok(RegisterParams::default().iterations), |s| s.parse())?,
+                ..Default::default()
+            },
         ),
         "score" => score(
             &arg(1).ok_or("APPLY_OUT")?,
@@ -634,6 +649,107 @@ fn regression_loso(
         out,
         "regression_loso.json",
         &serde_json::json!({"splits": names, "ridge": ridge, "rows": rows, "fits": notes}),
+    )
+}
+
+/// Leave one sequence out through `crease deep train`'s own fit ([`crease_deep::train::fit`]: the subspace,
+/// the pose features, the mirror augmentation and every regressor as the model stores them): per variant
+/// (`features,mirror,ridge` with `--pose-features`, `--mirror` and `--ridge` values, optionally
+/// `,lstm LxHxE` for an LSTM of L layers × H units trained E epochs), the pose-only vertex error of the
+/// linear, autoregressive, blend (and LSTM) regressors on each held-out sequence, and the bound of the fitted
+/// subspace (projection of the held-out gt).
+fn fit_loso(data: &str, out: &str, variants: &str) -> R<()> {
+    use crease_deep::model::RegressorKind;
+    let names = sequence_names(data)?;
+    let mut table: Vec<(String, Vec<Scores>)> = Vec::new();
+    let mut notes = Vec::new();
+    for (si, held) in names.iter().enumerate() {
+        let (train, test) = split(data, held)?;
+        for v in variants.split(';').filter(|v| !v.trim().is_empty()) {
+            let f: Vec<&str> = v.split(',').map(str::trim).collect();
+            let mut params = TrainParams {
+                pose_features: f.first().copied().unwrap_or("auto").parse()?,
+                mirror: f.get(1).copied().unwrap_or("auto").parse()?,
+                ridge: f.get(2).map_or(Ok(1e-3), |r| r.parse())?,
+                ..Default::default()
+            };
+            if let Some(l) = f.get(3).and_then(|l| l.strip_prefix("lstm ")) {
+                let n: Vec<usize> = l.split('x').map(|x| x.parse()).collect::<Result<_, _>>()?;
+                params.regressor = RegressorKind::Lstm;
+                params.lstm = LstmConfig {
+                    layers: n[0],
+                    hidden: n[1],
+                    epochs: n[2],
+                    ..lstm_config(n[0], n[1], n[2])
+                };
+            }
+            let t0 = Instant::now();
+            let fitted =
+                crease_deep::train::fit(&train, &params, &crease_core::progress::NoProgress)?;
+            let fit_s = t0.elapsed().as_secs_f64();
+            let sub = &fitted.subspace;
+            let k = sub.k();
+            let truth: Vec<Vec<f64>> = test.fine.iter().map(|fr| sub.project(fr, k)).collect();
+            let mut kinds = vec![
+                RegressorKind::Linear,
+                RegressorKind::Autoregressive,
+                RegressorKind::Blend,
+            ];
+            if fitted.lstm.is_some() {
+                kinds.push(RegressorKind::Lstm);
+            }
+            let mut rows = vec![(
+                format!("{v}: subspace projection of gt (bound)"),
+                scores(sub, &truth, &truth, &test.fine),
+            )];
+            for kind in kinds {
+                let pred = fitted.coefficients(kind, &test.poses)?;
+                rows.push((
+                    format!("{v}: {}", kind.name()),
+                    scores(sub, &pred, &truth, &test.fine),
+                ));
+            }
+            for (name, e) in rows {
+                eprintln!(
+                    "{held} held out, {name}: {} mm (p95 {})",
+                    mm(e.mean),
+                    mm(e.p95)
+                );
+                match table.iter_mut().find(|(n, _)| *n == name) {
+                    Some((_, r)) => r.push(e),
+                    None => {
+                        assert_eq!(si, 0, "row {name} missing from an earlier split");
+                        table.push((name, vec![e]));
+                    }
+                }
+            }
+            notes.push(serde_json::json!({"held_out": held, "variant": v, "k": k, "fit_s": fit_s,
+                "features": fitted.control.features, "mirror": fitted.mirror.as_ref().map(|r| (r.axis_name(), r.asymmetry)),
+                "ar_rollout_losses": [fitted.ar_rollout_losses.first(), fitted.ar_rollout_losses.last()],
+                "lstm_final_loss": fitted.lstm_losses.last(), "lstm_s_per_epoch": fitted.seconds.lstm_s_per_epoch}));
+        }
+    }
+    print!("| variant: regressor |");
+    for n in &names {
+        print!(" {n} held out: mean / p95 (mm) |");
+    }
+    println!(" mean over splits (mm) | p95 (mm) | coefficient MSE (m²) |");
+    println!("|---|{}---|---|---|", "---|".repeat(names.len()));
+    let mut rows = Vec::new();
+    for (name, v) in &table {
+        let avg = |f: fn(&Scores) -> f64| v.iter().map(f).sum::<f64>() / v.len() as f64;
+        let (mean, p95, mse) = (avg(|e| e.mean), avg(|e| e.p95), avg(|e| e.mse));
+        print!("| {name} |");
+        for e in v {
+            print!(" {} / {} |", mm(e.mean), mm(e.p95));
+        }
+        println!(" {} | {} | {mse:.2e} |", mm(mean), mm(p95));
+        rows.push(serde_json::json!({"row": name, "per_split_mean_m": v.iter().map(|e| e.mean).collect::<Vec<_>>(), "mean_m": mean, "p95_m": p95, "coeff_mse": mse}));
+    }
+    write_json(
+        out,
+        "fit_loso.json",
+        &serde_json::json!({"splits": names, "rows": rows, "fits": notes}),
     )
 }
 
@@ -1423,14 +1539,18 @@ fn mapbound(data: &str, held: &str, resolutions: &[usize], step: usize) -> R<()>
     Ok(())
 }
 
-fn register(data: &str, out: &str, frames: usize) -> R<()> {
+fn register(data: &str, out: &str, frames: usize, params: RegisterParams) -> R<()> {
     let seq = Sequence::load(
         open_sequence(&Path::new(data).join("seed_1/gt"))?
             .source
             .as_ref(),
     )?;
     let topo: std::sync::Arc<Topology> = seq.topology.clone();
-    let mut reg = Registration::new(topo.clone(), &seq.frames[0], RegisterParams::default())?;
+    println!(
+        "target points {}, min weight {}, iterations {}",
+        params.target_points, params.min_weight, params.iterations
+    );
+    let mut reg = Registration::new(topo.clone(), &seq.frames[0], params.clone())?;
     println!("{} graph nodes; template = gt frame 1; scans sampled from later frames (20% holes, 2 mm noise)", reg.n_nodes());
     println!(
         "| frame | mean (mm) | p95 (mm) | template-to-frame mean (mm) | s |\n|---|---|---|---|---|"
@@ -1456,7 +1576,7 @@ fn register(data: &str, out: &str, frames: usize) -> R<()> {
     write_json(
         out,
         "registration.json",
-        &serde_json::json!({"rows": rows, "nodes": reg.n_nodes()}),
+        &serde_json::json!({"rows": rows, "nodes": reg.n_nodes(), "params": params}),
     )
 }
 

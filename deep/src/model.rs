@@ -27,7 +27,9 @@ use std::sync::Arc;
 /// plain one, or built control vectors of the wrong length, so it must refuse the model instead.
 /// Version 4 added the blend regressor (`blend` in the manifest: its weight); a version 3 crease could not
 /// parse a manifest whose `regressor` is `blend`, so it must see a version it refuses by name.
-pub const MODEL_VERSION: u32 = 4;
+/// Version 5 added pose features (`control.features`: rigid features of the pose, [`crate::pose_features`]); a
+/// version 4 crease would have ignored the field and built raw control vectors of the wrong length.
+pub const MODEL_VERSION: u32 = 5;
 /// Oldest format this build still reads: a version 1 model differs only by lacking the autoregressive
 /// regressor, so it still runs with the linear or LSTM one; the generator of a version 1 or 2 model has no
 /// `residual` field and runs as the plain generator it was trained as; models before version 4 have no blend

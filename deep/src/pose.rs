@@ -5,6 +5,7 @@
 //! acceleration, and the pose at a few earlier lags. Everything is normalised with statistics of the training
 //! data; constant dimensions (4 of the sleeve's 6) are guarded against a zero variance.
 
+use crate::pose_features::PoseFeatures;
 use crate::pose_history::DecayedHistory;
 use crease_core::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -81,6 +82,39 @@ pub fn read_pose_file(path: &Path, expect_frames: Option<usize>) -> Result<Vec<V
     Ok(out)
 }
 
+/// The pose file's `pose_vector_names` (what each number of a pose vector is), if it has them; a file read
+/// by [`read_pose_file`] already. Names that are not a list of strings as long as the vectors are an error naming
+/// the file.
+pub fn read_pose_names(path: &Path) -> Result<Option<Vec<String>>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let value: serde_json::Value = serde_json::from_str(&replace_non_finite(&text))
+        .map_err(|e| Error::format(path, Some(e.line()), format!("invalid JSON: {e}")))?;
+    let Some(names) = value.get("pose_vector_names") else {
+        return Ok(None);
+    };
+    let names: Vec<String> = names
+        .as_array()
+        .and_then(|a| a.iter().map(|n| n.as_str().map(String::from)).collect())
+        .ok_or_else(|| Error::format(path, None, "`pose_vector_names` is not a list of strings"))?;
+    let dim = value
+        .get("pose_vectors")
+        .and_then(|v| v.get(0))
+        .and_then(|v| v.as_array())
+        .map(|a| a.len());
+    if dim.is_some_and(|d| d != names.len()) {
+        return Err(Error::format(
+            path,
+            None,
+            format!(
+                "`pose_vector_names` has {} names for pose vectors of {} numbers",
+                names.len(),
+                dim.unwrap_or(0)
+            ),
+        ));
+    }
+    Ok(Some(names))
+}
+
 fn replace_non_finite(text: &str) -> String {
     let mut s = text.replace("-Infinity", "null");
     s = s.replace("Infinity", "null");
@@ -98,27 +132,54 @@ pub struct ControlSpec {
     /// Exponentially decayed pose history features ([`DecayedHistory`]); absent in models before format 3.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub history: Option<DecayedHistory>,
+    /// What the raw pose numbers become before they are normalised ([`PoseFeatures`]); raw in models before
+    /// format 5. `mean` and `scale` are per feature.
+    #[serde(default)]
+    pub features: PoseFeatures,
 }
 
 impl ControlSpec {
-    /// Statistics from all training poses.
+    /// Statistics from all training poses (raw features).
     pub fn fit(sequences: &[&[Vec<f64>]], lags: Vec<usize>) -> Result<Self> {
+        Self::fit_features(sequences, lags, PoseFeatures::Raw)
+    }
+
+    /// Statistics of `features` of all training poses. A feature that is constant, or that repeats an earlier
+    /// feature on the training poses, gets scale 0: it adds nothing, and a copy would halve the ridge on the
+    /// feature it copies.
+    pub fn fit_features(
+        sequences: &[&[Vec<f64>]],
+        lags: Vec<usize>,
+        features: PoseFeatures,
+    ) -> Result<Self> {
         let dim = sequences
             .iter()
             .find_map(|s| s.first().map(|r| r.len()))
             .ok_or_else(|| Error::param("poses", "no training poses"))?;
-        let all: Vec<&Vec<f64>> = sequences.iter().flat_map(|s| s.iter()).collect();
-        if let Some(r) = all.iter().find(|r| r.len() != dim) {
+        let raw: Vec<&Vec<f64>> = sequences.iter().flat_map(|s| s.iter()).collect();
+        if let Some(r) = raw.iter().find(|r| r.len() != dim) {
             return Err(Error::param(
                 "poses",
                 format!("pose vectors of length {} and {dim}", r.len()),
             ));
         }
+        if features.input_dim(dim) != dim {
+            return Err(Error::param(
+                "poses",
+                format!(
+                    "pose vectors of length {dim}; the pose features need {}",
+                    features.input_dim(dim)
+                ),
+            ));
+        }
+        let expanded: Vec<Vec<f64>> = raw.iter().map(|r| features.expand(r)).collect();
+        let all: Vec<&Vec<f64>> = expanded.iter().collect();
+        let dim = features.output_dim(dim);
         let n = all.len() as f64;
         let mean: Vec<f64> = (0..dim)
             .map(|j| all.iter().map(|r| r[j]).sum::<f64>() / n)
             .collect();
-        let scale = (0..dim)
+        let mut scale: Vec<f64> = (0..dim)
             .map(|j| {
                 let var = all.iter().map(|r| (r[j] - mean[j]).powi(2)).sum::<f64>() / n;
                 if var > 1e-12 {
@@ -128,11 +189,25 @@ impl ControlSpec {
                 }
             })
             .collect();
+        // Copies: the same standardised column up to rounding (x · cos 0 repeats x).
+        for j in 0..dim {
+            let copies = (0..j).any(|i| {
+                scale[i] != 0.0
+                    && scale[j] != 0.0
+                    && all.iter().all(|r| {
+                        ((r[j] - mean[j]) * scale[j] - (r[i] - mean[i]) * scale[i]).abs() < 1e-9
+                    })
+            });
+            if copies {
+                scale[j] = 0.0;
+            }
+        }
         Ok(ControlSpec {
             lags,
             mean,
             scale,
             history: None,
+            features,
         })
     }
 
@@ -156,7 +231,9 @@ impl ControlSpec {
         poses
             .iter()
             .map(|p| {
-                p.iter()
+                self.features
+                    .expand(p)
+                    .iter()
                     .enumerate()
                     .map(|(j, x)| (x - self.mean[j]) * self.scale[j])
                     .collect()
@@ -164,15 +241,24 @@ impl ControlSpec {
             .collect()
     }
 
+    /// Length of the raw pose vectors this spec reads.
     pub fn pose_dim(&self) -> usize {
+        self.features.input_dim(self.mean.len())
+    }
+
+    /// Number of pose features (after [`PoseFeatures::expand`]) per frame.
+    pub fn feature_dim(&self) -> usize {
         self.mean.len()
     }
 
     /// Length of a control vector: pose, velocity, acceleration, one pose per lag, the decayed history, and a
     /// constant 1.
     pub fn len(&self) -> usize {
-        self.pose_dim() * (3 + self.lags.len())
-            + self.history.as_ref().map_or(0, |h| h.len(self.pose_dim()))
+        self.feature_dim() * (3 + self.lags.len())
+            + self
+                .history
+                .as_ref()
+                .map_or(0, |h| h.len(self.feature_dim()))
             + 1
     }
 

@@ -7,11 +7,13 @@
 use crate::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
 use crate::blend::{BlendSpec, WeightFit};
 use crate::lstm::{windows, LstmConfig, LstmRegressor};
+use crate::mirror::{reflect_pose, MirrorMode, Reflection};
 use crate::model::{
     write_autoregressive, write_core_parts, ArSpec, Manifest, ModelWriter, RegressorKind,
     MODEL_FORMAT, MODEL_VERSION,
 };
-use crate::pose::{read_pose_file, ControlSpec};
+use crate::pose::{read_pose_file, read_pose_names, ControlSpec};
+use crate::pose_features::{PoseFeatureMode, PoseFeatures};
 use crate::regress::LinearRegression;
 use crate::subspace::Subspace;
 use crate::uv::{auto_atlas, read_obj_uv, UvLayout};
@@ -29,6 +31,8 @@ pub struct TrainingSequence {
     pub fine: Vec<Frame>,
     pub coarse: Vec<Frame>,
     pub poses: Vec<Vec<f64>>,
+    /// `pose_vector_names` of the pose file, when it has them ([`crate::pose_features`]).
+    pub pose_names: Option<Vec<String>>,
 }
 
 /// Loads `dir/gt`, `dir/captured` and `dir/pose.json`, checking they agree on frames and topology.
@@ -55,12 +59,14 @@ pub fn load_training_dir(dir: &Path) -> Result<TrainingSequence> {
         )));
     }
     let poses = read_pose_file(&dir.join("pose.json"), Some(gt.frames.len()))?;
+    let pose_names = read_pose_names(&dir.join("pose.json"))?;
     Ok(TrainingSequence {
         dir: dir.to_path_buf(),
         topology: gt.topology,
         fine: gt.frames,
         coarse: captured.frames,
         poses,
+        pose_names,
     })
 }
 
@@ -74,6 +80,10 @@ pub struct TrainParams {
     pub pose_history: Vec<f64>,
     /// Ridge weight of the linear regression, relative to the mean diagonal of ΘᵀΘ.
     pub ridge: f64,
+    /// What the pose numbers become before the regression ([`crate::pose_features`]).
+    pub pose_features: PoseFeatureMode,
+    /// Reflection that augments the subspace and regression data ([`crate::mirror`]).
+    pub mirror: MirrorMode,
     /// Regressor used by `apply --pose`. The linear and autoregressive ones are always trained (seconds);
     /// `Lstm` adds the network.
     pub regressor: RegressorKind,
@@ -109,6 +119,11 @@ impl Default for TrainParams {
             lags: vec![],
             pose_history: vec![],
             ridge: 1e-3,
+            // Rigid pose features and the mirror: over the three splits the default blend went from 6.85 mm
+            // (raw pose, no mirror) to 5.27 mm with the features and 4.45 mm with both; on data without
+            // rigid pose names or without a symmetric first frame both fall back to what they were.
+            pose_features: PoseFeatureMode::Auto,
+            mirror: MirrorMode::Auto,
             // The blend of the linear map and the autoregressive rollout, evenly weighted: 6.85 mm over the
             // splits against the rollout's 7.20 mm; its weight fitted by an inner leave-one-out measured
             // 6.94 mm (with two training sequences each inner fit sees one, and the weights scatter).
@@ -198,6 +213,8 @@ pub struct Fitted {
     pub ar_rollout_losses: Vec<f64>,
     pub lstm_losses: Vec<f64>,
     pub seconds: BTreeSummary,
+    /// The reflection that augmented the training data, if any.
+    pub mirror: Option<Reflection>,
 }
 
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -215,11 +232,63 @@ pub fn fit(
     progress: &dyn Progress,
 ) -> Result<Fitted> {
     params.validate()?;
-    common_topology(seqs)?;
-    let t0 = Instant::now();
-    let frames: Vec<&[[f64; 3]]> = seqs
+    let topo = common_topology(seqs)?;
+    let first = seqs
+        .first()
+        .ok_or_else(|| Error::param("data", "no training directories"))?;
+    let pose_source = first.dir.join("pose.json").display().to_string();
+    let features = PoseFeatures::choose(
+        params.pose_features,
+        first.pose_names.as_deref(),
+        &pose_source,
+    )?;
+    if features != PoseFeatures::Raw {
+        if let Some(s) = seqs.iter().find(|s| s.pose_names != first.pose_names) {
+            return Err(Error::param(
+                "pose_features",
+                format!(
+                    "{} names its pose numbers differently from {pose_source} (`pose_vector_names`)",
+                    s.dir.join("pose.json").display()
+                ),
+            ));
+        }
+    }
+    let mirror = Reflection::choose(
+        params.mirror,
+        &topo,
+        &first.fine[0],
+        features != PoseFeatures::Raw,
+        &first.dir.display().to_string(),
+    )?;
+    // Every training sequence, then (with a reflection) every one reflected: (fine frames, poses).
+    let reflected: Vec<(Vec<Frame>, Vec<Vec<f64>>)> = match &mirror {
+        Some(r) => seqs
+            .iter()
+            .map(|s| {
+                (
+                    s.fine.iter().map(|f| r.reflect_frame(f)).collect(),
+                    s.poses.iter().map(|p| reflect_pose(p, r.axis)).collect(),
+                )
+            })
+            .collect(),
+        None => Vec::new(),
+    };
+    let data: Vec<(&[Frame], &[Vec<f64>])> = seqs
         .iter()
-        .flat_map(|s| s.fine.iter().map(|f| f.as_slice()))
+        .map(|s| (s.fine.as_slice(), s.poses.as_slice()))
+        .chain(reflected.iter().map(|(f, p)| (f.as_slice(), p.as_slice())))
+        .collect();
+    if let Some(r) = &mirror {
+        progress.note(&format!(
+            "mirror: training data reflected in {} = 0 too (first frame asymmetry {:.2} edge lengths)",
+            r.axis_name(),
+            r.asymmetry
+        ));
+    }
+    let t0 = Instant::now();
+    let frames: Vec<&[[f64; 3]]> = data
+        .iter()
+        .flat_map(|(fine, _)| fine.iter().map(|f| f.as_slice()))
         .collect();
     let subspace = Subspace::fit(&frames, params.k)?;
     let k = subspace.k();
@@ -228,15 +297,15 @@ pub fn fit(
         "subspace: {k} components from {} frames in {subspace_s:.1} s",
         frames.len()
     ));
-    let pose_refs: Vec<&[Vec<f64>]> = seqs.iter().map(|s| s.poses.as_slice()).collect();
-    let control = ControlSpec::fit(&pose_refs, params.lags.clone())?
+    let pose_refs: Vec<&[Vec<f64>]> = data.iter().map(|(_, p)| *p).collect();
+    let control = ControlSpec::fit_features(&pose_refs, params.lags.clone(), features)?
         .with_history(&pose_refs, &params.pose_history)?;
     let mut controls = Vec::new();
     let mut targets = Vec::new();
     let mut per_seq = Vec::new();
-    for s in seqs {
-        let c = control.controls(&s.poses)?;
-        let t: Vec<Vec<f64>> = s.fine.iter().map(|f| subspace.project(f, k)).collect();
+    for (fine, poses) in &data {
+        let c = control.controls(poses)?;
+        let t: Vec<Vec<f64>> = fine.iter().map(|f| subspace.project(f, k)).collect();
         controls.extend(c.iter().cloned());
         targets.extend(t.iter().cloned());
         per_seq.push((c, t));
@@ -305,6 +374,7 @@ pub fn fit(
             lstm_s,
             lstm_s_per_epoch: lstm_s / params.lstm.epochs.max(1) as f64,
         },
+        mirror,
     })
 }
 
@@ -454,6 +524,7 @@ pub fn train(
             "seconds": fitted.seconds,
             "lstm_final_loss": fitted.lstm_losses.last(),
             "autoregressive_rollout_loss": [fitted.ar_rollout_losses.first(), fitted.ar_rollout_losses.last()],
+            "mirror": fitted.mirror.as_ref().map(|r| serde_json::json!({"axis": r.axis_name(), "asymmetry_edges": r.asymmetry})),
             "cgan": cgan_summary,
         }),
         files: Default::default(),

@@ -32,6 +32,7 @@ fn sequence(dir: &Path, frames: usize, phase: f64) -> TrainingSequence {
         fine,
         coarse,
         poses,
+        pose_names: None,
     }
 }
 

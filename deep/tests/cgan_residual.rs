@@ -146,6 +146,7 @@ fn sequence(dir: &Path, frames: usize, phase: f64) -> TrainingSequence {
         fine,
         coarse,
         poses,
+        pose_names: None,
     }
 }
 
@@ -171,7 +172,7 @@ fn a_version_2_models_generator_runs_as_the_plain_one_it_was() {
     train(&seqs, &params, &dir, &NoProgress).unwrap();
     let manifest: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
-    assert_eq!(manifest["version"], 4);
+    assert_eq!(manifest["version"], 5);
     assert_eq!(manifest["cgan"]["residual"], true);
 
     // What version 2 wrote: the same files, no `residual` in the cGAN section.

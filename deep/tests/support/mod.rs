@@ -83,6 +83,7 @@ pub fn leaky_sequence(
         coarse: fine.clone(),
         fine,
         poses,
+        pose_names: None,
     }
 }
 

@@ -1,11 +1,11 @@
 //! The streaming driver of the space-time deformation.
 //!
 //! For each time window in order: solve the weights (fused or per-anchor), cross-fade into the previous
-//! window's tail, and for every frame that is now final — in parallel across frames — read its original
-//! geometry, factorise its positioning matrix once, blend the rotations, position the vertices, run the
-//! stretch-reduction passes reusing the factor, measure stretch after each step, and hand the frame to the
-//! sink. Frames are read when needed and written when done, so memory is bounded by one window plus the
-//! frames in flight, whatever the sequence length.
+//! window's tail, and for every frame that is now final — in parallel across frames, while the next window's
+//! weights are solved — read its original geometry, factorise its positioning matrix once, blend the
+//! rotations, position the vertices, run the stretch-reduction passes reusing the factor, measure stretch
+//! after each step, and hand the frame to the sink. Frames are read when needed and written when done, so
+//! memory is bounded by one window's solve plus one window's released frames, whatever the sequence length.
 
 use super::blend::CrossFade;
 use super::params::DeformParams;
@@ -28,6 +28,8 @@ use std::time::Instant;
 pub struct StageTimings {
     pub symbolic: f64,
     pub read: f64,
+    /// Wall time of each window's weight solve, summed; the solve runs while the previous window's frames are
+    /// positioned, so it shares the threads with them.
     pub weights: f64,
     pub blend: f64,
     /// Numeric Cholesky factorisation of each frame's positioning matrix.
@@ -106,40 +108,49 @@ pub fn deform(
     let mut kept = KeptFrames::default();
     progress.begin("weights", windows.len() as u64);
     progress.begin("position", n as u64);
-    for w in &windows {
+    // Window k's weights are solved while the frames window k − 1 released are positioned, both on the same
+    // thread pool: the solve's parallel sweeps and the per-frame positioning fill each other's idle threads
+    // (a window releases 7 frames by default, which 2 threads cannot split evenly, and the solve's reductions
+    // wait on their slowest chunk). Every stage is a pure function of its inputs, so the overlap changes no
+    // output bit; frames are still written in order, each window's as soon as it is positioned, and at most
+    // one window's released frames are read before they are written.
+    let position_ready =
+        |ready: Vec<(usize, Vec<crate::vec3::V3>)>| -> Vec<Result<PositionedFrame>> {
+            ready
+                .into_par_iter()
+                .map(|(t, phi)| {
+                    if progress.cancelled() {
+                        return Err(Error::Cancelled);
+                    }
+                    let r = position_frame(
+                        &system,
+                        source,
+                        t,
+                        &phi,
+                        params.stretch_passes,
+                        params.stretch_rotation,
+                        params.restoration(),
+                    );
+                    progress.advance("position", 1);
+                    r
+                })
+                .collect()
+        };
+    let mut ready = Vec::new();
+    for k in 0..=windows.len() {
         if progress.cancelled() {
             return Err(Error::Cancelled);
         }
-        let problem = WindowProblem::new(&topo, anchors, *w, params.coefficients);
-        let (field, stats) = solve_window(&problem, params, progress)?;
-        drop(problem);
-        timings.weights += stats.seconds;
-        window_stats.push(stats);
-        progress.advance("weights", 1);
-        let t_fade = Instant::now();
-        let ready = fade.push(&field);
-        drop(field);
-        timings.blend += t_fade.elapsed().as_secs_f64();
-
-        let outcomes: Vec<Result<PositionedFrame>> = ready
-            .into_par_iter()
-            .map(|(t, phi)| {
-                if progress.cancelled() {
-                    return Err(Error::Cancelled);
-                }
-                let r = position_frame(
-                    &system,
-                    source,
-                    t,
-                    &phi,
-                    params.stretch_passes,
-                    params.stretch_rotation,
-                    params.restoration(),
-                );
-                progress.advance("position", 1);
-                r
-            })
-            .collect();
+        let released = std::mem::take(&mut ready);
+        let (solved, outcomes) = rayon::join(
+            || {
+                windows.get(k).map(|w| {
+                    let problem = WindowProblem::new(&topo, anchors, *w, params.coefficients);
+                    solve_window(&problem, params, progress)
+                })
+            },
+            || position_ready(released),
+        );
         for o in outcomes {
             let o = o?;
             let tw = Instant::now();
@@ -161,6 +172,17 @@ pub fn deform(
                 kept.frames.push((o.t, o.rest, o.out));
             }
         }
+        let Some(solved) = solved else {
+            break;
+        };
+        let (field, stats) = solved?;
+        timings.weights += stats.seconds;
+        window_stats.push(stats);
+        progress.advance("weights", 1);
+        let t_fade = Instant::now();
+        ready = fade.push(&field);
+        drop(field);
+        timings.blend += t_fade.elapsed().as_secs_f64();
     }
     progress.end("weights");
     progress.end("position");

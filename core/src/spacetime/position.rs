@@ -39,6 +39,7 @@
 //! displacement is zero (the garment stays centred on the capture instead of hanging from an arbitrary
 //! vertex); [`Pinning::Vertex`] keeps the fixed vertex exactly in place instead.
 
+use super::restore::RestoreMesh;
 use crate::error::{Error, Result};
 use crate::mesh::{Frame, Topology, NONE};
 use crate::vec3::{self, M3, V3};
@@ -48,7 +49,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// How the translational degree of freedom of each connected component is removed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -77,6 +78,8 @@ pub struct PositionSystem {
     /// For triangle corner pairs (0,0),(1,1),(2,2),(0,1),(1,2),(2,0): index into the values array, or NONE.
     scatter: Vec<[u32; 6]>,
     symbolic: SymbolicCholesky<usize>,
+    /// The fold restoration's connectivity tables, built by the first frame that needs them.
+    restore_mesh: OnceLock<RestoreMesh>,
 }
 
 const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0)];
@@ -168,11 +171,19 @@ impl PositionSystem {
             row_idx,
             scatter,
             symbolic,
+            restore_mesh: OnceLock::new(),
         })
     }
 
     pub fn topology(&self) -> &Arc<Topology> {
         &self.topo
+    }
+
+    /// The fold restoration's connectivity tables for this mesh (built once, on first use, shared by every
+    /// frame and thread).
+    pub fn restore_mesh(&self) -> &RestoreMesh {
+        self.restore_mesh
+            .get_or_init(|| RestoreMesh::new(&self.topo))
     }
 
     /// Assembles the lower triangle of the reduced cotangent stiffness matrix of one original frame (values in

@@ -67,7 +67,24 @@ impl Restoration {
     /// The restored positions: `out` plus what the deconvolution adds to the captured surface, along its
     /// normal, where the deformation (from `rest` to `out`) tilted the surface. `out` is returned unchanged when the restoration
     /// is inactive or `out` equals `rest`.
+    ///
+    /// Builds the connectivity tables of [`RestoreMesh`] on every call; a caller restoring many frames of one
+    /// mesh builds them once and calls [`Restoration::apply_with`] (same result, bit for bit).
     pub fn apply(&self, topo: &Topology, rest: &[V3], out: &[V3]) -> Vec<V3> {
+        if !self.is_active() || out == rest {
+            return out.to_vec();
+        }
+        self.apply_with(topo, &RestoreMesh::new(topo), rest, out)
+    }
+
+    /// [`Restoration::apply`] with the connectivity tables built beforehand (`mesh` must be `topo`'s).
+    pub fn apply_with(
+        &self,
+        topo: &Topology,
+        mesh: &RestoreMesh,
+        rest: &[V3],
+        out: &[V3],
+    ) -> Vec<V3> {
         if !self.is_active() || out == rest {
             return out.to_vec();
         }
@@ -75,21 +92,21 @@ impl Restoration {
         let n_rest = geometry::vertex_normals(topo, rest);
         let n_out = geometry::vertex_normals(topo, out);
         // The capture filter undone as far as `steps` allows: what it adds is the folds the capture damped.
-        let sharp = deconvolve(&TaubinFilter::capture(topo), rest, self.steps);
+        let sharp = deconvolve(&mesh.filter, rest, self.steps);
         let mut weight: Vec<f64> = (0..n)
             // atan2 of |sin| and cos: exactly 0 where the normal did not change (acos of a rounded dot is not).
             .map(|v| {
                 vec3::norm(vec3::cross(n_rest[v], n_out[v])).atan2(vec3::dot(n_rest[v], n_out[v]))
             })
             .collect();
+        let mut next = vec![0.0; n];
         for _ in 0..2 {
-            weight = (0..n)
-                .map(|v| {
-                    let nb = topo.vertex_neighbors(v);
-                    let sum: f64 = nb.iter().map(|&w| weight[w as usize]).sum::<f64>() + weight[v];
-                    sum / (nb.len() + 1) as f64
-                })
-                .collect();
+            for (v, w) in next.iter_mut().enumerate() {
+                let nb = mesh.ring(v);
+                let sum: f64 = nb.iter().map(|&u| weight[u as usize]).sum::<f64>() + weight[v];
+                *w = sum / (nb.len() + 1) as f64;
+            }
+            std::mem::swap(&mut weight, &mut next);
         }
         (0..n)
             .map(|v| {
@@ -101,6 +118,39 @@ impl Restoration {
                 vec3::add(out[v], vec3::scale(n_rest[v], w * height))
             })
             .collect()
+    }
+}
+
+/// What the restoration needs of the connectivity, which is the same for every frame: the capture filter
+/// (its neighbour lists) and every vertex's one-ring for the tilt smoothing. Building them takes a sorted
+/// neighbour list per vertex (one allocation each), as long as a good part of the filter's sweeps, so the
+/// deformation builds them once per sequence ([`super::position::PositionSystem::restore_mesh`]).
+pub struct RestoreMesh {
+    filter: TaubinFilter,
+    ring_offsets: Vec<u32>,
+    ring: Vec<u32>,
+}
+
+impl RestoreMesh {
+    pub fn new(topo: &Topology) -> Self {
+        let nv = topo.n_vertices();
+        let mut ring_offsets = Vec::with_capacity(nv + 1);
+        let mut ring = Vec::with_capacity(6 * nv);
+        ring_offsets.push(0u32);
+        for v in 0..nv {
+            // Sorted and unique, as `Topology::vertex_neighbors` gives them (the smoothing sums in this order).
+            ring.extend(topo.vertex_neighbors(v));
+            ring_offsets.push(ring.len() as u32);
+        }
+        RestoreMesh {
+            filter: TaubinFilter::capture(topo),
+            ring_offsets,
+            ring,
+        }
+    }
+
+    fn ring(&self, v: usize) -> &[u32] {
+        &self.ring[self.ring_offsets[v] as usize..self.ring_offsets[v + 1] as usize]
     }
 }
 

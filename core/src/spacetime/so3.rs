@@ -106,6 +106,73 @@ pub fn rotation_between(from: V3, to: V3) -> V3 {
     )
 }
 
+/// Unit quaternion [w, x, y, z] (w ≥ 0 not guaranteed) of a rotation matrix, by Shepperd's method: the
+/// square root is taken of the largest of 1 + trace and 1 + 2 R_kk − trace, so no division is by a small
+/// number and the result is accurate to rounding for every rotation, including half turns.
+pub fn to_quaternion(r: &M3) -> [f64; 4] {
+    let (m00, m11, m22) = (r[0][0], r[1][1], r[2][2]);
+    let tr = m00 + m11 + m22;
+    if tr >= m00 && tr >= m11 && tr >= m22 {
+        let w = 0.5 * (1.0 + tr).sqrt();
+        let s = 0.25 / w;
+        [
+            w,
+            (r[2][1] - r[1][2]) * s,
+            (r[0][2] - r[2][0]) * s,
+            (r[1][0] - r[0][1]) * s,
+        ]
+    } else if m00 >= m11 && m00 >= m22 {
+        let x = 0.5 * (1.0 + m00 - m11 - m22).sqrt();
+        let s = 0.25 / x;
+        [
+            (r[2][1] - r[1][2]) * s,
+            x,
+            (r[0][1] + r[1][0]) * s,
+            (r[0][2] + r[2][0]) * s,
+        ]
+    } else if m11 >= m22 {
+        let y = 0.5 * (1.0 - m00 + m11 - m22).sqrt();
+        let s = 0.25 / y;
+        [
+            (r[0][2] - r[2][0]) * s,
+            (r[0][1] + r[1][0]) * s,
+            y,
+            (r[1][2] + r[2][1]) * s,
+        ]
+    } else {
+        let z = 0.5 * (1.0 - m00 - m11 + m22).sqrt();
+        let s = 0.25 / z;
+        [
+            (r[1][0] - r[0][1]) * s,
+            (r[0][2] + r[2][0]) * s,
+            (r[1][2] + r[2][1]) * s,
+            z,
+        ]
+    }
+}
+
+/// Rotation matrix of a unit quaternion [w, x, y, z].
+pub fn from_quaternion(q: [f64; 4]) -> M3 {
+    let [w, x, y, z] = q;
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
+}
+
 /// Geodesic angle between two rotations, |log(Aᵀ B)|.
 pub fn angle_between(a: &M3, b: &M3) -> f64 {
     vec3::norm(log(&vec3::mat_mul(&vec3::transpose(a), b)))
@@ -142,6 +209,31 @@ mod tests {
             }
             let back = log(&r);
             assert!(close(back, phi, 1e-6), "{phi:?} -> {back:?}");
+        }
+    }
+
+    #[test]
+    fn quaternions_round_trip_every_branch() {
+        // Small angles (trace branch) and half turns about each axis (the three diagonal branches).
+        let pi = std::f64::consts::PI;
+        for phi in [
+            [0.0, 0.0, 0.0],
+            [0.3, -0.2, 0.9],
+            [pi - 1e-9, 0.0, 0.0],
+            [0.0, pi, 0.0],
+            [0.1, 0.2, pi - 0.05],
+            [-2.0, 1.0, 0.5],
+        ] {
+            let r = exp(phi);
+            let q = to_quaternion(&r);
+            let len = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+            assert!((len - 1.0).abs() < 1e-14, "{phi:?}: |q| = {len}");
+            let back = from_quaternion(q);
+            for i in 0..3 {
+                for j in 0..3 {
+                    assert!((back[i][j] - r[i][j]).abs() < 1e-14, "{phi:?}");
+                }
+            }
         }
     }
 

@@ -206,7 +206,7 @@ pub fn position_frame(
     let moved = out != rest;
     let restoring = moved && restore.is_active();
     if restoring && passes == 0 {
-        out = restore.apply(system.topology(), &rest, &out);
+        out = restore.apply_with(system.topology(), system.restore_mesh(), &rest, &out);
     }
     stretch.push(measure(&out, &mut metrics));
     let mut pass_times = Vec::with_capacity(passes);
@@ -216,7 +216,7 @@ pub fn position_frame(
             out = super::stretch::pass(&fp, &out, rotation, &rotations);
         }
         if restoring && k + 1 == passes {
-            out = restore.apply(system.topology(), &rest, &out);
+            out = restore.apply_with(system.topology(), system.restore_mesh(), &rest, &out);
         }
         pass_times.push(clock.elapsed().as_secs_f64());
         stretch.push(measure(&out, &mut metrics));

@@ -97,10 +97,19 @@ pub fn anchored_rotations(fp: &FramePositioner, current: &[V3], blended: &[M3]) 
         .collect()
 }
 
-/// The geodesic midpoint of two rotations.
+/// The geodesic midpoint of two rotations, P · exp(½ log(Pᵀ B)), evaluated with unit quaternions: for
+/// q_P · q_B ≥ 0 (the shorter arc, which is the principal logarithm's) the half-way rotation is
+/// (q_P + q_B) / |q_P + q_B|, the same rotation up to rounding without the log/exp pair's trigonometry.
 fn midpoint(p: &M3, b: &M3) -> M3 {
-    let rel = so3::log(&vec3::mat_mul(&vec3::transpose(p), b));
-    vec3::mat_mul(p, &so3::exp(vec3::scale(rel, 0.5)))
+    let qp = so3::to_quaternion(p);
+    let mut qb = so3::to_quaternion(b);
+    if qp.iter().zip(&qb).map(|(a, c)| a * c).sum::<f64>() < 0.0 {
+        qb = qb.map(|v| -v);
+    }
+    // |q_P + q_B|² = 2 + 2 |q_P · q_B| ≥ 2: never small.
+    let sum: [f64; 4] = std::array::from_fn(|k| qp[k] + qb[k]);
+    let inv = 1.0 / sum.iter().map(|v| v * v).sum::<f64>().sqrt();
+    so3::from_quaternion(sum.map(|v| v * inv))
 }
 
 /// The rotation nearest (Frobenius) to the map taking triangle `r` (unit normal `n0`) to triangle `o`, with the
@@ -129,8 +138,10 @@ fn closest_rotation(r: [V3; 3], n0: V3, o: [V3; 3]) -> Option<M3> {
     // The 2x2 in-plane part in the new plane's frame (p, q) and its closest rotation angle.
     let (g00, g01) = (vec3::dot(p, j1), vec3::dot(p, j2));
     let (g10, g11) = (vec3::dot(q, j1), vec3::dot(q, j2));
-    let phi = (g10 - g01).atan2(g00 + g11);
-    let (c, s) = (phi.cos(), phi.sin());
+    // The angle φ = atan2(g10 − g01, g00 + g11), needed only as its cosine and sine.
+    let (x, y) = (g00 + g11, g10 - g01);
+    let h = (x * x + y * y).sqrt();
+    let (c, s) = if h > 0.0 { (x / h, y / h) } else { (1.0, 0.0) };
     let u1 = vec3::add(vec3::scale(p, c), vec3::scale(q, s));
     let v1 = vec3::sub(vec3::scale(q, c), vec3::scale(p, s));
     let mut m = [[0.0; 3]; 3];
@@ -179,6 +190,32 @@ mod tests {
         }
         // A collapsed triangle has no rotation.
         assert!(closest_rotation(r, n0, [[0.0; 3]; 3]).is_none());
+    }
+
+    /// The quaternion midpoint is the log/exp formula's rotation to rounding, also close to a half turn.
+    #[test]
+    fn midpoint_matches_the_log_exp_formula() {
+        let reference = |p: &M3, b: &M3| {
+            let rel = so3::log(&vec3::mat_mul(&vec3::transpose(p), b));
+            vec3::mat_mul(p, &so3::exp(vec3::scale(rel, 0.5)))
+        };
+        let pi = std::f64::consts::PI;
+        let cases = [
+            ([0.1, 0.7, -0.2], [-0.4, 0.2, 0.9]),
+            ([0.0, 0.0, 0.0], [1e-9, 0.0, 0.0]),
+            ([2.5, -1.0, 0.3], [-2.0, 1.5, 0.1]),
+            ([0.0, 0.0, 0.0], [0.0, pi - 1e-3, 0.0]),
+            ([pi - 0.1, 0.0, 0.0], [0.0, 0.0, 3.0]),
+        ];
+        for (a, c) in cases {
+            let (p, b) = (so3::exp(a), so3::exp(c));
+            let (got, want) = (midpoint(&p, &b), reference(&p, &b));
+            for i in 0..3 {
+                for j in 0..3 {
+                    assert!((got[i][j] - want[i][j]).abs() < 1e-9, "{a:?} {c:?}");
+                }
+            }
+        }
     }
 
     /// The midpoint lies on the geodesic, at the same angle from both ends, and fixes equal rotations.

@@ -65,8 +65,8 @@ pub struct StretchArgs {
     /// Try the previous frame's fold seeds first (Chen's seed memory); makes tracing sequential over time.
     #[arg(long = "stretch-seed-memory", default_value_t = StretchParams::default().seed_memory)]
     pub seed_memory: bool,
-    /// Patch flattening of fold tracing: `lscm` (default: least-squares conformal map, one sparse solve per
-    /// seed) or `unfold` (unfolding from the seed, no solve; LSCM for a patch that folds over).
+    /// Patch flattening of fold tracing: `unfold` (default: unfolding from the seed, no solve; LSCM for a patch
+    /// that folds over) or `lscm` (least-squares conformal map, one sparse solve per seed).
     #[arg(long = "stretch-flattening", default_value = StretchParams::default().flattening.name(),
           value_parser = ["unfold", "lscm"])]
     pub flattening: String,

@@ -75,13 +75,13 @@ pub struct StretchParams {
 pub enum Flattening {
     /// Unfolding from the seed outwards, each vertex at the mean of where its laid-out triangles put it
     /// ([`super::unfold`]): exact on developable patches, no solve. A patch too curved to unfold without
-    /// triangles folding over (a fifth of the patches on the sleeve sample) is flattened by LSCM instead. Not
-    /// the default: its fold figures stay 0.002–0.004 below LSCM's on both public stretch cases
-    /// (docs/benchmarks.md, "issue14-trace").
+    /// triangles folding over (a fifth of the patches on the sleeve sample) is flattened by LSCM instead. The
+    /// default: half the detection time of LSCM at 100K triangles and a third of its memory, with fold figures
+    /// within 0.003 of LSCM's on both public stretch cases and a lower drift max (docs/folds.md).
+    #[default]
     Unfold,
     /// Least-squares conformal map, one sparse Cholesky solve per seed ([`super::lscm`]): spreads the
     /// distortion of a curved patch over all of it instead of outwards from the seed.
-    #[default]
     Lscm,
 }
 
@@ -129,7 +129,7 @@ impl Default for StretchParams {
             min_length: 2.0,
             temporal_radius: 2,
             seed_memory: false,
-            flattening: Flattening::Lscm,
+            flattening: Flattening::Unfold,
         }
     }
 }

@@ -3,8 +3,8 @@
 //! * **Seeds** come from a priority queue of integrated shrinkage (absolute change), largest first, one at a
 //!   time; with `seed_memory` on, seeds of the previous frame go first (the thesis' seed memory; off by default,
 //!   see [`StretchParams::seed_memory`]).
-//! * **Axis** ([`FoldTracer::axis`]): the patch around the seed is flattened ([`super::lscm`] by default; on
-//!   request [`super::unfold`], with LSCM where unfolding folds triangles over); from the seed's centroid a line
+//! * **Axis** ([`FoldTracer::axis`]): the patch around the seed is flattened ([`super::unfold`] by default, with
+//!   LSCM where unfolding folds triangles over; on request [`super::lscm`] everywhere); from the seed's centroid a line
 //!   is marched in the plane perpendicular to the shrinkage direction, following each crossed triangle's own
 //!   direction, in both senses, until the shrinkage fades below `fade` of the seed's or the direction turns by
 //!   more than `max_turn`.

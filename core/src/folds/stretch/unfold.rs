@@ -1,5 +1,5 @@
-//! Flattening a fold seed's patch by unfolding it (issue 14; `flattening = "unfold"`): a patch parameterisation
-//! of tracing without the sparse LSCM solve per seed ([`super::lscm`], the default). Tracing falls back to LSCM
+//! Flattening a fold seed's patch by unfolding it (issue 14; the default `flattening = "unfold"`): a patch
+//! parameterisation of tracing without the sparse LSCM solve per seed ([`super::lscm`], selectable). Tracing falls back to LSCM
 //! for a patch whose unfolded layout folds triangles over (`trace.rs`, `unfolds_without_overlap`).
 //!
 //! Vertices are laid out from the seed outwards, in order of their 3D distance from the seed triangle's

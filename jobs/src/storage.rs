@@ -195,6 +195,19 @@ impl Storage {
         self.local.as_deref()
     }
 
+    /// Removes the staging files that puts killed half way left under a local root (`LocalFileSystem` writes
+    /// `key#N` and renames it; a worker killed in between leaves `key#N` behind, and no other file can have that
+    /// name: keys with `#` are refused). Called by the job's last task, when no live attempt writes under the
+    /// root any more (an abandoned attempt that still does loses its rename and fails, which is harmless: its
+    /// bytes were the same). Returns the files removed; a remote root has none to remove.
+    pub fn remove_put_leftovers(&self) -> std::io::Result<Vec<PathBuf>> {
+        let mut removed = Vec::new();
+        if let Some(root) = &self.local {
+            remove_put_leftovers_under(root, &mut removed)?;
+        }
+        Ok(removed)
+    }
+
     /// `uri/key`, for messages.
     pub fn describe(&self, key: &str) -> String {
         format!("{}/{}", self.uri.trim_end_matches('/'), key)
@@ -496,4 +509,71 @@ fn fnv1a(bytes: &[u8]) -> u64 {
     bytes.iter().fold(0xcbf29ce484222325u64, |h, &b| {
         (h ^ b as u64).wrapping_mul(0x100000001b3)
     })
+}
+
+/// Whether `name` is a `LocalFileSystem` staging name: `key#N`, N decimal.
+fn is_put_leftover(name: &str) -> bool {
+    name.rsplit_once('#').is_some_and(|(key, n)| {
+        !key.is_empty() && !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit())
+    })
+}
+
+fn remove_put_leftovers_under(dir: &Path, removed: &mut Vec<PathBuf>) -> std::io::Result<()> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(e) => e,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(e),
+    };
+    for e in entries {
+        let e = e?;
+        let kind = e.file_type()?;
+        let path = e.path();
+        if kind.is_dir() {
+            remove_put_leftovers_under(&path, removed)?;
+        } else if kind.is_file() && is_put_leftover(&e.file_name().to_string_lossy()) {
+            match std::fs::remove_file(&path) {
+                Ok(()) => removed.push(path),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+                Err(e) => return Err(e),
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod put_leftover_tests {
+    use super::*;
+
+    #[test]
+    fn only_staging_names_are_leftovers() {
+        assert!(is_put_leftover("report.json#1"));
+        assert!(is_put_leftover("frame_0003.obj#12"));
+        assert!(!is_put_leftover("report.json"));
+        assert!(!is_put_leftover("report.json#"));
+        assert!(!is_put_leftover("#1"));
+        assert!(!is_put_leftover("a#b"));
+    }
+
+    #[test]
+    fn a_killed_put_leaves_nothing_after_the_sweep() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path();
+        std::fs::create_dir_all(root.join(".crease-work/weights")).unwrap();
+        for f in [
+            "report.json#1",
+            "frame_0001.obj",
+            "frame_0001.obj#2",
+            ".crease-work/weights/w0.npy#1",
+        ] {
+            std::fs::write(root.join(f), b"x").unwrap();
+        }
+        let storage = Storage::open(root.to_str().unwrap()).unwrap();
+        let mut removed = storage.remove_put_leftovers().unwrap();
+        removed.sort();
+        assert_eq!(removed.len(), 3, "{removed:?}");
+        assert!(root.join("frame_0001.obj").exists());
+        assert!(!root.join("report.json#1").exists());
+        assert!(!root.join(".crease-work/weights/w0.npy#1").exists());
+    }
 }

@@ -6,7 +6,7 @@
 use super::env::{storage_err, TaskEnv};
 use super::position::FrameTimings;
 use super::weights::WindowRecord;
-use crate::error::TaskError;
+use crate::error::{JobError, TaskError};
 use crate::inspect::{output_files, output_sink, writes_frames};
 use crate::keys;
 use crate::spec::FoldSpec;
@@ -24,6 +24,11 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let job = env.job;
     let params = &env.params;
     env.delete(keys::REPORT)?;
+    // A worker killed in the middle of a put (an earlier attempt of this task, or of any task before it) leaves
+    // the put's staging file beside the object; the output must hold only what the job wrote.
+    env.out
+        .remove_put_leftovers()
+        .map_err(|e| storage_err(JobError::storage_failure(env.out.uri(), &e)))?;
     let opened = env.open_input()?;
     let source: &dyn FrameSource = opened.source.as_ref();
     let topo = source.topology().clone();

@@ -246,6 +246,41 @@ impl Storage {
         Ok(())
     }
 
+    /// Reads `key` of a local root on the calling thread; `None` for a remote root or a key with characters
+    /// outside `[A-Za-z0-9._/-]` (which [`Storage::get`] handles).
+    ///
+    /// Why: a task runs on a blocking thread and reaches the async [`Storage::get`] through `block_on`, and
+    /// `LocalFileSystem` then hands the read to yet another blocking thread. For the many small objects of a
+    /// per-anchor job (a partial blend per block, read back by the reduce) those hand-offs cost more than the
+    /// I/O on a loaded machine. The bytes and errors are the same: a missing object is a storage error naming
+    /// the key, a full disk "storage full at …".
+    pub fn get_local(&self, key: &str) -> Option<Result<Bytes, JobError>> {
+        let path = self.local_file(key)?;
+        Some(
+            std::fs::read(&path)
+                .map(Bytes::from)
+                .map_err(|e| JobError::storage_failure(self.describe(key), &e)),
+        )
+    }
+
+    /// Writes `key` of a local root on the calling thread, atomically as `LocalFileSystem` does (a staging
+    /// file `key#N` renamed over the key, removed on failure; [`Storage::remove_put_leftovers`] sweeps those a
+    /// killed worker left); `None` for a remote root or a key [`Storage::get_local`] does not take.
+    pub fn put_local(&self, key: &str, bytes: &[u8]) -> Option<Result<(), JobError>> {
+        let path = self.local_file(key)?;
+        Some(write_staged(&path, bytes).map_err(|e| JobError::storage_failure(self.describe(key), &e)))
+    }
+
+    /// The file of `key` under a local root, for the keys the job's own tasks name (plain ASCII, confined).
+    fn local_file(&self, key: &str) -> Option<PathBuf> {
+        let root = self.local.as_ref()?;
+        let plain = !key.is_empty()
+            && key
+                .bytes()
+                .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'/' | b'-'));
+        (plain && crate::confine::check_key(key).is_ok()).then(|| root.join(key))
+    }
+
     /// Uploads the local file `file` to `key`. Files of at least `CREASE_STORAGE_MULTIPART_MIB` (default 64)
     /// going to a remote store are streamed in parts of that size instead of read whole into memory (a point
     /// cache of a long take can be gigabytes; S3 takes at most 5 GiB in one PUT). A multipart upload that
@@ -511,6 +546,42 @@ fn fnv1a(bytes: &[u8]) -> u64 {
     })
 }
 
+/// Writes `bytes` to `path` through a staging file `path#N` (the first N free, parents created as needed)
+/// renamed over it: what `LocalFileSystem::put` does, without its hop to another thread. The staging file is
+/// removed when the write or the rename fails.
+fn write_staged(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut n = 1u32;
+    let mut made_parents = false;
+    let (mut file, staging) = loop {
+        let mut name = path.as_os_str().to_owned();
+        name.push(format!("#{n}"));
+        let staging = PathBuf::from(name);
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&staging)
+        {
+            Ok(f) => break (f, staging),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => n += 1,
+            // The key's directories do not exist yet: made once (a directory that vanishes again is an error).
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound && !made_parents => {
+                let dir = path.parent().ok_or(e)?;
+                std::fs::create_dir_all(dir)?;
+                made_parents = true;
+            }
+            Err(e) => return Err(e),
+        }
+    };
+    let written = file
+        .write_all(bytes)
+        .and_then(|()| std::fs::rename(&staging, path));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&staging);
+    }
+    written
+}
+
 /// Whether `name` is a `LocalFileSystem` staging name: `key#N`, N decimal.
 fn is_put_leftover(name: &str) -> bool {
     name.rsplit_once('#').is_some_and(|(key, n)| {
@@ -575,5 +646,43 @@ mod put_leftover_tests {
         assert!(root.join("frame_0001.obj").exists());
         assert!(!root.join("report.json#1").exists());
         assert!(!root.join(".crease-work/weights/w0.npy#1").exists());
+    }
+}
+
+#[cfg(test)]
+mod local_tests {
+    use super::*;
+
+    /// The thread-local path reads and writes what the object store path does, under the same names, and says
+    /// which object is missing.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 1)]
+    async fn local_reads_and_writes_match_the_object_store() {
+        let dir = tempfile::tempdir().unwrap();
+        let storage = Storage::open(dir.path().to_str().unwrap()).unwrap();
+        let key = ".crease-work/weights/w0001/b00002.bin";
+        storage.put_local(key, b"abc").unwrap().unwrap();
+        assert_eq!(&storage.get(key).await.unwrap()[..], b"abc");
+        storage.put(key, &b"defg"[..]).await.unwrap();
+        assert_eq!(&storage.get_local(key).unwrap().unwrap()[..], b"defg");
+        // Overwrites replace the whole object and leave no staging file.
+        storage.put_local(key, b"h").unwrap().unwrap();
+        assert_eq!(std::fs::read(dir.path().join(key)).unwrap(), b"h");
+        assert!(storage.remove_put_leftovers().unwrap().is_empty());
+        let missing = storage
+            .get_local(".crease-work/nothing.bin")
+            .unwrap()
+            .unwrap_err()
+            .to_string();
+        assert!(missing.contains(".crease-work/nothing.bin"), "{missing}");
+        // A parent that is a file is an error naming the key, and nothing is left beside it.
+        std::fs::write(dir.path().join("blocked"), b"file").unwrap();
+        let e = storage.put_local("blocked/x.npy", b"1").unwrap().unwrap_err();
+        assert!(e.to_string().contains("blocked/x.npy"), "{e}");
+        // Keys the fast path does not take go through the object store (which refuses or maps them).
+        assert!(storage.put_local("a b.obj", b"1").is_none());
+        assert!(storage.get_local("../x").is_none());
+        let remote = Storage::open("memory://local-tests/out").unwrap();
+        assert!(remote.put_local("x.npy", b"1").is_none());
+        assert!(remote.get_local("x.npy").is_none());
     }
 }

@@ -83,14 +83,24 @@ impl<'a> TaskEnv<'a> {
         }
     }
 
+    /// Reads `key` of the job's output (a local output on this thread: see [`Storage::get_local`]).
     pub fn get(&self, key: &str) -> Result<Bytes, TaskError> {
-        self.handle.block_on(self.out.get(key)).map_err(storage_err)
+        match self.out.get_local(key) {
+            Some(r) => r,
+            None => self.handle.block_on(self.out.get(key)),
+        }
+        .map_err(storage_err)
     }
 
+    /// Writes `key` of the job's output atomically (a local output on this thread: see
+    /// [`Storage::put_local`]).
     pub fn put(&self, key: &str, bytes: impl Into<Bytes>) -> Result<(), TaskError> {
-        self.handle
-            .block_on(self.out.put(key, bytes))
-            .map_err(storage_err)
+        let bytes = bytes.into();
+        match self.out.put_local(key, &bytes) {
+            Some(r) => r,
+            None => self.handle.block_on(self.out.put(key, bytes)),
+        }
+        .map_err(storage_err)
     }
 
     pub fn delete(&self, key: &str) -> Result<(), TaskError> {

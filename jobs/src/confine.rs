@@ -495,7 +495,6 @@ mod tests {
                 crate::keys::fold_chunk(n),
                 crate::keys::fold_chunk_timing(n),
                 crate::keys::block_partial(n, n),
-                crate::keys::block_stats(n, n),
                 crate::keys::window_field(n, n),
                 crate::keys::window_stats(n),
                 crate::keys::positions(n),

@@ -68,13 +68,10 @@ pub fn fold_phases(pass: &str, frame: usize) -> String {
 pub fn fold_trace_chunk(first_frame: usize) -> String {
     format!("{WORK_DIR}/folds/trace/f{first_frame:06}.bin")
 }
-/// Partial blend of one anchor block: (n, 4) f64 rows `node, x, y, z`.
+/// One anchor block's result: its partial blend and CG statistics in one object (`CREASEPB`, see
+/// `execute::partial_file`).
 pub fn block_partial(window: usize, block: usize) -> String {
-    format!("{WORK_DIR}/weights/w{window:04}/b{block:05}.npy")
-}
-/// CG statistics of one anchor block (JSON).
-pub fn block_stats(window: usize, block: usize) -> String {
-    format!("{WORK_DIR}/weights/w{window:04}/b{block:05}.json")
+    format!("{WORK_DIR}/weights/w{window:04}/b{block:05}.bin")
 }
 /// Frame `frame` of window `window`'s rotation-vector field: (n_triangles, 3) f64.
 pub fn window_field(window: usize, frame: usize) -> String {
@@ -88,8 +85,8 @@ pub fn window_stats(window: usize) -> String {
 pub fn positions(frame: usize) -> String {
     format!("{WORK_DIR}/positions/f{frame:06}.npy")
 }
-/// Stretch accumulators of frame `frame` after positioning and each pass (u64 words, see
-/// `crease_core::metrics::StretchAccumulator::to_words`).
+/// Stretch accumulators of frame `frame` after positioning and each pass, then its shape accumulator (u64
+/// words, see `crease_core::metrics::StretchAccumulator::to_words` and `crease_core::shape::ShapeAccumulator`).
 pub fn frame_stretch(frame: usize) -> String {
     format!("{WORK_DIR}/positions/f{frame:06}.stretch.npy")
 }

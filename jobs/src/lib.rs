@@ -75,7 +75,7 @@
 //! | `report.json` | finalize, **last** | `"complete": true`, parameters, per-window stats, stretch, timings |
 //! | `.crease-work/folds/anchors.bin` | fold-merge | the detected anchors as the later tasks read them (binary, docs/formats.md) |
 //! | `.crease-work/folds/fFFFFFF.bin`, `folds/trace/fFFFFFF.bin` | fold-detect | a detection or tracing chunk's anchors (binary) |
-//! | `.crease-work/weights/wWWWW/bBBBBB.npy` | weight-block | partial blend, (n, 4) f64 rows `node, x, y, z` |
+//! | `.crease-work/weights/wWWWW/bBBBBB.bin` | weight-block | partial blend and CG statistics (`CREASEPB`: u32 nodes, f64 values) |
 //! | `.crease-work/fields/wWWWW/fFFFFFF.npy` | weight-window / reduce | window field at one frame, (triangles, 3) f64 |
 //! | `.crease-work/positions/fFFFFFF.npy` | position | output positions, (vertices, 3) f64 |
 //! | `.crease-work/positions/fFFFFFF.stretch.npy` | position | exact stretch accumulators (u64 words) |
@@ -83,8 +83,9 @@
 //!
 //! Keys depend only on the job and the task, and every `.npy` and output file is a pure function of the
 //! task's inputs, so a task that runs twice (lost worker, restart, late duplicate) writes the same bytes.
-//! Timings in the `.json` sidecars and in `report.json` are the only bytes that differ between runs. Puts are
-//! atomic (staged file + rename locally, whole-object puts remotely). A stale `report.json` from an earlier
+//! Timings in the `.json` sidecars, in a block result's header and in `report.json` are the only bytes that
+//! differ between runs. Puts are atomic (staged file + rename locally, whole-object puts remotely; a task writes
+//! a local output on its own thread, see [`Storage::put_local`]). A stale `report.json` from an earlier
 //! run into the same output is removed when the job is submitted (coordinator) and again when `finalize`
 //! starts; `finalize` checks that every output file exists and writes the report last, so a report is only ever
 //! present next to complete outputs. Positioning tasks never delete it: a late duplicate of one after the job

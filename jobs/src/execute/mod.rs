@@ -15,6 +15,7 @@ mod exact;
 mod export;
 mod finalize;
 mod folds;
+mod partial_file;
 pub mod phase_times;
 mod position;
 mod stretch;

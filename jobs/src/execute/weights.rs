@@ -4,31 +4,20 @@
 
 use super::env::TaskEnv;
 use super::exact;
+use super::partial_file::{self, BlockStats};
 use super::phase_times::Lap;
 use super::window_cache::{self, WindowEntry};
 use crate::error::TaskError;
 use crate::keys;
 use crease_core::spacetime::fused::CgStats;
-use crease_core::spacetime::per_anchor::{plan_blocks, PartialBlend};
+use crease_core::spacetime::per_anchor::plan_blocks;
 use crease_core::spacetime::stages;
 use crease_core::spacetime::weights::{WindowProblem, WindowStats};
 use crease_core::spacetime::windows::Window;
 use crease_core::vec3::V3;
 use serde::{Deserialize, Serialize};
-use serde_json::Value;
+use serde_json::{json, Value};
 use std::time::Instant;
-
-/// CG statistics of one anchor block (sidecar of its partial blend).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-struct BlockStats {
-    columns: usize,
-    iterations: usize,
-    #[serde(with = "exact")]
-    max_relative_residual: f64,
-    node_updates: u64,
-    #[serde(with = "exact")]
-    seconds: f64,
-}
 
 /// [`WindowStats`] with exact floats, as stored next to a window's field.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -136,11 +125,6 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
     entry.give_back(ws);
     let seconds = clock.elapsed().as_secs_f64();
     lap.lap("weight-block: solve");
-    let mut rows = Vec::with_capacity(partial.nodes.len() * 4);
-    for (&g, v) in partial.nodes.iter().zip(&partial.values) {
-        rows.extend_from_slice(&[g as f64, v[0], v[1], v[2]]);
-    }
-    lap.lap("weight-block: encode");
     let stats = BlockStats {
         columns: range.len(),
         iterations: partial.iterations,
@@ -148,18 +132,22 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
         node_updates: partial.node_updates,
         seconds,
     };
-    let (pk, sk) = (keys::block_partial(k, b), keys::block_stats(k, b));
-    env.put_npy(&pk, &[partial.nodes.len(), 4], &rows)?;
-    env.put_json(&sk, &stats)?;
+    let bytes = partial_file::encode(&partial, &stats);
+    drop(partial);
+    lap.lap("weight-block: encode");
+    let key = keys::block_partial(k, b);
+    env.put(&key, bytes)?;
     lap.lap("weight-block: write");
-    let mut summary = serde_json::to_value(&stats).unwrap_or_default();
-    if let Some(o) = summary.as_object_mut() {
-        o.insert(
-            "window_cache".into(),
-            Value::from(if hit { "hit" } else { "miss" }),
-        );
-    }
-    Ok((summary, vec![pk, sk]))
+    // Floats as their shortest round-trip text, as the JSON sidecars write them (see `exact`).
+    let summary = json!({
+        "columns": stats.columns,
+        "iterations": stats.iterations,
+        "max_relative_residual": format!("{:?}", stats.max_relative_residual),
+        "node_updates": stats.node_updates,
+        "seconds": format!("{:?}", stats.seconds),
+        "window_cache": if hit { "hit" } else { "miss" },
+    });
+    Ok((summary, vec![key]))
 }
 
 /// Per-anchor mode: window `k`'s field as the sum of its blocks' partial blends, in block order.
@@ -191,33 +179,11 @@ pub fn reduce(env: &TaskEnv, k: usize) -> Result<(Value, Vec<String>), TaskError
     for b in 0..n_blocks {
         env.check_cancelled()?;
         let key = keys::block_partial(k, b);
-        let (shape, rows) = env.get_npy::<f64>(&key)?;
-        let stats: BlockStats = env.get_json(&keys::block_stats(k, b))?;
+        let bytes = env.get(&key)?;
         lap.lap("reduce: read partials");
-        if shape.len() != 2 || shape[1] != 4 {
-            return Err(TaskError::fatal(format!(
-                "{}: shape {shape:?}, expected (n, 4)",
-                env.out.describe(&key)
-            )));
-        }
-        let mut partial = PartialBlend {
-            nodes: Vec::with_capacity(shape[0]),
-            values: Vec::with_capacity(shape[0]),
-            iterations: stats.iterations,
-            max_relative_residual: stats.max_relative_residual,
-            node_updates: stats.node_updates,
-        };
-        for r in rows.chunks_exact(4) {
-            let g = r[0];
-            if !(g >= 0.0 && g < n_nodes as f64 && g.fract() == 0.0) {
-                return Err(TaskError::fatal(format!(
-                    "{}: node {g} is not one of the window's {n_nodes} nodes",
-                    env.out.describe(&key)
-                )));
-            }
-            partial.nodes.push(g as u32);
-            partial.values.push([r[1], r[2], r[3]]);
-        }
+        let (partial, stats) = partial_file::decode(&bytes, n_nodes)
+            .map_err(|e| TaskError::fatal(format!("{}: {e}", env.out.describe(&key))))?;
+        drop(bytes);
         stages::reduce_into(&mut field, &mut cg, &mut record.node_updates, &partial);
         record.seconds += stats.seconds;
         env.progress().advance("reduce", 1);

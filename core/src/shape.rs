@@ -216,6 +216,57 @@ impl ShapeAccumulator {
         }
     }
 
+    /// Exact, compact encoding (f64 bit patterns, the count, and the non-empty histogram bins as (bin, count)
+    /// pairs; `u64::MAX` in place of the bin count when nothing was added), as
+    /// [`StretchAccumulator::to_words`](crate::metrics::StretchAccumulator::to_words): a frame's figures computed
+    /// where the frame was positioned merge into the same sequence figures as in one process.
+    pub fn to_words(&self) -> Vec<u64> {
+        let mut w = vec![
+            self.count,
+            self.sum_d.to_bits(),
+            self.max_d.to_bits(),
+            self.sum_drift.to_bits(),
+            self.max_drift.to_bits(),
+            self.max_extent.to_bits(),
+        ];
+        if self.hist.is_empty() {
+            w.push(u64::MAX);
+        } else {
+            let start = w.len();
+            w.push(0);
+            for (b, &c) in self.hist.iter().enumerate().filter(|b| *b.1 != 0) {
+                w.extend([b as u64, c]);
+            }
+            w[start] = ((w.len() - start - 1) / 2) as u64;
+        }
+        w
+    }
+
+    /// Decodes [`ShapeAccumulator::to_words`]; returns the accumulator and the number of words used, or `None`
+    /// when the words are not such an encoding.
+    pub fn from_words(w: &[u64]) -> Option<(Self, usize)> {
+        let head = w.get(..7)?;
+        let mut acc = ShapeAccumulator {
+            count: head[0],
+            sum_d: f64::from_bits(head[1]),
+            max_d: f64::from_bits(head[2]),
+            sum_drift: f64::from_bits(head[3]),
+            max_drift: f64::from_bits(head[4]),
+            max_extent: f64::from_bits(head[5]),
+            hist: Vec::new(),
+        };
+        if head[6] == u64::MAX {
+            return Some((acc, 7));
+        }
+        let n = usize::try_from(head[6]).ok()?;
+        let pairs = w.get(7..7 + n.checked_mul(2)?)?;
+        acc.hist = vec![0; BINS + 1];
+        for p in pairs.chunks_exact(2) {
+            *acc.hist.get_mut(usize::try_from(p[0]).ok()?)? = p[1];
+        }
+        Some((acc, 7 + 2 * n))
+    }
+
     pub fn stats(&self) -> ShapeStats {
         if self.count == 0 {
             return ShapeStats::default();
@@ -299,6 +350,39 @@ mod tests {
         let long = wave(20.0);
         assert!(short.abs() < 0.05, "3-edge wave kept {short}");
         assert!(long > 0.9, "20-edge wave kept only {long}");
+    }
+
+    /// The words give back the same accumulator: merged in the same order, the same figures bit for bit.
+    #[test]
+    fn words_round_trip() {
+        let (topo, p) = sheet();
+        let f = TaubinFilter::captured(&topo);
+        let bent: Vec<V3> = p
+            .iter()
+            .map(|q| [q[0], q[1], 0.02 * (40.0 * q[0]).sin() * q[1]])
+            .collect();
+        let mut a = ShapeAccumulator::default();
+        a.add_frame(&topo, &f, &p, &bent);
+        let empty = ShapeAccumulator::default();
+        let mut words = a.to_words();
+        words.extend(empty.to_words());
+        let (b, used) = ShapeAccumulator::from_words(&words).unwrap();
+        let (e, rest) = ShapeAccumulator::from_words(&words[used..]).unwrap();
+        assert_eq!(used + rest, words.len());
+        assert!(e.hist.is_empty() && e.count == 0);
+        assert_eq!(b.to_words(), a.to_words());
+        let (mut x, mut y) = (ShapeAccumulator::default(), ShapeAccumulator::default());
+        x.merge(&a);
+        x.merge(&a);
+        y.merge(&b);
+        y.merge(&b);
+        assert_eq!(x.to_words(), y.to_words());
+        assert_eq!(format!("{:?}", x.stats()), format!("{:?}", y.stats()));
+        // Truncated words and bins out of range are refused, not read past.
+        assert!(ShapeAccumulator::from_words(&words[..used - 1]).is_none());
+        let mut bad = a.to_words();
+        bad[7] = (BINS + 1) as u64;
+        assert!(ShapeAccumulator::from_words(&bad).is_none());
     }
 
     #[test]

@@ -12,7 +12,7 @@ use crate::keys;
 use crate::spec::FoldSpec;
 use crease_core::mesh::{Frame, FrameSource};
 use crease_core::metrics::StretchAccumulator;
-use crease_core::shape::{ShapeAccumulator, TaubinFilter};
+use crease_core::shape::ShapeAccumulator;
 use crease_core::spacetime::deform::StageTimings;
 use crease_core::spacetime::weights::WindowStats;
 use crease_core::spacetime::DeformReport;
@@ -56,13 +56,15 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let mut seq_stretch = vec![StretchAccumulator::default(); params.stretch_passes + 1];
     let mut frame_stretch = vec![Vec::new(); n];
     let mut kept: Vec<(usize, Frame, Frame)> = Vec::new();
-    // "Shape kept" (DESIGN §9): every output frame against its input frame.
-    let filter = TaubinFilter::captured(&topo);
+    // "Shape kept" (DESIGN §9): every output frame against its input frame, measured by the positioning task
+    // and merged here in frame order (the same figures for any chunking and any number of workers).
     let mut shape_kept = ShapeAccumulator::default();
     env.progress().begin("finalize", n as u64);
     for (t, stretch_of_t) in frame_stretch.iter_mut().enumerate() {
         env.check_cancelled()?;
-        {
+        // Positions are read back only where they are still needed: a point cache written here, and the
+        // preview frames. Frame-per-file layouts were written by the positioning tasks.
+        if sink.is_some() || keep.contains(&t) {
             let key = keys::positions(t);
             let (shape, data) = env.get_npy::<f64>(&key)?;
             if shape != [topo.n_vertices(), 3] {
@@ -78,9 +80,8 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
                 sink.write_frame(t, &out).map_err(core_err("output"))?;
                 timings.write += tw.elapsed().as_secs_f64();
             }
-            let rest = source.read_frame(t).map_err(core_err("shape figures"))?;
-            shape_kept.add_frame(&topo, &filter, &rest, &out);
             if keep.contains(&t) {
+                let rest = source.read_frame(t).map_err(core_err("preview"))?;
                 kept.push((t, rest, out));
             }
         }
@@ -100,6 +101,14 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             acc.merge(&a);
             stretch_of_t.push(a.stats());
         }
+        let (shape, _) = ShapeAccumulator::from_words(&words[at..]).ok_or_else(|| {
+            TaskError::fatal(format!(
+                "{}: no shape accumulator after the {} stretch accumulators",
+                env.out.describe(&key),
+                params.stretch_passes + 1
+            ))
+        })?;
+        shape_kept.merge(&shape);
         let ft: FrameTimings = env.get_json(&keys::frame_timings(t))?;
         timings.symbolic += ft.symbolic;
         timings.read += ft.read;

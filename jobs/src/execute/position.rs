@@ -1,6 +1,6 @@
 //! Positioning tasks (Popa et al. 2009 §5.4–5.5): for each frame of a chunk, cross-fade the fields of the
-//! windows covering it, position the vertices, run the stretch passes, and store the positions and the stretch
-//! measured after each step.
+//! windows covering it, position the vertices, run the stretch passes, and store the positions, the stretch
+//! measured after each step and the frame's "shape kept" figures (finalize merges them in frame order).
 
 use super::env::TaskEnv;
 use super::exact;
@@ -9,6 +9,7 @@ use crate::inspect::{output_files, output_sink, writes_frames};
 use crate::keys;
 use crease_core::mesh::io::OpenedSequence;
 use crease_core::mesh::FrameSource;
+use crease_core::shape::{ShapeAccumulator, TaubinFilter};
 use crease_core::spacetime::position::{Pinning, PositionSystem};
 use crease_core::spacetime::stages::{self, PositionedFrame};
 use crease_core::spacetime::windows::Window;
@@ -54,6 +55,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     let system = system.as_ref();
     let windows = env.windows(n);
     let passes = env.params.stretch_passes;
+    let filter = TaubinFilter::captured(&topo);
     env.progress().begin("position", frames.len() as u64);
     let mut written = Vec::new();
     // Frame files go straight to the output through the layout's sink (the same writer `crease run` uses).
@@ -77,14 +79,14 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
             .iter()
             .map(|&t| load_faded(env, &windows, t, n_tri))
             .collect::<Result<_, _>>()?;
-        let done: Vec<Result<PositionedFrame, TaskError>> = chunk
+        let done: Vec<Result<(PositionedFrame, ShapeAccumulator, f64), TaskError>> = chunk
             .par_iter()
             .zip(fields.par_iter())
             .map(|(&t, phi)| {
                 if env.ctx.progress.cancelled() {
                     return Err(TaskError::cancelled());
                 }
-                let r = stages::position_frame(
+                let p = stages::position_frame(
                     system,
                     source,
                     t,
@@ -93,27 +95,34 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                     env.params.stretch_rotation,
                     env.params.restoration(),
                 )
-                .map_err(|e| TaskError::from_core(&label, e));
+                .map_err(|e| TaskError::from_core(&label, e))?;
+                // The frame's "shape kept" figures (DESIGN §9), here where the frame is, rather than in
+                // finalize, which would filter every frame again one after the other at the end of the job.
+                let clock = std::time::Instant::now();
+                let mut shape = ShapeAccumulator::default();
+                shape.add_frame(&topo, &filter, &p.rest, &p.out);
+                let shape_seconds = clock.elapsed().as_secs_f64();
                 env.progress().advance("position", 1);
-                r
+                Ok((p, shape, shape_seconds))
             })
             .collect();
-        for p in done {
-            let p = p?;
+        for r in done {
+            let (p, shape, shape_seconds) = r?;
             let t = p.t;
             let flat: Vec<f64> = p.out.iter().flatten().copied().collect();
-            let words: Vec<u64> = p
+            let mut words: Vec<u64> = p
                 .stretch
                 .iter()
                 .flat_map(|(acc, _)| acc.to_words())
                 .collect();
+            words.extend(shape.to_words());
             let timings = FrameTimings {
                 read: p.read,
                 blend: p.blend,
                 factor: p.factor,
                 position: p.position,
                 passes: p.passes.clone(),
-                metrics: p.metrics,
+                metrics: p.metrics + shape_seconds,
                 symbolic: if t == frames.start { symbolic } else { 0.0 },
             };
             let (kp, ks, kt) = (

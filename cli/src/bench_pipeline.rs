@@ -105,6 +105,7 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
         ),
     ];
     let mut rows = Vec::new();
+    let mut busy = Vec::new();
     for (label, folds) in &jobs {
         eprintln!("cluster job with {label} folds");
         let out = dir.join(format!("out-{label}"));
@@ -138,6 +139,19 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
             })
             .collect();
         let work_total: f64 = stages.iter().map(|(_, s)| s).sum();
+        // Where the workers' time went: inside a task's work, in an attempt but outside its work (dispatch,
+        // gRPC, the task's hand-off to its thread), or idle (nothing ready for it, or waiting for a
+        // dependency).
+        let attempts: f64 = run.status.tasks.iter().map(|t| t.wall_seconds).sum();
+        let work: f64 = run.status.tasks.iter().map(|t| t.work_seconds).sum();
+        let slots = workers as f64 * run.wall;
+        busy.push((
+            label.to_string(),
+            run.status.tasks.len(),
+            work / slots,
+            (attempts - work).max(0.0) / slots,
+            (slots - attempts).max(0.0) / slots,
+        ));
         rows.push((
             label.to_string(),
             stages,
@@ -167,6 +181,15 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
             " {work:>10.3} {wall:>9.3} {:>9.0} {:>10.1}",
             *peak as f64 / (1u64 << 20) as f64,
             *anchors as f64 / frames as f64
+        );
+    }
+    for (label, tasks, work, outside, idle) in &busy {
+        println!(
+            "{label:>9} job: {tasks} tasks; of the workers' time {:.0}% in task work, {:.0}% in attempts outside \
+             the work (dispatch, gRPC), {:.0}% idle (waiting for a dependency or the coordinator)",
+            work * 100.0,
+            outside * 100.0,
+            idle * 100.0
         );
     }
     println!(
@@ -280,6 +303,9 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
                 "stage_seconds_per_frame": stages.iter().cloned().collect::<BTreeMap<_, _>>(),
                 "work_seconds_per_frame": work, "wall_seconds_per_frame": wall,
                 "peak_rss_bytes": peak, "anchors": anchors,
+            })).collect::<Vec<_>>(),
+            "worker_time": busy.iter().map(|(label, tasks, work, outside, idle)| json!({
+                "folds": label, "tasks": tasks, "work": work, "outside_work": outside, "idle": idle,
             })).collect::<Vec<_>>(),
             "critical_path": {
                 "seconds_per_frame": per_frame(path_seconds),

@@ -214,7 +214,9 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
         })
         .to_string(),
     )?;
+    crease_jobs::phase_times::take();
     let (mut costs, timed) = rt.block_on(sequential_costs(&spec, &dir.join("cache-sequential")))?;
+    let phases = crease_jobs::phase_times::take();
     // The per-anchor task kinds, on the anchors the stretch job just detected.
     let spec = JobSpec::from_json_str(
         &json!({
@@ -288,6 +290,13 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
     for (key, seconds) in &chain {
         println!("  {key:<28} {:>8.3}", per_frame(*seconds));
     }
+    println!("phases of the stretch job's tasks, one at a time (s/frame):");
+    for (phase, count, seconds) in &phases {
+        println!(
+            "  {phase:<52} {:>8.3} ({count} samples)",
+            per_frame(*seconds)
+        );
+    }
     println!(
         "machine load during the run: {}",
         std::fs::read_to_string("/proc/loadavg")
@@ -307,6 +316,8 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
             "worker_time": busy.iter().map(|(label, tasks, work, outside, idle)| json!({
                 "folds": label, "tasks": tasks, "work": work, "outside_work": outside, "idle": idle,
             })).collect::<Vec<_>>(),
+            "phases": phases.iter().map(|(p, c, s)| json!({"phase": p, "samples": c, "seconds": s}))
+                .collect::<Vec<_>>(),
             "critical_path": {
                 "seconds_per_frame": per_frame(path_seconds),
                 "tasks": chain.iter().map(|(k, s)| json!({"task": k, "seconds": s})).collect::<Vec<_>>(),

@@ -9,6 +9,7 @@
 //! so `files` runs beside the weight tasks and only finalize (which writes `report.json`) waits for it.
 
 use super::env::TaskEnv;
+use super::phase_times::Lap;
 use crate::detect::{detection_chunks, detector, granularity};
 use crate::error::TaskError;
 use crate::keys;
@@ -93,6 +94,7 @@ pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>
 
 pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let opened = env.open_input()?;
+    let mut lap = Lap::start();
     let d = job_detector(env, &opened)?;
     let n = opened.source.n_frames();
     let n_tri = opened.source.topology().n_triangles();
@@ -111,6 +113,7 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         let (frames, per_frame) = gather_chunks(env, opened.source.as_ref(), d.as_ref(), n)?;
         (frames, json!({ "per_frame": per_frame }))
     };
+    lap.lap("fold-merge: gathering, in all");
     let set = AnchorSet::from_frame_anchors(frames, n_tri, None)
         .map_err(|e| TaskError::from_core(&format!("{} fold merge", d.name()), e))?;
     if set.n_frames() != n {
@@ -131,7 +134,9 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         n_tri,
     )
     .map_err(|e| TaskError::from_core("fold merge", e))?;
+    lap.lap("fold-merge: anchor set, binary form read back");
     env.put(keys::ANCHORS_BIN, bin)?;
+    lap.lap("fold-merge: write anchors.bin");
     // What finalize puts into report.json as `fold_detection`.
     let mut summary = json!({ "source": d.name(), "anchors": back.total() });
     if let (Some(s), Some(extra)) = (summary.as_object_mut(), summary_extra.as_object_mut()) {
@@ -145,6 +150,7 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     }
     env.put_json(keys::FOLD_SUMMARY, &summary)?;
     let counts: Vec<usize> = (0..n).map(|t| back.frame(t).len()).collect();
+    lap.lap("fold-merge: summary");
     written.extend([
         keys::ANCHORS_BIN.to_string(),
         keys::FOLD_SUMMARY.to_string(),

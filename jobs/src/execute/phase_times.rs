@@ -1,11 +1,13 @@
-//! Where the per-anchor tasks spend their time, summed over every task this process ran: the weight-block
-//! phases (opening the input and finding the window in the cache, building it on a miss, the solve, encoding
-//! and writing the partial blend) and the reduce's (reading the partials, summing them, writing the field).
+//! Where tasks spend their time, summed over every task this process ran: the weight-block phases (opening
+//! the input and finding the window in the cache, building it on a miss, the solve, encoding and writing the
+//! partial blend), the reduce's (reading the partials, summing them, writing the field) and `fold-merge`'s
+//! (reconciling the tracing chunks, the overlay frames, temporal coherence and `folds.png`, the binary anchors).
 //!
 //! Why: a cluster run of the per-anchor mode is slower than the same solve in one process, and the difference
-//! is spread over hundreds of short tasks; `crease bench --cluster` runs its workers in-process and prints
-//! these sums next to the tasks' total work time, so the fixed cost per task shows up phase by phase. Adding
-//! a sample is one short lock per phase, negligible next to a task.
+//! is spread over hundreds of short tasks; `fold-merge` is the longest link of a stretch job's chain that is not
+//! tracing. `crease bench --cluster` and `crease bench --pipeline` run their tasks in-process and print these
+//! sums, so fixed costs show up phase by phase. Adding a sample is one short lock per phase, negligible next to
+//! a task.
 
 use std::sync::Mutex;
 use std::time::Instant;

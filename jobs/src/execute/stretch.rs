@@ -3,6 +3,7 @@
 //! [`crease_core::folds::stretch::split`], so these functions only move data and name what is missing.
 
 use super::env::TaskEnv;
+use super::phase_times::Lap;
 use crate::error::TaskError;
 use crate::keys;
 use crate::stretch_tasks::{step_chunks, trace_chunks};
@@ -208,6 +209,7 @@ pub struct Gathered {
 }
 
 pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskError> {
+    let lap = RefCell::new(Lap::start());
     let (n, nt) = traced_size(opened);
     let det = detector(env, n)?;
     let source: &dyn FrameSource = opened.source.as_ref();
@@ -250,6 +252,7 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
                 tracer.trace(t, f.as_deref(), b.as_deref())
             },
         )?;
+        lap.borrow_mut().lap("fold-merge: read and reconcile chunks");
         let mut shown = Vec::new();
         for f in &frames {
             if f.overlay.is_some() {
@@ -259,11 +262,14 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
                 shown.extend(o);
             }
         }
+        lap.borrow_mut().lap("fold-merge: overlay frames' signals");
         let (frames, artifacts) = det.finish(
             source,
             frames.into_iter().map(|f| f.anchors).collect(),
             &shown,
         )?;
+        lap.borrow_mut()
+            .lap("fold-merge: temporal coherence, folds.png");
         Ok((frames, artifacts, retraced))
     });
     let (frames, artifacts, retraced) = carry.finish(label, r)?;

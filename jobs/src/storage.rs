@@ -268,7 +268,10 @@ impl Storage {
     /// killed worker left); `None` for a remote root or a key [`Storage::get_local`] does not take.
     pub fn put_local(&self, key: &str, bytes: &[u8]) -> Option<Result<(), JobError>> {
         let path = self.local_file(key)?;
-        Some(write_staged(&path, bytes).map_err(|e| JobError::storage_failure(self.describe(key), &e)))
+        Some(
+            write_staged(&path, bytes)
+                .map_err(|e| JobError::storage_failure(self.describe(key), &e)),
+        )
     }
 
     /// The file of `key` under a local root, for the keys the job's own tasks name (plain ASCII, confined).
@@ -676,7 +679,10 @@ mod local_tests {
         assert!(missing.contains(".crease-work/nothing.bin"), "{missing}");
         // A parent that is a file is an error naming the key, and nothing is left beside it.
         std::fs::write(dir.path().join("blocked"), b"file").unwrap();
-        let e = storage.put_local("blocked/x.npy", b"1").unwrap().unwrap_err();
+        let e = storage
+            .put_local("blocked/x.npy", b"1")
+            .unwrap()
+            .unwrap_err();
         assert!(e.to_string().contains("blocked/x.npy"), "{e}");
         // Keys the fast path does not take go through the object store (which refuses or maps them).
         assert!(storage.put_local("a b.obj", b"1").is_none());

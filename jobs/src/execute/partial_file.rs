@@ -129,7 +129,13 @@ mod tests {
         let p = PartialBlend {
             nodes: (0..n as u32).map(|i| i * 7 + 3).collect(),
             values: (0..n)
-                .map(|i| [i as f64 * 0.1 + 1e-300, -(i as f64) / 3.0, f64::MIN_POSITIVE])
+                .map(|i| {
+                    [
+                        i as f64 * 0.1 + 1e-300,
+                        -(i as f64) / 3.0,
+                        f64::MIN_POSITIVE,
+                    ]
+                })
                 .collect(),
             iterations: 17 * n,
             max_relative_residual: 1.0 / 3.0e9,
@@ -153,14 +159,21 @@ mod tests {
             let bytes = encode(&p, &s);
             let (q, t) = decode(&bytes, 7 * n + 3).unwrap();
             assert_eq!(q.nodes, p.nodes);
-            let bits = |v: &[[f64; 3]]| -> Vec<u64> {
-                v.iter().flatten().map(|x| x.to_bits()).collect()
-            };
+            let bits =
+                |v: &[[f64; 3]]| -> Vec<u64> { v.iter().flatten().map(|x| x.to_bits()).collect() };
             assert_eq!(bits(&q.values), bits(&p.values));
             assert_eq!(t, s);
             assert_eq!(
-                (q.iterations, q.max_relative_residual.to_bits(), q.node_updates),
-                (p.iterations, p.max_relative_residual.to_bits(), p.node_updates)
+                (
+                    q.iterations,
+                    q.max_relative_residual.to_bits(),
+                    q.node_updates
+                ),
+                (
+                    p.iterations,
+                    p.max_relative_residual.to_bits(),
+                    p.node_updates
+                )
             );
         }
     }

@@ -252,7 +252,8 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
                 tracer.trace(t, f.as_deref(), b.as_deref())
             },
         )?;
-        lap.borrow_mut().lap("fold-merge: read and reconcile chunks");
+        lap.borrow_mut()
+            .lap("fold-merge: read and reconcile chunks");
         let mut shown = Vec::new();
         for f in &frames {
             if f.overlay.is_some() {

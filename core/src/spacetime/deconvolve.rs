@@ -151,7 +151,8 @@ impl CaptureStencil {
                 .enumerate()
                 .for_each(|(ch, (ps, accs))| {
                     for (k, (pv, av)) in ps.iter_mut().zip(accs.iter_mut()).enumerate() {
-                        let next = vec3::sub(vec3::scale(self.average(&cur, ch * CHUNK + k), 2.0), *pv);
+                        let next =
+                            vec3::sub(vec3::scale(self.average(&cur, ch * CHUNK + k), 2.0), *pv);
                         *pv = next;
                         *av = vec3::add(*av, vec3::scale(next, a));
                     }
@@ -235,7 +236,10 @@ mod tests {
         let mut p = Vec::new();
         for j in 0..ny {
             for i in 0..nx {
-                let (x, y) = (i as f64 + 0.3 * ((i * 7 + j * 3) % 5) as f64 / 5.0, j as f64);
+                let (x, y) = (
+                    i as f64 + 0.3 * ((i * 7 + j * 3) % 5) as f64 / 5.0,
+                    j as f64,
+                );
                 p.push([
                     x,
                     y,
@@ -282,7 +286,10 @@ mod tests {
                 .collect();
         }
         let want = TaubinFilter::capture(&topo).apply(&p);
-        assert!(x.iter().zip(&want).all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits)));
+        assert!(x
+            .iter()
+            .zip(&want)
+            .all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits)));
     }
 
     /// The truncated series gives what Van Cittert's iteration adds, to 1e-12 of the extent, for whole and
@@ -294,7 +301,10 @@ mod tests {
         let stencil = CaptureStencil::new(&topo);
         let filter = TaubinFilter::capture(&topo);
         for offset in [0.0, 250.0] {
-            let c: Vec<V3> = p.iter().map(|q| [q[0] + offset, q[1] - offset, q[2]]).collect();
+            let c: Vec<V3> = p
+                .iter()
+                .map(|q| [q[0] + offset, q[1] - offset, q[2]])
+                .collect();
             for steps in [0.5, 1.0, 2.5, 5.0, 8.0] {
                 let series = stencil.series(steps);
                 let got = stencil.detail(&series, &c);
@@ -309,7 +319,10 @@ mod tests {
                 // Extent about 40; the reference's own rounding far from the origin is about 400 ε × 250.
                 let tol = 1e-12 * 40.0 + 1e-13 * offset;
                 assert!(worst < tol, "steps {steps} offset {offset}: {worst:e}");
-                assert!(largest > 0.01, "steps {steps}: nothing restored ({largest})");
+                assert!(
+                    largest > 0.01,
+                    "steps {steps}: nothing restored ({largest})"
+                );
                 let sweeps = filter.iterations as f64 * steps.ceil();
                 assert!(
                     (series.len() as f64) < 0.5 * sweeps.max(120.0),

@@ -11,7 +11,8 @@
 //! capture filter C (the Taubin filter that made the public data, [`TaubinFilter::capture`]) adds
 //! to the captured surface c, weighted by how far the deformation already tilted that part of the garment. The
 //! deconvolution is Van Cittert's iteration g ← g + (c − C(g)) from g = c, `steps` times (a fractional part is
-//! a last, partial step). A component the capture kept a fraction T of comes back as 1 − (1 − T)^(steps + 1)
+//! a last, partial step), evaluated as one Chebyshev series in the filter's averaging operator
+//! ([`super::deconvolve`]: 74 sweeps instead of 400 at 5 steps, the same result to rounding). A component the capture kept a fraction T of comes back as 1 − (1 − T)^(steps + 1)
 //! of its original height: never more than it had (no overshoot, unlike a fixed gain on c − C(c), which gives
 //! T(1 + gain(1 − T)) and so exceeds 1 for every T above 1/gain), all of it where the capture kept most of it,
 //! and at most `steps + 1` times the captured residue where it kept almost nothing, which bounds what noise can

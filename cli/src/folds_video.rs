@@ -43,6 +43,10 @@ pub struct VideoArgs {
     /// Canny high gradient threshold (0-255 grey) [default: 30].
     #[arg(long)]
     pub canny_high: Option<f64>,
+    /// Read the Canny thresholds as the gradient at radius 1 and divide them by each level's radius, so every
+    /// radius keeps edges of the same contrast (off: the thresholds apply unchanged at every radius).
+    #[arg(long)]
+    pub contrast_canny_thresholds: bool,
     /// Maximum angle between paired edges, degrees [default: 45].
     #[arg(long)]
     pub max_angle: Option<f64>,
@@ -94,7 +98,9 @@ pub struct VideoArgs {
     #[arg(long)]
     pub front_back_views: bool,
     /// Frames on each side over which anchors are matched and their angles averaged, 0 = off [default: 2].
-    #[arg(long)]
+    /// (Its own id: the stretch flags' `temporal_radius` field shares the name, and clap gave this flag's value
+    /// to that one.)
+    #[arg(long = "temporal-radius", id = "video_temporal_radius")]
     pub temporal_radius: Option<usize>,
 }
 
@@ -115,6 +121,7 @@ impl VideoArgs {
             },
             canny_low: or(self.canny_low, d.canny_low),
             canny_high: or(self.canny_high, d.canny_high),
+            contrast_thresholds: self.contrast_canny_thresholds,
             max_angle_deg: or(self.max_angle, d.max_angle_deg),
             max_distance: or(self.max_distance, d.max_distance),
             max_avg_distance: or(self.max_avg_distance, d.max_avg_distance),

@@ -81,6 +81,27 @@ fn to_byte(v: f32) -> f32 {
     r.clamp(0.0, 255.0)
 }
 
+/// Canny's low and high thresholds at `level`, on a grid of `factor` level pixels per full-resolution pixel.
+///
+/// Enlarging by `u` divides image gradients by `u`, so the thresholds are scaled to match. With
+/// [`VideoParams::contrast_thresholds`] they are also divided by the level's radius (in pixels of the
+/// resolution-`scale` image): a step of grey-level height `H` blurred by σ = `r` has a peak Sobel gradient of
+/// `8 H / (√(2π) r)`, so fixed thresholds ask a wide level for an edge `r` times as contrasted as at radius 1,
+/// and the soft contours of wide folds — whose gradient the blur cannot raise — pass at no radius. Divided by
+/// `r`, every level keeps the edges of the same contrast (`canny_high` = 30 is a step of about 9 grey levels),
+/// and a wider level still needs a contour that wide: blur lowers a narrow feature's gradient further and
+/// lowers the noise's gradient faster (∝ 1/r²), so the lower thresholds do not admit the fine-scale noise the
+/// narrow levels see.
+pub fn canny_thresholds(level: Level, factor: f64, params: &VideoParams) -> (f32, f32) {
+    let mut k = level.scale / factor;
+    if params.contrast_thresholds {
+        k /= level.radius;
+    }
+    let low = (params.canny_low * k) as f32;
+    let high = (params.canny_high * k) as f32;
+    (low, high.max(low))
+}
+
 /// A level's pixel grid, its image before Canny and its Canny edges.
 struct LevelImage {
     /// Level pixels per full-resolution pixel.
@@ -125,12 +146,9 @@ fn level_image(photo: &Photo, level: Level, params: &VideoParams) -> LevelImage 
     for (g, &v) in gray.iter_mut().zip(img.iter()) {
         *g = to_byte(v);
     }
-    // Enlarging by u divides image gradients by u; scale the thresholds to match.
-    let k = (level.scale / factor) as f32;
-    let low = params.canny_low as f32 * k;
-    let high = params.canny_high as f32 * k;
+    let (low, high) = canny_thresholds(level, factor, params);
     let mut edge_map = Scratch::filled(lwu * lhu, false);
-    canny::canny(&gray, lwu, lhu, low, high.max(low), &mut edge_map);
+    canny::canny(&gray, lwu, lhu, low, high, &mut edge_map);
     LevelImage {
         factor,
         width: lw,
@@ -489,10 +507,8 @@ mod tests {
             .map(|&v| (v * 255.0).round().clamp(0.0, 255.0) as u8)
             .collect();
         let gray = GrayImage::from_raw(lw, lh, bytes).unwrap();
-        let k = (level.scale / factor) as f32;
-        let low = params.canny_low as f32 * k;
-        let high = params.canny_high as f32 * k;
-        let canny = imageproc::edges::canny(&gray, low, high.max(low));
+        let (low, high) = canny_thresholds(level, factor, params);
+        let canny = imageproc::edges::canny(&gray, low, high);
         LevelImage {
             factor,
             width: lw,

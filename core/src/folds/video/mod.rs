@@ -549,6 +549,42 @@ mod tests {
         assert!((angles[0].to_degrees() - want).abs() < 1e-6, "{angles:?}");
     }
 
+    /// The soft contour of a wide fold: a valley 20 grey levels deep with a Gaussian profile of σ = 4 px, whose
+    /// steepest gradient (Sobel 24) the blur of no level can raise to the high threshold of 30. With the
+    /// thresholds divided by each level's radius the wider levels find its two contours and pair them as a
+    /// valley about 8 px wide (its inflection points); the narrowest level sees the same edges either way.
+    #[test]
+    fn contrast_thresholds_find_the_soft_contours_of_a_wide_fold() {
+        let img = image::RgbaImage::from_fn(160, 100, |x, _| {
+            let d = x as f64 - 80.0;
+            let g = (150.0 - 20.0 * (-d * d / 32.0).exp()).round() as u8;
+            image::Rgba([g, g, g, 255])
+        });
+        let photo = Photo::from_rgba(&img);
+        let fixed = VideoParams::default();
+        assert!(!fixed.contrast_thresholds);
+        let (fixed_levels, none) = image_pairs(&photo, &fixed);
+        assert!(none.is_empty(), "{none:?}");
+        let scaled = VideoParams {
+            contrast_thresholds: true,
+            ..fixed
+        };
+        let (levels, pairs) = image_pairs(&photo, &scaled);
+        assert_eq!(pairs.len(), 1, "{pairs:?}");
+        let p = &pairs[0];
+        assert!(!p.ridge);
+        assert!((p.width - 8.0).abs() < 2.5, "width {}", p.width);
+        assert!(p.length > 2.0 * 60.0, "length {}", p.length);
+        assert!(
+            levels[p.level].level.radius >= 1.5,
+            "{:?}",
+            levels[p.level].level
+        );
+        // Radius 1 keeps its thresholds.
+        assert_eq!(levels[0].level.radius, 1.0);
+        assert_eq!(levels[0].chains, fixed_levels[0].chains);
+    }
+
     /// A view holding only `pairs` (frame_anchors reads nothing else).
     fn bare_view(camera: usize, pairs: Vec<ProjectedPair>) -> ViewResult {
         ViewResult {

@@ -229,8 +229,11 @@ fn shape_of(seq: &Sequence, out: &[Vec<V3>]) -> crease_core::shape::ShapeStats {
 /// the output's largest low-frequency drift was on the two rims, which flapped by up to 0.7 edges (along the
 /// surface normal) where the real cloth's rims drift by 0.05. Checked on the sleeve fixture (captured frames
 /// 20–23 with their ground truth) with the folds the stretch detector finds: the default output's drift, mean
-/// and max, stays within twice the ground truth's and its extent change within the ground truth's + 1 %;
-/// without the shape projection (the behaviour before it) the drift max is above that bound.
+/// and max, stays within twice the ground truth's and its extent change within the ground truth's + 1 %, and
+/// the shape projection lowers the drift against the behaviour before it (`shape_projection` 0). Four frames
+/// are too few for the rims to flap as they do over the whole sequence (frames 9–44), so without the
+/// projection this fixture is within the bound as well (0.31 against 0.55): the 48-frame figures are in
+/// docs/fidelity.md.
 #[test]
 fn sleeve_rims_drift_no_more_than_twice_the_ground_truth() {
     let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cli/tests/fixtures");
@@ -255,8 +258,9 @@ fn sleeve_rims_drift_no_more_than_twice_the_ground_truth() {
         ..DeformParams::default()
     };
     let old = shape_of(&seq, &run(&seq, &anchors, &unprojected));
+    // Measured: drift mean / max 0.019 / 0.266 projected, 0.031 / 0.312 without (gt 0.060 / 0.277).
     assert!(
-        old.drift_max > 2.0 * truth.drift_max,
-        "without the projection: {old:?}\nground truth {truth:?}"
+        s.drift_max < 0.9 * old.drift_max && s.drift_mean < 0.7 * old.drift_mean,
+        "projected {s:?}\nwithout the projection: {old:?}"
     );
 }

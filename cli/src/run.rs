@@ -70,6 +70,11 @@ pub struct DeformArgs {
     /// fold the capture kept a fraction T of comes back as 1 − (1 − T)^(steps + 1)). 0 = off, at most 20.
     #[arg(long, default_value_t = crease_core::spacetime::params::DEFAULT_FOLD_RESTORE)]
     pub fold_restore: f64,
+    /// Shape projection: the fraction of the capture filter's low-pass of the positioned displacement removed
+    /// before the fold restoration, so folds add only what the capture smoothed away and the garment, its
+    /// rims included, keeps the captured shape. 0 = off, at most 1; only with the shape screen on.
+    #[arg(long, default_value_t = crease_core::spacetime::shape_projection::DEFAULT_SHAPE_PROJECTION)]
+    pub shape_projection: f64,
 }
 
 fn parse_shape_cutoff(s: &str) -> Result<f64, String> {
@@ -112,6 +117,7 @@ impl DeformArgs {
             shape_cutoff: self.shape_cutoff,
             pinning: self.pinning,
             fold_restore: self.fold_restore,
+            shape_projection: self.shape_projection,
         }
     }
 }

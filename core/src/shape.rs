@@ -86,6 +86,12 @@ impl TaubinFilter {
         }
     }
 
+    /// The vertices `v` averages over (its one-ring, or its boundary neighbours on an open rim): the operator
+    /// A of every step x ← x + f (A x − x), which the fold restoration's Chebyshev series applies directly.
+    pub fn neighbors(&self, v: usize) -> &[u32] {
+        &self.neighbors[self.offsets[v] as usize..self.offsets[v + 1] as usize]
+    }
+
     /// Low-pass of a per-vertex vector field: `iterations` alternating steps x ← x + f (avg(x) − x) with
     /// f = λ then μ. Vertices without neighbours keep their value.
     pub fn apply(&self, field: &[V3]) -> Vec<V3> {

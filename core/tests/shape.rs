@@ -46,7 +46,7 @@ fn hanging_sheet_keeps_its_width_and_does_not_drift() {
     );
     // The fixture is the captured drape subsampled to half resolution, so the data's capture filter, which the
     // fold restoration deconvolves on the mesh it is given, is not this mesh's: here it damps wavelengths (in
-    // this mesh's edges) that the real capture kept whole, and the default 5 steps amplify the sheet's wide
+    // this mesh's edges) that the real capture kept whole, and the default 8 steps amplify the sheet's wide
     // pleats (extent change 2.5 %; the full-resolution drape measures 0.59 %, gt 0.57 %). One step, as much
     // as the old restoration's residue, keeps the check about the positioning's screen.
     let params = DeformParams {
@@ -209,4 +209,58 @@ fn captured_filter_reproduces_the_public_capture() {
         .map(|(a, b)| vec3::norm(vec3::sub(*a, *b)))
         .fold(0.0f64, f64::max);
     assert!(half_worst > 5e-4, "{half_worst}");
+}
+
+fn load(dir: &Path) -> Sequence {
+    Sequence::load(open_sequence(dir).unwrap().source.as_ref()).unwrap()
+}
+
+/// Shape figures of `out` (or of the ground truth) against the captured sequence, with the drift filter.
+fn shape_of(seq: &Sequence, out: &[Vec<V3>]) -> crease_core::shape::ShapeStats {
+    let filter = TaubinFilter::captured(&seq.topology);
+    let mut acc = ShapeAccumulator::default();
+    for (o, c) in out.iter().zip(&seq.frames) {
+        acc.add_frame(&seq.topology, &filter, c, o);
+    }
+    acc.stats()
+}
+
+/// The sleeve's open cuffs keep their shape (issue 11, "drift ≤ 2× the ground truth's"): on the public sleeve
+/// the output's largest low-frequency drift was on the two rims, which flapped by up to 0.7 edges (along the
+/// surface normal) where the real cloth's rims drift by 0.05. Checked on the sleeve fixture (captured frames
+/// 20–23 with their ground truth) with the folds the stretch detector finds: the default output's drift, mean
+/// and max, stays within twice the ground truth's and its extent change within the ground truth's + 1 %, and
+/// the shape projection lowers the drift against the behaviour before it (`shape_projection` 0). Four frames
+/// are too few for the rims to flap as they do over the whole sequence (frames 9–44), so without the
+/// projection this fixture is within the bound as well (0.31 against 0.55): the 48-frame figures are in
+/// docs/fidelity.md.
+#[test]
+fn sleeve_rims_drift_no_more_than_twice_the_ground_truth() {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cli/tests/fixtures");
+    let seq = load(&fixtures.join("sleeve"));
+    let gt = load(&fixtures.join("sleeve-gt"));
+    let anchors = anchors_of(&seq);
+    assert!(anchors.total() > 100, "{} anchors", anchors.total());
+    let truth = shape_of(&seq, &gt.frames);
+    let out = run(&seq, &anchors, &DeformParams::default());
+    let s = shape_of(&seq, &out);
+    assert!(s.displacement_max > 0.3, "no folds were added: {s:?}");
+    assert!(
+        s.drift_max <= 2.0 * truth.drift_max && s.drift_mean <= 2.0 * truth.drift_mean,
+        "output {s:?}\nground truth {truth:?}"
+    );
+    assert!(
+        s.extent_change <= truth.extent_change + 0.01,
+        "output {s:?}\nground truth {truth:?}"
+    );
+    let unprojected = DeformParams {
+        shape_projection: 0.0,
+        ..DeformParams::default()
+    };
+    let old = shape_of(&seq, &run(&seq, &anchors, &unprojected));
+    // Measured: drift mean / max 0.019 / 0.266 projected, 0.031 / 0.312 without (gt 0.060 / 0.277).
+    assert!(
+        s.drift_max < 0.9 * old.drift_max && s.drift_mean < 0.7 * old.drift_mean,
+        "projected {s:?}\nwithout the projection: {old:?}"
+    );
 }

@@ -20,7 +20,7 @@
 //! vanishes on constants (r(1) = 0: a filter step keeps a constant field), so the series is applied to c minus
 //! its mean: the result then does not depend on where the garment stands, to rounding.
 
-use crate::mesh::{Topology, NONE};
+use crate::mesh::Topology;
 use crate::shape::TaubinFilter;
 use crate::vec3::{self, V3};
 use rayon::prelude::*;
@@ -37,69 +37,30 @@ const TAIL_MARGIN: usize = 8;
 /// Vertices per parallel chunk of one sweep.
 const CHUNK: usize = 4096;
 
-/// The capture filter's averaging operator A as neighbour lists (the lists [`TaubinFilter`] builds; checked
-/// bit for bit against it by `tests::the_stencil_is_the_capture_filters`), and the filter's step factors.
+/// The capture filter's averaging operator A, read from the filter's own neighbour lists (so the series
+/// applies exactly the operator the filter steps with).
 pub struct CaptureStencil {
-    offsets: Vec<u32>,
-    neighbors: Vec<u32>,
-    /// 1 / (number of neighbours), 0 for a vertex without any.
-    inv: Vec<f64>,
-    /// The filter's λ, μ and number of alternating steps.
-    lambda: f64,
-    mu: f64,
-    iterations: usize,
+    filter: TaubinFilter,
 }
 
 impl CaptureStencil {
     /// The stencil of [`TaubinFilter::capture`] on `topo`: interior vertices average their whole one-ring,
     /// boundary vertices their neighbours along the boundary.
     pub fn new(topo: &Topology) -> Self {
-        let filter = TaubinFilter::capture(topo);
-        let nv = topo.n_vertices();
-        let mut boundary_nb: Vec<Vec<u32>> = vec![Vec::new(); nv];
-        for (t, tri) in topo.triangles().iter().enumerate() {
-            for k in 0..3 {
-                if topo.tri_adj()[t][k] == NONE {
-                    let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                    boundary_nb[a as usize].push(b);
-                    boundary_nb[b as usize].push(a);
-                }
-            }
-        }
-        let mut offsets = Vec::with_capacity(nv + 1);
-        let mut neighbors = Vec::with_capacity(6 * nv);
-        offsets.push(0u32);
-        for (v, bn) in boundary_nb.iter_mut().enumerate() {
-            if bn.is_empty() {
-                neighbors.extend(topo.vertex_neighbors(v));
-            } else {
-                bn.sort_unstable();
-                bn.dedup();
-                neighbors.extend_from_slice(bn);
-            }
-            offsets.push(neighbors.len() as u32);
-        }
-        let inv = offsets
-            .windows(2)
-            .map(|w| match w[1] - w[0] {
-                0 => 0.0,
-                k => 1.0 / k as f64,
-            })
-            .collect();
         CaptureStencil {
-            offsets,
-            neighbors,
-            inv,
-            lambda: filter.lambda,
-            mu: filter.mu,
-            iterations: filter.iterations,
+            filter: TaubinFilter::capture(topo),
         }
+    }
+
+    /// The capture filter itself (the shape projection low-passes with it).
+    pub fn filter(&self) -> &TaubinFilter {
+        &self.filter
     }
 
     /// (A x) at vertex `v`: the mean of its neighbours (summed in list order, as the filter sums), or x[v].
     #[inline]
     fn average(&self, x: &[V3], v: usize) -> V3 {
-        let nb = &self.neighbors[self.offsets[v] as usize..self.offsets[v + 1] as usize];
+        let nb = self.filter.neighbors(v);
         if nb.is_empty() {
             return x[v];
         }
@@ -107,12 +68,17 @@ impl CaptureStencil {
         for &w in nb {
             sum = vec3::add(sum, x[w as usize]);
         }
-        vec3::scale(sum, self.inv[v])
+        vec3::scale(sum, 1.0 / nb.len() as f64)
     }
 
     /// The Chebyshev series of the detail Van Cittert's `steps` add ([`van_cittert_series`] for this filter).
     pub fn series(&self, steps: f64) -> Vec<f64> {
-        van_cittert_series(self.lambda, self.mu, self.iterations, steps)
+        van_cittert_series(
+            self.filter.lambda,
+            self.filter.mu,
+            self.filter.iterations,
+            steps,
+        )
     }
 
     /// Σ_k series[k] T_k(A) applied to `c` minus its mean: the detail q(A) c − c that `steps` Van Cittert
@@ -272,11 +238,11 @@ mod tests {
         let (topo, p) = sheet(23, 17);
         let stencil = CaptureStencil::new(&topo);
         let mut x = p.clone();
-        for it in 0..stencil.iterations {
+        for it in 0..stencil.filter.iterations {
             let f = if it % 2 == 0 {
-                stencil.lambda
+                stencil.filter.lambda
             } else {
-                stencil.mu
+                stencil.filter.mu
             };
             x = (0..x.len())
                 .map(|v| {

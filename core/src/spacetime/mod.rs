@@ -12,6 +12,7 @@ pub mod params;
 pub mod per_anchor;
 pub mod position;
 pub mod restore;
+pub mod shape_projection;
 pub mod so3;
 pub mod stages;
 pub mod stretch;

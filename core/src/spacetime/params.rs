@@ -77,6 +77,12 @@ pub struct DeformParams {
     /// place the fold amplitude the capture smoothed away (a fractional part is a last partial step; one step is
     /// the captured residue added once). 0 turns it off.
     pub fold_restore: f64,
+    /// Shape projection (see [`super::shape_projection`]): the fraction of the capture filter's low-pass of the
+    /// positioned displacement removed after the stretch passes, before the fold restoration, so the folds add
+    /// only what the capture removed and the garment (its open rims included) keeps the captured shape. 0 turns
+    /// it off; it acts only with the shape screen on (`shape_cutoff` > 0: `off` is the paper's unconstrained
+    /// system).
+    pub shape_projection: f64,
 }
 
 /// Most fold restoration steps accepted: the deconvolution then multiplies what the capture kept of a fold by
@@ -84,8 +90,9 @@ pub struct DeformParams {
 pub const MAX_FOLD_RESTORE: f64 = 20.0;
 
 /// Default fold restoration steps (docs/fidelity-folds.md, "Restoring the folds the capture kept" and
-/// "The restoration undoes the capture filter").
-pub const DEFAULT_FOLD_RESTORE: f64 = 5.0;
+/// "The restoration undoes the capture filter"; docs/fidelity.md, "The shape projection": 8 since the
+/// projection, which took away the drift's share of the fold region and gave popping its headroom back).
+pub const DEFAULT_FOLD_RESTORE: f64 = 8.0;
 
 impl Default for DeformParams {
     fn default() -> Self {
@@ -102,6 +109,7 @@ impl Default for DeformParams {
             shape_cutoff: DEFAULT_SHAPE_CUTOFF,
             pinning: Pinning::Centroid,
             fold_restore: DEFAULT_FOLD_RESTORE,
+            shape_projection: super::shape_projection::DEFAULT_SHAPE_PROJECTION,
         }
     }
 }
@@ -130,6 +138,7 @@ struct DeformFields {
     shape_cutoff: Option<f64>,
     pinning: Option<Pinning>,
     fold_restore: Option<f64>,
+    shape_projection: Option<f64>,
 }
 
 #[derive(Deserialize, Default)]
@@ -172,6 +181,7 @@ impl TryFrom<DeformFields> for DeformParams {
             shape_cutoff: f.shape_cutoff.unwrap_or(d.shape_cutoff),
             pinning: f.pinning.unwrap_or(d.pinning),
             fold_restore: f.fold_restore.unwrap_or(d.fold_restore),
+            shape_projection: f.shape_projection.unwrap_or(d.shape_projection),
         })
     }
 }
@@ -182,11 +192,17 @@ impl DeformParams {
         (self.shape_cutoff > 0.0).then_some(self.shape_cutoff)
     }
 
-    /// The fold restoration the positioning ends with ([`super::restore`]).
+    /// What the positioning ends with: the shape projection ([`super::shape_projection`], only with the shape
+    /// screen on), then the fold restoration ([`super::restore`]).
     pub fn restoration(&self) -> super::restore::Restoration {
         super::restore::Restoration {
             steps: self.fold_restore,
             reference_tilt: super::restore::REFERENCE_TILT_DEG.to_radians(),
+            projection: if self.shape_cutoff > 0.0 {
+                self.shape_projection
+            } else {
+                0.0
+            },
         }
     }
 
@@ -259,6 +275,18 @@ impl DeformParams {
                 format!(
                     "must be a gain in [0, {MAX_FOLD_RESTORE}] (0: off), got {}",
                     self.fold_restore
+                ),
+            ));
+        }
+        let max_projection = super::shape_projection::MAX_SHAPE_PROJECTION;
+        if !(self.shape_projection.is_finite()
+            && (0.0..=max_projection).contains(&self.shape_projection))
+        {
+            return Err(Error::param(
+                "shape_projection",
+                format!(
+                    "must be a fraction in [0, {max_projection}] (0: off), got {}",
+                    self.shape_projection
                 ),
             ));
         }

@@ -35,7 +35,7 @@ use std::sync::{Arc, Mutex};
 /// detected fold is restored fully and only the fading edges of the deformation partly.
 pub const REFERENCE_TILT_DEG: f64 = 5.0;
 
-/// How strongly folds are restored.
+/// How the positioning ends: the shape projection ([`super::shape_projection`]), then the fold restoration.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Restoration {
     /// Van Cittert steps of the deconvolution of the capture filter (fractional part: a last partial step);
@@ -43,6 +43,8 @@ pub struct Restoration {
     pub steps: f64,
     /// Smoothed tilt (radians) of the deformed vertex normal at which the weight reaches 1.
     pub reference_tilt: f64,
+    /// Fraction of the capture filter's low-pass of the displacement removed before restoring (0: none).
+    pub projection: f64,
 }
 
 /// The captured surface `c` deconvolved by `filter`: `steps` Van Cittert steps g ← g + (c − filter(g)) from
@@ -64,19 +66,43 @@ pub fn deconvolve(filter: &TaubinFilter, c: &[V3], steps: f64) -> Vec<V3> {
 }
 
 impl Restoration {
-    /// Whether this restoration changes anything.
-    pub fn is_active(&self) -> bool {
+    /// Whether the fold restoration adds anything.
+    pub fn restores(&self) -> bool {
         self.steps > 0.0 && self.reference_tilt > 0.0
+    }
+
+    /// Whether this ending (projection or restoration) changes anything.
+    pub fn is_active(&self) -> bool {
+        self.restores() || self.projection > 0.0
+    }
+
+    /// The shape projection, then the fold restoration, of a positioned frame `out` of `rest` (`out` unchanged
+    /// when neither is active or `out` equals `rest`).
+    ///
+    /// The restoration's weight (where the detectors put folds) is read off `out` as positioned, before the
+    /// projection: the projection takes away what the capture would have seen of the displacement, which
+    /// moves the garment, not the folds, and the tilt that drift carried must not decide where folds are
+    /// restored any more than the drift itself does.
+    pub fn finish(&self, topo: &Topology, mesh: &RestoreMesh, rest: &[V3], out: &[V3]) -> Vec<V3> {
+        if out == rest {
+            return out.to_vec();
+        }
+        let projected =
+            super::shape_projection::project(mesh.stencil.filter(), rest, out, self.projection);
+        if !self.restores() {
+            return projected;
+        }
+        self.restore_onto(topo, mesh, rest, out, &projected)
     }
 
     /// The restored positions: `out` plus what the deconvolution adds to the captured surface, along its
     /// normal, where the deformation (from `rest` to `out`) tilted the surface. `out` is returned unchanged when the restoration
-    /// is inactive or `out` equals `rest`.
+    /// is inactive or `out` equals `rest`. (The shape projection is not part of this: see [`Restoration::finish`].)
     ///
     /// Builds the connectivity tables of [`RestoreMesh`] on every call; a caller restoring many frames of one
     /// mesh builds them once and calls [`Restoration::apply_with`] (same result, bit for bit).
     pub fn apply(&self, topo: &Topology, rest: &[V3], out: &[V3]) -> Vec<V3> {
-        if !self.is_active() || out == rest {
+        if !self.restores() || out == rest {
             return out.to_vec();
         }
         self.apply_with(topo, &RestoreMesh::new(topo), rest, out)
@@ -90,12 +116,25 @@ impl Restoration {
         rest: &[V3],
         out: &[V3],
     ) -> Vec<V3> {
-        if !self.is_active() || out == rest {
+        if !self.restores() || out == rest {
             return out.to_vec();
         }
+        self.restore_onto(topo, mesh, rest, out, out)
+    }
+
+    /// The restoration with its weight read off `tilted` (the deformed frame whose tilt says where folds
+    /// were put) and its heights added to `base`.
+    fn restore_onto(
+        &self,
+        topo: &Topology,
+        mesh: &RestoreMesh,
+        rest: &[V3],
+        tilted: &[V3],
+        base: &[V3],
+    ) -> Vec<V3> {
         let n = rest.len();
         let n_rest = geometry::vertex_normals(topo, rest);
-        let n_out = geometry::vertex_normals(topo, out);
+        let n_out = geometry::vertex_normals(topo, tilted);
         // The capture filter undone as far as `steps` allows: what it adds is the folds the capture damped.
         let detail = mesh.stencil.detail(&mesh.series(self.steps), rest);
         let mut weight: Vec<f64> = (0..n)
@@ -117,10 +156,10 @@ impl Restoration {
             .map(|v| {
                 let w = (weight[v] / self.reference_tilt).min(1.0);
                 if w.is_nan() || w <= 0.0 || vec3::norm(n_rest[v]) == 0.0 {
-                    return out[v];
+                    return base[v];
                 }
                 let height = vec3::dot(detail[v], n_rest[v]);
-                vec3::add(out[v], vec3::scale(n_rest[v], w * height))
+                vec3::add(base[v], vec3::scale(n_rest[v], w * height))
             })
             .collect()
     }
@@ -214,6 +253,7 @@ mod tests {
         let r = Restoration {
             steps: 2.0,
             reference_tilt: 0.1,
+            projection: 0.0,
         };
         assert_eq!(r.apply(&topo, &p, &p), p);
     }
@@ -238,6 +278,7 @@ mod tests {
         let r = Restoration {
             steps: 2.0,
             reference_tilt: 1e-3,
+            projection: 0.0,
         };
         let got = r.apply(&topo, &rest, &out);
         let mut checked = 0;
@@ -271,10 +312,12 @@ mod tests {
             Restoration {
                 steps: 0.0,
                 reference_tilt: 0.1,
+                projection: 0.0,
             },
             Restoration {
                 steps: 2.0,
                 reference_tilt: 0.0,
+                projection: 0.0,
             },
         ] {
             assert_eq!(r.apply(&topo, &rest, &out), out);

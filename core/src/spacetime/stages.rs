@@ -157,8 +157,8 @@ pub struct PositionedFrame {
 
 /// Positions frame `t` of `source` from its cross-faded rotation-vector field `phi` (Alexa blend, gradient-
 /// domain solve), then runs `passes` stretch-reduction passes reusing the frame's factorisation, measuring
-/// stretch after each step, and ends with the fold restoration `restore` ([`super::restore`]; the last
-/// stretch figures are then those of the restored frame).
+/// stretch after each step, and ends with `restore`: the shape projection ([`super::shape_projection`]) and the
+/// fold restoration ([`super::restore`]; the last stretch figures are then those of the finished frame).
 pub fn position_frame(
     system: &PositionSystem,
     source: &dyn FrameSource,
@@ -206,7 +206,7 @@ pub fn position_frame(
     let moved = out != rest;
     let restoring = moved && restore.is_active();
     if restoring && passes == 0 {
-        out = restore.apply_with(system.topology(), system.restore_mesh(), &rest, &out);
+        out = restore.finish(system.topology(), system.restore_mesh(), &rest, &out);
     }
     stretch.push(measure(&out, &mut metrics));
     let mut pass_times = Vec::with_capacity(passes);
@@ -216,7 +216,7 @@ pub fn position_frame(
             out = super::stretch::pass(&fp, &out, rotation, &rotations);
         }
         if restoring && k + 1 == passes {
-            out = restore.apply_with(system.topology(), system.restore_mesh(), &rest, &out);
+            out = restore.finish(system.topology(), system.restore_mesh(), &rest, &out);
         }
         pass_times.push(clock.elapsed().as_secs_f64());
         stretch.push(measure(&out, &mut metrics));

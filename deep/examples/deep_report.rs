@@ -1743,7 +1743,11 @@ fn detail(
             rows.push(serde_json::json!({"held_out": h, "resolution": res, "coverage": texels.coverage(), "gt_roundtrip_deg": e_gt / n, "captured_map_deg": e_cap / n, "detail_map_deg": e_det / n}));
         }
     }
-    write_json(out, "detail.json", &serde_json::json!({"rows": rows, "step": step}))
+    write_json(
+        out,
+        "detail.json",
+        &serde_json::json!({"rows": rows, "step": step}),
+    )
 }
 
 /// deep/tests/registration.rs's synthetic bend: a 32 × 24 tube bent, twisted and bulged by 68 mm, tracked in
@@ -1762,7 +1766,11 @@ fn tube_register(targets: &str, floors: &str, iterations: usize) -> R<()> {
             for i in 0..na {
                 let i1 = (i + 1) % na;
                 let a = (j * na + i) as u32;
-                let (b, c, d) = ((j * na + i1) as u32, ((j + 1) * na + i1) as u32, ((j + 1) * na + i) as u32);
+                let (b, c, d) = (
+                    (j * na + i1) as u32,
+                    ((j + 1) * na + i1) as u32,
+                    ((j + 1) * na + i) as u32,
+                );
                 tris.push([a, b, c]);
                 tris.push([a, c, d]);
             }
@@ -1774,7 +1782,11 @@ fn tube_register(targets: &str, floors: &str, iterations: usize) -> R<()> {
         .flat_map(|j| {
             (0..na).map(move |i| {
                 let phi = std::f64::consts::TAU * i as f64 / na as f64;
-                [0.5 * j as f64 / (nr - 1) as f64, 0.07 * phi.cos(), 0.07 * phi.sin()]
+                [
+                    0.5 * j as f64 / (nr - 1) as f64,
+                    0.07 * phi.cos(),
+                    0.07 * phi.sin(),
+                ]
             })
         })
         .collect();
@@ -1786,7 +1798,10 @@ fn tube_register(targets: &str, floors: &str, iterations: usize) -> R<()> {
                 let ang = 0.5 * s * amount;
                 let r = 1.0 + 0.1 * amount * (std::f64::consts::PI * s).sin();
                 let (y0, z0) = (p[1] * r, p[2] * r);
-                let (y, z) = (y0 * ang.cos() - z0 * ang.sin(), y0 * ang.sin() + z0 * ang.cos());
+                let (y, z) = (
+                    y0 * ang.cos() - z0 * ang.sin(),
+                    y0 * ang.sin() + z0 * ang.cos(),
+                );
                 let th = kappa * p[0];
                 let (cx, cz) = if kappa > 0.0 {
                     (th.sin() / kappa, (1.0 - th.cos()) / kappa)

@@ -4,12 +4,10 @@
 //! that is what lets the job system split apply into frame chunks.
 
 use crate::contract;
+use crate::detail_filter::{DetailFilter, Umbrella};
 use crate::lstm::windows;
 use crate::model::{Model, RegressorKind};
-use crate::detail_filter::{DetailFilter, Umbrella};
-use crate::normal_map::{
-    bake_coarse, convert_space, world_from_vertex_normals, NormalMap, Space,
-};
+use crate::normal_map::{bake_coarse, convert_space, world_from_vertex_normals, NormalMap, Space};
 use crate::pose::read_pose_file;
 use crate::raster::TexelMap;
 use crease_core::mesh::io::open_sequence;

@@ -226,10 +226,12 @@ impl DetailSystem {
             let g = Mat::<f64>::from_fn(m, m, |i, j| {
                 self.gram[c][i * m + j] + if i == j { ridge * mean_diag } else { 0.0 }
             });
-            let eig = g.self_adjoint_eigen(Side::Lower).map_err(|e| Error::Numeric {
-                stage: "detail filter".into(),
-                msg: format!("eigendecomposition of the normal equations: {e:?}"),
-            })?;
+            let eig = g
+                .self_adjoint_eigen(Side::Lower)
+                .map_err(|e| Error::Numeric {
+                    stage: "detail filter".into(),
+                    msg: format!("eigendecomposition of the normal equations: {e:?}"),
+                })?;
             let s = eig.S().column_vector();
             let u = eig.U();
             let smax = (0..m).map(|i| s[i]).fold(0.0f64, f64::max);
@@ -409,7 +411,12 @@ mod tests {
         let (c, f) = pair(&topo, &flat, 0.37);
         let op = Umbrella::new(&topo);
         let got = filter.apply(&op, &c);
-        let err = |a: &[V3]| a.iter().zip(&f).map(|(p, q)| vec3::norm(vec3::sub(*p, *q))).sum::<f64>();
+        let err = |a: &[V3]| {
+            a.iter()
+                .zip(&f)
+                .map(|(p, q)| vec3::norm(vec3::sub(*p, *q)))
+                .sum::<f64>()
+        };
         // The smoothed surface is far from the folds; the filter brings an unseen phase most of the way back.
         assert!(err(&got) < 0.2 * err(&c), "{} vs {}", err(&got), err(&c));
     }

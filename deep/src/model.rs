@@ -319,10 +319,7 @@ pub fn write_core_parts(
 /// the manifest.
 pub fn write_detail(w: &mut ModelWriter, f: &DetailFilter) -> Result<()> {
     let weights: Vec<f64> = f.interior.iter().chain(&f.boundary).copied().collect();
-    w.put(
-        "detail.npy",
-        &npy::to_bytes(&[2, f.degree + 1], &weights),
-    )
+    w.put("detail.npy", &npy::to_bytes(&[2, f.degree + 1], &weights))
 }
 
 /// Writes the autoregressive regressor's arrays; its [`ArSpec`] goes into the manifest.

@@ -10,8 +10,8 @@ use crate::detail_filter::{fit_system, DetailFilter, Umbrella, DEFAULT_DEGREE, D
 use crate::lstm::{windows, LstmConfig, LstmRegressor};
 use crate::mirror::{reflect_pose, MirrorMode, Reflection};
 use crate::model::{
-    write_autoregressive, write_core_parts, write_detail, ArSpec, DetailSpec, Manifest, ModelWriter, RegressorKind,
-    MODEL_FORMAT, MODEL_VERSION,
+    write_autoregressive, write_core_parts, write_detail, ArSpec, DetailSpec, Manifest,
+    ModelWriter, RegressorKind, MODEL_FORMAT, MODEL_VERSION,
 };
 use crate::pose::{read_pose_file, read_pose_names, ControlSpec};
 use crate::pose_features::{PoseFeatureMode, PoseFeatures};

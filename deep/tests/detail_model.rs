@@ -75,7 +75,10 @@ fn write_sequence(dir: &Path, seq: &TrainingSequence, frames: &[Vec<V3>]) -> Vec
     std::fs::create_dir_all(dir).unwrap();
     let mut obj = String::new();
     for p in &frames[0] {
-        obj.push_str(&format!("v {} {} {}\n", p[0] as f32, p[1] as f32, p[2] as f32));
+        obj.push_str(&format!(
+            "v {} {} {}\n",
+            p[0] as f32, p[1] as f32, p[2] as f32
+        ));
     }
     for t in seq.topology.triangles() {
         obj.push_str(&format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
@@ -173,25 +176,26 @@ fn apply_coarse_draws_the_predicted_folds_and_beats_the_captured_map() {
         .sum::<f64>()
         / coarse.len() as f64;
     eprintln!("held-out normal error: captured mesh {mesh:.2}°, its map {plain:.2}°, detail map {detailed:.2}°");
-    assert!(plain > 1.0, "the capture must have removed visible folds ({plain:.2}°)");
+    assert!(
+        plain > 1.0,
+        "the capture must have removed visible folds ({plain:.2}°)"
+    );
     assert!(
         detailed < 0.5 * plain && detailed < mesh,
         "detail map {detailed:.2}° against the captured map {plain:.2}° and mesh {mesh:.2}°"
     );
     // The output mesh is still the coarse one (the filter moves only the normals).
-    let (_, written, _) =
-        crease_deep::uv::read_obj_mesh(&out.join("mesh/frame_0001.obj")).unwrap();
+    let (_, written, _) = crease_deep::uv::read_obj_mesh(&out.join("mesh/frame_0001.obj")).unwrap();
     for (a, b) in written.iter().zip(&coarse[0]) {
         for k in 0..3 {
             assert!((a[k] - b[k]).abs() < 1e-6);
         }
     }
     // The fine normals the filter predicts, not the map sampling, carry the gain.
-    let f0 = model
-        .detail
-        .as_ref()
-        .unwrap()
-        .apply(&crease_deep::detail_filter::Umbrella::new(&model.topology), &coarse[0]);
+    let f0 = model.detail.as_ref().unwrap().apply(
+        &crease_deep::detail_filter::Umbrella::new(&model.topology),
+        &coarse[0],
+    );
     assert_eq!(vertex_normals(&model.topology, &f0).len(), f0.len());
 
     // A format 5 model (no filter) still loads and writes the captured mesh's own maps.

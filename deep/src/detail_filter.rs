@@ -218,7 +218,7 @@ impl DetailSystem {
     pub fn solve(&self, ridge: f64) -> Result<DetailFilter> {
         let m = self.degree + 1;
         let mut w = [vec![0.0; m], vec![0.0; m]];
-        for c in 0..2 {
+        for (c, wc) in w.iter_mut().enumerate() {
             let mean_diag = (0..m).map(|i| self.gram[c][i * m + i]).sum::<f64>() / m as f64;
             if mean_diag <= 0.0 || !mean_diag.is_finite() {
                 continue;
@@ -241,7 +241,7 @@ impl DetailSystem {
                 }
                 let proj: f64 = (0..m).map(|i| u[(i, k)] * self.rhs[c][i]).sum::<f64>() / s[k];
                 for i in 0..m {
-                    w[c][i] += u[(i, k)] * proj;
+                    wc[i] += u[(i, k)] * proj;
                 }
             }
         }
@@ -276,7 +276,7 @@ impl DetailFilter {
     /// same bytes whatever the number of threads.
     pub fn fit(
         topo: &Topology,
-        pairs: &[(&[V3], &[V3])],
+        pairs: &[FramePair],
         degree: usize,
         ridge: f64,
     ) -> Result<DetailFilter> {
@@ -321,12 +321,11 @@ impl DetailFilter {
     }
 }
 
+/// A (coarse, fine) frame pair of one topology.
+pub type FramePair<'a> = (&'a [V3], &'a [V3]);
+
 /// The normal equations of all `pairs` (checked against `topo`), reduced in frame order.
-pub fn fit_system(
-    topo: &Topology,
-    pairs: &[(&[V3], &[V3])],
-    degree: usize,
-) -> Result<DetailSystem> {
+pub fn fit_system(topo: &Topology, pairs: &[FramePair], degree: usize) -> Result<DetailSystem> {
     use rayon::prelude::*;
     let nv = topo.n_vertices();
     if let Some(i) = pairs

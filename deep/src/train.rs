@@ -6,7 +6,9 @@
 
 use crate::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
 use crate::blend::{BlendSpec, WeightFit};
-use crate::detail_filter::{fit_system, DetailFilter, Umbrella, DEFAULT_DEGREE, DEFAULT_RIDGE};
+use crate::detail_filter::{
+    fit_system, DetailFilter, FramePair, Umbrella, DEFAULT_DEGREE, DEFAULT_RIDGE,
+};
 use crate::lstm::{windows, LstmConfig, LstmRegressor};
 use crate::mirror::{reflect_pose, MirrorMode, Reflection};
 use crate::model::{
@@ -553,7 +555,7 @@ pub fn fit_detail(
     seqs: &[TrainingSequence],
     topo: &Topology,
 ) -> Result<(DetailFilter, DetailSpec)> {
-    let pairs: Vec<(&[[f64; 3]], &[[f64; 3]])> = seqs
+    let pairs: Vec<FramePair> = seqs
         .iter()
         .flat_map(|s| {
             s.coarse
@@ -579,6 +581,7 @@ pub fn fit_detail(
 /// generator's weights to `weights_out`. Returns the per-epoch losses and timings. The input map is the one
 /// `apply --coarse` draws: with a detail filter, the normals of the captured mesh's predicted fine shape (so
 /// the generator learns what the filter leaves), else the captured mesh's own.
+#[allow(clippy::too_many_arguments)]
 pub fn train_cgan(
     seqs: &[TrainingSequence],
     topo: &Topology,

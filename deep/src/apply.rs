@@ -4,13 +4,14 @@
 //! that is what lets the job system split apply into frame chunks.
 
 use crate::contract;
+use crate::detail_filter::{DetailFilter, Umbrella};
 use crate::lstm::windows;
 use crate::model::{Model, RegressorKind};
-use crate::normal_map::{bake_coarse, convert_space, NormalMap, Space};
+use crate::normal_map::{bake_coarse, convert_space, world_from_vertex_normals, NormalMap, Space};
 use crate::pose::read_pose_file;
 use crate::raster::TexelMap;
 use crease_core::mesh::io::open_sequence;
-use crease_core::mesh::{Frame, FrameSource};
+use crease_core::mesh::{geometry, Frame, FrameSource, Topology};
 use crease_core::progress::Progress;
 use crease_core::vec3::V3;
 use crease_core::{Error, Result};
@@ -177,6 +178,13 @@ pub fn apply(
     } else {
         crate::enhance::Enhancer::for_model(model)?
     };
+    // The detail filter learned captured → fine; a regression's reconstruction is no capture, so poses get the
+    // plain coarse map.
+    let op = crate::detail_filter::Umbrella::new(&model.topology);
+    let detail = match input {
+        ApplyInput::Coarse(_) => model.detail.as_ref().map(|f| (f, &op)),
+        ApplyInput::Pose(_) => None,
+    };
     contract::prepare(out)?;
     progress.begin("apply", range.len() as u64);
     // Each frame needs its predecessor's map only through the cGAN's input, never its output, so frames are
@@ -186,7 +194,7 @@ pub fn apply(
             return Err(Error::Cancelled);
         }
         let c = shapes.frame(t)?;
-        let map = frame_map(model, &texels, &c, enhancer.as_ref(), params.space)?;
+        let map = frame_map(model, &texels, &c, detail, enhancer.as_ref(), params.space)?;
         contract::write_frame(out, t, &model.topology, &c, &model.layout, &map)?;
         progress.advance("apply", 1);
     }
@@ -197,15 +205,33 @@ pub fn apply(
     Ok(range.len())
 }
 
-/// One frame's map: the coarse map, enhanced by the cGAN when the model has one, in the asked space.
+/// The map of a captured mesh's predicted fine shape: the vertex normals of `filter`'s prediction interpolated
+/// over the coarse mesh's faces (the coarse mesh stays the surface the map belongs to).
+pub fn detail_map(
+    texels: &TexelMap,
+    topo: &Topology,
+    op: &Umbrella,
+    filter: &DetailFilter,
+    coarse: &[V3],
+) -> NormalMap {
+    let fine = filter.apply(op, coarse);
+    world_from_vertex_normals(texels, topo, &geometry::vertex_normals(topo, &fine))
+}
+
+/// One frame's map: the coarse map (or, with a detail filter, the map of the predicted fine shape), enhanced by
+/// the cGAN when the model has one, in the asked space.
 pub fn frame_map(
     model: &Model,
     texels: &TexelMap,
     coarse: &[V3],
+    detail: Option<(&DetailFilter, &Umbrella)>,
     enhancer: Option<&crate::enhance::Enhancer>,
     space: Space,
 ) -> Result<NormalMap> {
-    let mut map = bake_coarse(texels, &model.topology, coarse);
+    let mut map = match detail {
+        Some((f, op)) => detail_map(texels, &model.topology, op, f, coarse),
+        None => bake_coarse(texels, &model.topology, coarse),
+    };
     if let Some(e) = enhancer {
         map = e.enhance(&map)?;
     }

@@ -3,7 +3,8 @@
 //! Maps to the paper as follows: [`register`] is §3.1 (non-rigid ICP over a deformation graph), [`subspace`] is §3.2 (PCA of registered shapes), [`pose`], [`regress`] and
 //! [`lstm`] §3.3 (pose-to-shape regression), [`uv`], [`raster`] and [`normal_map`] §4.1 (normal maps in UV
 //! space), [`cgan`] §4.2 (U-Net + 70×70 PatchGAN with the temporal term of Eq. 4). [`model`] stores a trained model, [`train`] fits one, [`apply`] runs it and writes the DESIGN §7
-//! output contract ([`contract`]), [`bake`] turns any detailed sequence into normal maps on its coarse input.
+//! output contract ([`contract`]), [`bake`] turns any detailed sequence into normal maps on its coarse input;
+//! [`detail_filter`] predicts the fine surface from a captured mesh (the detail `apply --coarse` draws).
 //! No async and no networking: the CLI and the cluster worker call in here.
 
 pub mod adam;
@@ -14,6 +15,7 @@ pub mod blend;
 pub mod cgan;
 pub mod cgan_data;
 pub mod contract;
+pub mod detail_filter;
 pub mod enhance;
 pub mod gemm_conv;
 pub mod kdtree;

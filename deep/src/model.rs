@@ -7,6 +7,7 @@
 //! damaged file is a clear error, never a silently different model.
 
 use crate::autoregress::{AutoregressiveLinear, ShapeHistory};
+use crate::detail_filter::DetailFilter;
 use crate::lstm::{LstmConfig, LstmRegressor};
 use crate::pose::ControlSpec;
 use crate::regress::LinearRegression;
@@ -29,7 +30,9 @@ use std::sync::Arc;
 /// parse a manifest whose `regressor` is `blend`, so it must see a version it refuses by name.
 /// Version 5 added pose features (`control.features`: rigid features of the pose, [`crate::pose_features`]); a
 /// version 4 crease would have ignored the field and built raw control vectors of the wrong length.
-pub const MODEL_VERSION: u32 = 5;
+/// Version 6 added the mesh-space detail filter (`detail` in the manifest, `detail.npy`) that `apply --coarse`
+/// runs before drawing the map; a version 5 crease would have ignored it and written the plain coarse maps.
+pub const MODEL_VERSION: u32 = 6;
 /// Oldest format this build still reads: a version 1 model differs only by lacking the autoregressive
 /// regressor, so it still runs with the linear or LSTM one; the generator of a version 1 or 2 model has no
 /// `residual` field and runs as the plain generator it was trained as; models before version 4 have no blend
@@ -99,6 +102,9 @@ pub struct Manifest {
     /// The blend regressor's weight and how it was chosen; absent before version 4.
     #[serde(default)]
     pub blend: Option<crate::blend::BlendSpec>,
+    /// The mesh-space detail filter ([`crate::detail_filter`], weights in `detail.npy`); absent before version 6.
+    #[serde(default)]
+    pub detail: Option<DetailSpec>,
     /// Training standard deviation of each coefficient (the LSTM's output units).
     pub coeff_scale: Vec<f64>,
     /// Normal map resolution the model (and its cGAN) works at.
@@ -108,6 +114,16 @@ pub struct Manifest {
     /// Free-form training summary (data, losses, timings) for people.
     pub training: serde_json::Value,
     pub files: BTreeMap<String, FileEntry>,
+}
+
+/// The scalar part of the detail filter: its degree, its ridge weight and how it did on its training pairs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetailSpec {
+    pub degree: usize,
+    pub ridge: f64,
+    /// Mean |fine − coarse|² per vertex of the training pairs (m²), before and after the filter.
+    pub train_mse_before: f64,
+    pub train_mse_after: f64,
 }
 
 /// The scalar part of the autoregressive regressor's [`ShapeHistory`].
@@ -139,6 +155,8 @@ pub struct Model {
     pub linear: LinearRegression,
     pub autoregressive: Option<AutoregressiveLinear>,
     pub lstm: Option<LstmRegressor>,
+    /// The mesh-space detail filter `apply --coarse` runs (version 6 on).
+    pub detail: Option<DetailFilter>,
     /// Directory the model was loaded from (for components that load lazily, like the cGAN).
     pub dir: PathBuf,
 }
@@ -295,6 +313,13 @@ pub fn write_core_parts(
     let obj = w.staging_path("template.obj");
     write_obj_with_uv(&obj, topo, &mean_shape, layout)?;
     w.record("template.obj")
+}
+
+/// Writes the detail filter's weights (`detail.npy`: interior row, boundary row); its [`DetailSpec`] goes into
+/// the manifest.
+pub fn write_detail(w: &mut ModelWriter, f: &DetailFilter) -> Result<()> {
+    let weights: Vec<f64> = f.interior.iter().chain(&f.boundary).copied().collect();
+    w.put("detail.npy", &npy::to_bytes(&[2, f.degree + 1], &weights))
 }
 
 /// Writes the autoregressive regressor's arrays; its [`ArSpec`] goes into the manifest.
@@ -475,6 +500,33 @@ impl Model {
         if manifest.cgan.is_some() {
             read("cgan.safetensors")?;
         }
+        let detail = match &manifest.detail {
+            Some(spec) => {
+                let (shape, weights) =
+                    npy::from_bytes::<f64>(&p("detail.npy"), &read("detail.npy")?)?;
+                if shape != [2, spec.degree + 1] {
+                    return Err(Error::format(
+                        p("detail.npy"),
+                        None,
+                        format!(
+                            "shape {shape:?} does not fit the manifest's degree {} ([2, {}])",
+                            spec.degree,
+                            spec.degree + 1
+                        ),
+                    ));
+                }
+                let (interior, boundary) = weights.split_at(spec.degree + 1);
+                let f = DetailFilter {
+                    degree: spec.degree,
+                    interior: interior.to_vec(),
+                    boundary: boundary.to_vec(),
+                };
+                f.check()
+                    .map_err(|e| Error::format(p("detail.npy"), None, e))?;
+                Some(f)
+            }
+            None => None,
+        };
         match &manifest.blend {
             Some(b) => crate::blend::check_weight(b.weight)
                 .map_err(|e| Error::format(&mpath, None, format!("`blend.weight`: {e}")))?,
@@ -505,6 +557,7 @@ impl Model {
             linear,
             autoregressive,
             lstm,
+            detail,
             dir: dir.to_path_buf(),
         })
     }

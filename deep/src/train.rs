@@ -6,11 +6,14 @@
 
 use crate::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
 use crate::blend::{BlendSpec, WeightFit};
+use crate::detail_filter::{
+    fit_system, DetailFilter, FramePair, Umbrella, DEFAULT_DEGREE, DEFAULT_RIDGE,
+};
 use crate::lstm::{windows, LstmConfig, LstmRegressor};
 use crate::mirror::{reflect_pose, MirrorMode, Reflection};
 use crate::model::{
-    write_autoregressive, write_core_parts, ArSpec, Manifest, ModelWriter, RegressorKind,
-    MODEL_FORMAT, MODEL_VERSION,
+    write_autoregressive, write_core_parts, write_detail, ArSpec, DetailSpec, Manifest,
+    ModelWriter, RegressorKind, MODEL_FORMAT, MODEL_VERSION,
 };
 use crate::pose::{read_pose_file, read_pose_names, ControlSpec};
 use crate::pose_features::{PoseFeatureMode, PoseFeatures};
@@ -477,9 +480,19 @@ pub fn train(
     let fitted = fit(seqs, params, progress)?;
     let mean_shape = crate::subspace::unflatten(&fitted.subspace.mean);
     let layout = layout_for(params.uv.as_deref(), &topo, &mean_shape)?;
+    let t_detail = Instant::now();
+    let (detail, detail_spec) = fit_detail(seqs, &topo)?;
+    progress.note(&format!(
+        "detail filter: degree {}, training residual {:.3e} → {:.3e} m² per vertex in {:.1} s",
+        detail_spec.degree,
+        detail_spec.train_mse_before,
+        detail_spec.train_mse_after,
+        t_detail.elapsed().as_secs_f64()
+    ));
     let mut w = ModelWriter::new(out)?;
     write_core_parts(&mut w, &topo, &layout, &fitted.subspace, &fitted.linear)?;
     write_autoregressive(&mut w, &fitted.autoregressive)?;
+    write_detail(&mut w, &detail)?;
     if let Some(net) = &fitted.lstm {
         net.save(&w.staging_path("lstm.safetensors"))?;
         w.record("lstm.safetensors")?;
@@ -496,6 +509,7 @@ pub fn train(
             &topo,
             &layout,
             &cfg,
+            Some(&detail),
             params.checkpoint.as_deref(),
             &w.staging_path("cgan.safetensors"),
             progress,
@@ -515,6 +529,7 @@ pub fn train(
         lstm: fitted.lstm.as_ref().map(|n| n.config.clone()),
         autoregressive: Some(ArSpec::of(&fitted.autoregressive.history)),
         blend: Some(fitted.blend.clone()),
+        detail: Some(detail_spec),
         coeff_scale: fitted.coeff_scale.clone(),
         resolution: params.resolution,
         cgan: cgan_value,
@@ -526,19 +541,53 @@ pub fn train(
             "autoregressive_rollout_loss": [fitted.ar_rollout_losses.first(), fitted.ar_rollout_losses.last()],
             "mirror": fitted.mirror.as_ref().map(|r| serde_json::json!({"axis": r.axis_name(), "asymmetry_edges": r.asymmetry})),
             "cgan": cgan_summary,
+            "detail_s": t_detail.elapsed().as_secs_f64(),
         }),
         files: Default::default(),
     };
     w.publish(manifest)
 }
 
-/// Trains the cGAN on every training frame (captured map → gt map), with per-epoch checkpoints, and writes the
-/// generator's weights to `weights_out`. Returns the per-epoch losses and timings.
+/// The mesh-space detail filter ([`crate::detail_filter`]) fitted on every training frame's (captured, gt) pair
+/// with the default degree and ridge, and its summary for the manifest. The mirrored frames are not used: the
+/// filter is the same in any reflection of the mesh.
+pub fn fit_detail(
+    seqs: &[TrainingSequence],
+    topo: &Topology,
+) -> Result<(DetailFilter, DetailSpec)> {
+    let pairs: Vec<FramePair> = seqs
+        .iter()
+        .flat_map(|s| {
+            s.coarse
+                .iter()
+                .zip(&s.fine)
+                .map(|(c, f)| (c.as_slice(), f.as_slice()))
+        })
+        .collect();
+    let (degree, ridge) = (DEFAULT_DEGREE, DEFAULT_RIDGE);
+    let system = fit_system(topo, &pairs, degree)?;
+    let filter = system.solve(ridge)?;
+    let count = (pairs.len() * topo.n_vertices()).max(1) as f64;
+    let spec = DetailSpec {
+        degree,
+        ridge,
+        train_mse_before: (system.target_sq[0] + system.target_sq[1]) / count,
+        train_mse_after: system.residual(&filter).max(0.0) / count,
+    };
+    Ok((filter, spec))
+}
+
+/// Trains the cGAN on every training frame (input map → gt map), with per-epoch checkpoints, and writes the
+/// generator's weights to `weights_out`. Returns the per-epoch losses and timings. The input map is the one
+/// `apply --coarse` draws: with a detail filter, the normals of the captured mesh's predicted fine shape (so
+/// the generator learns what the filter leaves), else the captured mesh's own.
+#[allow(clippy::too_many_arguments)]
 pub fn train_cgan(
     seqs: &[TrainingSequence],
     topo: &Topology,
     layout: &UvLayout,
     cfg: &crate::cgan::CganConfig,
+    detail: Option<&DetailFilter>,
     checkpoint: Option<&Path>,
     weights_out: &Path,
     progress: &dyn Progress,
@@ -548,7 +597,13 @@ pub fn train_cgan(
     let t0 = Instant::now();
     let mut data = Vec::new();
     for s in seqs {
-        let pairs = crate::cgan_data::map_pairs(topo, &texels, &s.coarse, &s.fine, 8.0)?;
+        let mut pairs = crate::cgan_data::map_pairs(topo, &texels, &s.coarse, &s.fine, 8.0)?;
+        if let Some(f) = detail {
+            let op = Umbrella::new(topo);
+            for (pair, c) in pairs.iter_mut().zip(&s.coarse) {
+                pair.0 = crate::apply::detail_map(&texels, topo, &op, f, c);
+            }
+        }
         data.extend(crate::cgan_data::samples(&pairs));
     }
     let prep_s = t0.elapsed().as_secs_f64();

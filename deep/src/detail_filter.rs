@@ -19,7 +19,9 @@
 //! The predicted fine shape is used only for its normals (the map `apply --coarse` writes); the output mesh stays
 //! the coarse one, so the shape is not moved.
 
-use crease_core::mesh::{Topology, NONE};
+use crate::register::boundary_vertices;
+use crease_core::mesh::Topology;
+use crease_core::shape::TaubinFilter;
 use crease_core::vec3::{self, V3};
 use crease_core::{Error, Result};
 use faer::{Mat, Side};
@@ -34,44 +36,24 @@ pub const DEFAULT_DEGREE: usize = 40;
 pub const DEFAULT_RIDGE: f64 = 1e-10;
 
 /// The uniform Laplacian of a topology: per vertex, the neighbours it averages over.
+///
+/// The neighbour lists are the capture filter's own ([`TaubinFilter::neighbors`]): the filter learns to undo
+/// that low-pass, so its Laplacian must be the very operator the capture applied, and keeping one builder
+/// means the two cannot drift apart.
 #[derive(Debug, Clone)]
 pub struct Umbrella {
-    offsets: Vec<u32>,
-    neighbors: Vec<u32>,
+    rings: TaubinFilter,
     boundary: Vec<bool>,
 }
 
 impl Umbrella {
     pub fn new(topo: &Topology) -> Self {
-        let nv = topo.n_vertices();
-        let mut boundary_nb: Vec<Vec<u32>> = vec![Vec::new(); nv];
-        for (t, tri) in topo.triangles().iter().enumerate() {
-            for k in 0..3 {
-                if topo.tri_adj()[t][k] == NONE {
-                    let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                    boundary_nb[a as usize].push(b);
-                    boundary_nb[b as usize].push(a);
-                }
-            }
-        }
-        let mut offsets = Vec::with_capacity(nv + 1);
-        let mut neighbors = Vec::new();
-        let mut boundary = vec![false; nv];
-        offsets.push(0u32);
-        for (v, bn) in boundary_nb.iter_mut().enumerate() {
-            if bn.is_empty() {
-                neighbors.extend(topo.vertex_neighbors(v));
-            } else {
-                boundary[v] = true;
-                bn.sort_unstable();
-                bn.dedup();
-                neighbors.extend_from_slice(bn);
-            }
-            offsets.push(neighbors.len() as u32);
+        let mut boundary = vec![false; topo.n_vertices()];
+        for v in boundary_vertices(topo) {
+            boundary[v as usize] = true;
         }
         Umbrella {
-            offsets,
-            neighbors,
+            rings: TaubinFilter::capture(topo),
             boundary,
         }
     }
@@ -89,7 +71,7 @@ impl Umbrella {
     pub fn laplacian(&self, x: &[V3]) -> Vec<V3> {
         (0..x.len())
             .map(|v| {
-                let nb = &self.neighbors[self.offsets[v] as usize..self.offsets[v + 1] as usize];
+                let nb = self.rings.neighbors(v);
                 if nb.is_empty() {
                     return [0.0; 3];
                 }
@@ -458,5 +440,106 @@ mod tests {
         let s = empty.solve(0.0).unwrap();
         assert!(s.boundary.iter().all(|&w| w == 0.0));
         assert!((s.interior[0] - 2.0).abs() < 1e-12);
+    }
+
+    /// The neighbour lists Umbrella built by hand before it read the capture filter's: boundary vertices take
+    /// their neighbours along open edges (sorted, deduplicated), the others their one-ring.
+    fn hand_built_rings(topo: &Topology) -> (Vec<Vec<u32>>, Vec<bool>) {
+        use crease_core::mesh::NONE;
+        let nv = topo.n_vertices();
+        let mut boundary_nb: Vec<Vec<u32>> = vec![Vec::new(); nv];
+        for (t, tri) in topo.triangles().iter().enumerate() {
+            for k in 0..3 {
+                if topo.tri_adj()[t][k] == NONE {
+                    let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                    boundary_nb[a as usize].push(b);
+                    boundary_nb[b as usize].push(a);
+                }
+            }
+        }
+        let mut boundary = vec![false; nv];
+        let rings = boundary_nb
+            .into_iter()
+            .enumerate()
+            .map(|(v, mut bn)| {
+                if bn.is_empty() {
+                    topo.vertex_neighbors(v)
+                } else {
+                    boundary[v] = true;
+                    bn.sort_unstable();
+                    bn.dedup();
+                    bn
+                }
+            })
+            .collect();
+        (rings, boundary)
+    }
+
+    #[test]
+    fn the_shared_rings_give_the_laplacian_the_hand_built_ones_gave() {
+        // A grid with a hole, a vertex pinched between two cut cells (four boundary neighbours), a detached
+        // triangle and a vertex no triangle uses: every kind of ring the builder distinguishes.
+        let (nx, ny) = (9usize, 8usize);
+        let (_, mut p) = grid(nx, ny);
+        let cut = |i: usize, j: usize| (i, j) == (3, 3) || (i, j) == (4, 3) || (i, j) == (5, 4);
+        let mut tris = Vec::new();
+        for j in 0..ny - 1 {
+            for i in 0..nx - 1 {
+                if cut(i, j) {
+                    continue;
+                }
+                let a = (j * nx + i) as u32;
+                let (b, c, d) = (a + 1, a + 1 + nx as u32, a + nx as u32);
+                tris.push([a, b, c]);
+                tris.push([a, c, d]);
+            }
+        }
+        let base = p.len() as u32;
+        p.extend([
+            [20.0, 0.0, 0.5],
+            [21.0, 0.0, -0.2],
+            [20.0, 1.0, 0.1],
+            [30.0, 0.0, 0.0],
+        ]);
+        tris.push([base, base + 1, base + 2]);
+        let topo = Topology::new(p.len(), tris).unwrap();
+        for (v, q) in p.iter_mut().enumerate() {
+            q[2] += 0.3 * (v as f64 * 0.7).sin();
+        }
+
+        let op = Umbrella::new(&topo);
+        let (rings, boundary) = hand_built_rings(&topo);
+        assert_eq!(op.n_vertices(), rings.len());
+        for v in 0..rings.len() {
+            assert_eq!(op.rings.neighbors(v), rings[v].as_slice(), "vertex {v}");
+            assert_eq!(op.is_boundary(v), boundary[v], "vertex {v}");
+        }
+        // The cases the mesh was built for are really there.
+        let pinch = 4 * nx + 5;
+        assert_eq!(rings[pinch].len(), 4, "pinched vertex");
+        assert!(boundary[base as usize] && rings[base as usize].len() == 2);
+        assert!(rings[base as usize + 3].is_empty() && !boundary[base as usize + 3]);
+        assert!(!boundary[nx + 1] && rings[nx + 1].len() == 6);
+
+        // The Laplacian (and so every feature and fitted weight) is bit for bit the hand-built rings' one.
+        let expected: Vec<V3> = (0..p.len())
+            .map(|v| {
+                let nb = &rings[v];
+                if nb.is_empty() {
+                    return [0.0; 3];
+                }
+                let mut avg = [0.0; 3];
+                for &w in nb {
+                    avg = vec3::add(avg, p[w as usize]);
+                }
+                vec3::sub(vec3::scale(avg, 1.0 / nb.len() as f64), p[v])
+            })
+            .collect();
+        let got = op.laplacian(&p);
+        for (v, (a, b)) in got.iter().zip(&expected).enumerate() {
+            for k in 0..3 {
+                assert_eq!(a[k].to_bits(), b[k].to_bits(), "vertex {v} axis {k}");
+            }
+        }
     }
 }

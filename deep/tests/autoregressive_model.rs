@@ -8,38 +8,9 @@ use crease_core::npy;
 use crease_core::progress::NoProgress;
 use crease_deep::apply::{apply, shapes_from_poses, ApplyInput, ApplyParams};
 use crease_deep::model::{Model, RegressorKind};
-use crease_deep::train::{fit, train, TrainParams, TrainingSequence};
+use crease_deep::train::{fit, train, TrainParams};
 use std::path::Path;
-
-/// A tube whose bulge follows a leaky integral of the pose (s_t = 0.8 s_{t−1} + 0.5 pose_t): the same pose
-/// gives different shapes depending on the poses before it, as on the sleeve.
-fn sequence(dir: &Path, frames: usize, freq: f64, phase: f64) -> TrainingSequence {
-    let (topo, _) = support::tube(16, 8, |_, _| 0.07);
-    let (mut fine, mut poses) = (Vec::new(), Vec::new());
-    let mut s = 0.0;
-    for t in 0..frames {
-        let a = (freq * t as f64 + phase).sin();
-        s = 0.8 * s + 0.5 * a;
-        poses.push(vec![a, 0.0, 0.2]);
-        fine.push(
-            support::tube(16, 8, |phi, x| {
-                0.07 + 0.01 * s * (6.0 * x).sin() + 0.003 * a * (4.0 * phi).cos()
-            })
-            .1,
-        );
-    }
-    std::fs::create_dir_all(dir).unwrap();
-    let doc = serde_json::json!({ "pose_vectors": poses });
-    std::fs::write(dir.join("pose.json"), doc.to_string()).unwrap();
-    TrainingSequence {
-        dir: dir.to_path_buf(),
-        topology: topo,
-        coarse: fine.clone(),
-        fine,
-        poses,
-        pose_names: None,
-    }
-}
+use support::leaky_sequence as sequence;
 
 fn params() -> TrainParams {
     TrainParams {

@@ -1,39 +1,9 @@
 //! cGAN (§4.2) on tiny maps: losses fall, shapes are right, training is deterministic, checkpoints resume.
 
-use crease_deep::cgan::{Cgan, CganConfig, Sample};
-use crease_deep::normal_map::NormalMap;
+mod support;
 
-/// Input: a smooth map; target: the same with a ripple whose phase moves with t (temporal data).
-fn samples(n: usize, res: usize) -> Vec<Sample> {
-    let map = |t: usize, ripple: f32| {
-        let mut m = NormalMap {
-            width: res,
-            height: res,
-            n: vec![[0.0; 3]; res * res],
-            covered: vec![false; res * res],
-        };
-        for y in 0..res {
-            for x in 0..res {
-                let k = y * res + x;
-                let u = x as f32 / res as f32;
-                let tilt = 0.3 * (u * 3.0 + t as f32 * 0.2).sin();
-                let r = ripple * (u * 25.0 + t as f32 * 0.5).sin();
-                let v = [tilt + r, 0.1, 1.0];
-                let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                m.n[k] = [v[0] / l, v[1] / l, v[2] / l];
-                m.covered[k] = x > 1 && y > 1;
-            }
-        }
-        m
-    };
-    (0..n)
-        .map(|t| Sample {
-            input: map(t, 0.0),
-            target: map(t, 0.4),
-            prev_target: map(t.saturating_sub(1), 0.4),
-        })
-        .collect()
-}
+use crease_deep::cgan::{Cgan, CganConfig};
+use support::ripple_samples as samples;
 
 fn config(epochs: usize) -> CganConfig {
     CganConfig {

@@ -39,17 +39,7 @@ fn sequence(dir: &Path, frames: usize, freq: f64, amp: f64) -> TrainingSequence 
                 .collect(),
         );
     }
-    std::fs::create_dir_all(dir).unwrap();
-    let doc = serde_json::json!({ "pose_vectors": poses, "pose_vector_names": NAMES });
-    std::fs::write(dir.join("pose.json"), doc.to_string()).unwrap();
-    TrainingSequence {
-        dir: dir.to_path_buf(),
-        topology: topo,
-        coarse: fine.clone(),
-        fine,
-        poses,
-        pose_names: Some(NAMES.iter().map(|s| s.to_string()).collect()),
-    }
+    support::pose_sequence(dir, topo, fine, poses, Some(&NAMES))
 }
 
 fn params(features: PoseFeatureMode, mirror: MirrorMode) -> TrainParams {

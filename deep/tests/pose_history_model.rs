@@ -29,17 +29,7 @@ fn sequence(dir: &Path, frames: usize, freq: f64, phase: f64) -> TrainingSequenc
             .1,
         );
     }
-    std::fs::create_dir_all(dir).unwrap();
-    let doc = serde_json::json!({ "pose_vectors": poses });
-    std::fs::write(dir.join("pose.json"), doc.to_string()).unwrap();
-    TrainingSequence {
-        dir: dir.to_path_buf(),
-        topology: topo,
-        coarse: fine.clone(),
-        fine,
-        poses,
-        pose_names: None,
-    }
+    support::pose_sequence(dir, topo, fine, poses, None)
 }
 
 fn params(pose_history: Vec<f64>) -> TrainParams {

@@ -3,6 +3,8 @@
 
 use crease_core::mesh::Topology;
 use crease_core::vec3::V3;
+use crease_deep::cgan::Sample;
+use crease_deep::normal_map::NormalMap;
 use std::sync::Arc;
 
 /// Quad grid of `nx` × `ny` vertices split into triangles (a, b, c), (a, c, d), like the sleeve data.
@@ -74,16 +76,31 @@ pub fn leaky_sequence(
             .1,
         );
     }
+    pose_sequence(dir, topo, fine, poses, None)
+}
+
+/// A training sequence of in-memory frames (fine = coarse) and their poses; writes `dir/pose.json` (with the
+/// pose names when given) the way `crease deep train` expects it beside the meshes.
+pub fn pose_sequence(
+    dir: &std::path::Path,
+    topology: Arc<Topology>,
+    fine: Vec<Vec<V3>>,
+    poses: Vec<Vec<f64>>,
+    names: Option<&[&str]>,
+) -> crease_deep::train::TrainingSequence {
     std::fs::create_dir_all(dir).unwrap();
-    let doc = serde_json::json!({ "pose_vectors": poses });
+    let doc = match names {
+        Some(n) => serde_json::json!({ "pose_vectors": poses, "pose_vector_names": n }),
+        None => serde_json::json!({ "pose_vectors": poses }),
+    };
     std::fs::write(dir.join("pose.json"), doc.to_string()).unwrap();
     crease_deep::train::TrainingSequence {
         dir: dir.to_path_buf(),
-        topology: topo,
+        topology,
         coarse: fine.clone(),
         fine,
         poses,
-        pose_names: None,
+        pose_names: names.map(|n| n.iter().map(|s| s.to_string()).collect()),
     }
 }
 
@@ -98,4 +115,37 @@ pub fn mean_vertex_error(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> f64 {
         }
     }
     s / n
+}
+
+/// cGAN samples on `res`² maps: input a smooth tilted map, target the same with a ripple, the ripple's phase
+/// moving with t (temporal data, so `prev_target` differs from `target`).
+pub fn ripple_samples(n: usize, res: usize) -> Vec<Sample> {
+    let map = |t: usize, ripple: f32| {
+        let mut m = NormalMap {
+            width: res,
+            height: res,
+            n: vec![[0.0; 3]; res * res],
+            covered: vec![false; res * res],
+        };
+        for y in 0..res {
+            for x in 0..res {
+                let k = y * res + x;
+                let u = x as f32 / res as f32;
+                let tilt = 0.3 * (u * 3.0 + t as f32 * 0.2).sin();
+                let r = ripple * (u * 25.0 + t as f32 * 0.5).sin();
+                let v = [tilt + r, 0.1, 1.0];
+                let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                m.n[k] = [v[0] / l, v[1] / l, v[2] / l];
+                m.covered[k] = x > 1 && y > 1;
+            }
+        }
+        m
+    };
+    (0..n)
+        .map(|t| Sample {
+            input: map(t, 0.0),
+            target: map(t, 0.4),
+            prev_target: map(t.saturating_sub(1), 0.4),
+        })
+        .collect()
 }

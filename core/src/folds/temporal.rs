@@ -252,7 +252,7 @@ mod tests {
                 let mut anchors: Vec<Anchor> = set
                     .frame(t)
                     .iter()
-                    .filter(|a| (a.triangle as usize + t) % 5 != 0)
+                    .filter(|a| !(a.triangle as usize + t).is_multiple_of(5))
                     .copied()
                     .collect();
                 // A lone anchor seen in this frame only.

@@ -36,6 +36,7 @@ const STAGES: &[(&str, &[&str])] = &[
             "fold-steps",
             "fold-phases",
             "fold-detect",
+            "fold-settle",
             "fold-merge",
             "fold-files",
         ],

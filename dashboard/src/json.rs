@@ -69,10 +69,11 @@ pub fn job_summary(s: &pb::JobStatus) -> Value {
 }
 
 /// Stages of the task graph in the order they run; a kind not listed here sorts after them.
-const STAGES: [(&str, &str); 10] = [
+const STAGES: [(&str, &str); 11] = [
     ("fold-steps", "fold steps (stretch)"),
     ("fold-phases", "fold phases (stretch)"),
     ("fold-detect", "fold detection"),
+    ("fold-settle", "fold temporal coherence"),
     ("fold-merge", "fold merge"),
     ("fold-files", "fold files"),
     ("weight-block", "weights (anchor blocks)"),

@@ -32,6 +32,10 @@ pub fn fold_steps_task(first_frame: usize) -> String {
     format!("folds/steps/f{first_frame:06}")
 }
 pub const FOLD_PHASES_TASK: &str = "folds/phases";
+/// Temporal coherence (the detector's settle) of the frames starting at `first_frame`.
+pub fn fold_settle_task(first_frame: usize) -> String {
+    format!("folds/settle/f{first_frame:06}")
+}
 pub fn weight_window_task(window: usize) -> String {
     format!("weights/w{window:04}")
 }
@@ -67,6 +71,11 @@ pub fn fold_phases(pass: &str, frame: usize) -> String {
 /// Stretch detector: the tracing chunk starting at `first_frame` (a `TracedChunk` in the binary anchors form).
 pub fn fold_trace_chunk(first_frame: usize) -> String {
     format!("{WORK_DIR}/folds/trace/f{first_frame:06}.bin")
+}
+/// Settled anchors of the frames starting at `first_frame` (`FrameAnchors` in the binary anchors form), as the
+/// whole-sequence settle gives them for those frames.
+pub fn fold_settled(first_frame: usize) -> String {
+    format!("{WORK_DIR}/folds/settled/f{first_frame:06}.bin")
 }
 /// One anchor block's result: its partial blend and CG statistics in one object (`CREASEPB`, see
 /// `execute::partial_file`).

@@ -36,6 +36,7 @@
 //! fold_frames_per_chunk = 8                # frames per fold-detection task (per-frame detectors)
 //! stretch_frames_per_chunk = 0             # frames per stretch tracing task (0: from the mesh size)
 //! stretch_warm_up = 3                      # frames a stretch tracing task traces ahead (same output)
+//! settle_frames_per_chunk = 0              # frames per fold-settle task (0: the detection's chunks; same output)
 //!
 //! [preview]
 //! frames = [5, 20]                         # default: four spread over the sequence
@@ -127,6 +128,7 @@ pub mod keys;
 pub mod limits;
 pub mod plan;
 pub mod s3;
+pub mod settle_tasks;
 pub mod spec;
 pub mod stale;
 pub mod storage;

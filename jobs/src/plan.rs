@@ -1,9 +1,10 @@
 //! The planner: a job becomes a graph of tasks (DESIGN §8).
 //!
 //! ```text
-//!   fold-detect (per frame chunk, or one)  ─► fold-merge ─┐            (only when folds are detected;
-//!                                                         │             stretch: see `stretch_tasks`)
-//!                                                         ▼ expand
+//!   fold-detect (per frame chunk, or one) ─► fold-settle ─► fold-merge ─┐   (only when folds are detected;
+//!                                                                      │    stretch: see `stretch_tasks`;
+//!                                                                      │    settle: see `settle_tasks`)
+//!                                                                      ▼ expand
 //!   fold-files (anchors.json, control lines) ─────────────────────────────────────────────► finalize
 //!   weight-block (window, anchor block) ─► reduce (window) ─┐          (per-anchor mode)
 //!   weight-window (window) ─────────────────────────────────┤          (fused mode)
@@ -69,6 +70,17 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
             expands: false,
         })
         .collect();
+    let detected: Vec<(std::ops::Range<usize>, String)> = chunks
+        .iter()
+        .cloned()
+        .zip(tasks.iter().map(|t| t.key.clone()))
+        .collect();
+    tasks.extend(crate::settle_tasks::tasks(
+        job,
+        n,
+        info.n_triangles,
+        &detected,
+    ));
     tasks.push(TaskDef {
         key: keys::FOLD_MERGE_TASK.to_string(),
         spec: TaskSpec::FoldMerge { job: job.clone() },

@@ -155,6 +155,9 @@ pub struct Partition {
     /// Stretch detector: frames a tracing task traces before its first one to warm its seed memory up
     /// (any value gives the same output; more costs each task more, fewer leaves more to the merge).
     pub stretch_warm_up: usize,
+    /// Frames per temporal-coherence (`fold-settle`) task of detected folds; 0 = the detection's chunk size
+    /// (tracing chunks for stretch folds), at most half the sequence. Any value gives the same output.
+    pub settle_frames_per_chunk: usize,
 }
 
 impl Default for Partition {
@@ -165,6 +168,7 @@ impl Default for Partition {
             fold_frames_per_chunk: 8,
             stretch_frames_per_chunk: 0,
             stretch_warm_up: crate::stretch_tasks::DEFAULT_WARM_UP,
+            settle_frames_per_chunk: 0,
         }
     }
 }

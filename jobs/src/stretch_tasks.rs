@@ -1,9 +1,10 @@
 //! The stretch detector's part of the task graph (issue 14): step chunks → one phase task → tracing chunks →
-//! the usual `fold-merge`, which reconciles the tracing chunks' seed memories
-//! ([`crease_core::folds::stretch::split`]).
+//! settle ranges ([`crate::settle_tasks`]: temporal coherence) → the usual `fold-merge`, which reconciles the
+//! tracing chunks' seed memories ([`crease_core::folds::stretch::split`]).
 //!
 //! ```text
-//!   fold-steps (4·k frames each) ─► fold-phases ─► fold-detect (tracing, k frames each) ─► fold-merge
+//!   fold-steps (4·k frames each) ─► fold-phases ─► fold-detect (tracing, k frames each)
+//!       ─► fold-settle (k frames each) ─► fold-merge
 //! ```
 //!
 //! Tracing dominates (it flattens a patch per seed), so the chunk size `k` is set from the triangle count for
@@ -83,14 +84,27 @@ pub fn tasks(job: &JobSpec, info: &InputInfo) -> Vec<TaskDef> {
             expands: false,
         })
         .collect();
-    tasks.push(TaskDef {
+    let traced: Vec<(Range<usize>, String)> = trace
+        .iter()
+        .map(|t| match &t.spec {
+            TaskSpec::FoldDetect { frames, .. } => (frames.clone(), t.key.clone()),
+            _ => unreachable!("tracing tasks are fold-detect tasks"),
+        })
+        .collect();
+    let settle = crate::settle_tasks::tasks(job, n, nt, &traced);
+    // The merge reads the tracing chunks (it reconciles them) and the settled ranges.
+    let merge = TaskDef {
         key: keys::FOLD_MERGE_TASK.to_string(),
         spec: TaskSpec::FoldMerge { job: job.clone() },
-        deps: trace.iter().map(|t| t.key.clone()).collect(),
+        deps: trace
+            .iter()
+            .chain(&settle)
+            .map(|t| t.key.clone())
+            .collect(),
         expands: true,
-    });
-    let merge = tasks.pop().expect("merge");
+    };
     tasks.extend(trace);
+    tasks.extend(settle);
     tasks.push(merge);
     tasks
 }

@@ -21,6 +21,9 @@ pub enum TaskSpec {
     /// Stretch detector: the phase test over the whole sequence from the step records (the tracing chunks are
     /// `FoldDetect` tasks after it).
     FoldPhases { job: JobSpec },
+    /// Temporal coherence of the detected anchors of `frames` (the detector's settle, split by frame range: it
+    /// reads the detected anchors of `frames` widened by the settle radius).
+    FoldSettle { job: JobSpec, frames: Range<usize> },
     /// Gather the detected anchors into their binary form (`anchors.bin`, what the later tasks read); its
     /// success expands the graph with the weight tasks.
     FoldMerge { job: JobSpec },
@@ -57,6 +60,7 @@ impl TaskSpec {
             TaskSpec::FoldDetect { .. } => "fold-detect",
             TaskSpec::FoldSteps { .. } => "fold-steps",
             TaskSpec::FoldPhases { .. } => "fold-phases",
+            TaskSpec::FoldSettle { .. } => "fold-settle",
             TaskSpec::FoldMerge { .. } => "fold-merge",
             TaskSpec::FoldFiles { .. } => "fold-files",
             TaskSpec::WeightBlock { .. } => "weight-block",
@@ -76,6 +80,7 @@ impl TaskSpec {
             TaskSpec::FoldDetect { job, .. }
             | TaskSpec::FoldSteps { job, .. }
             | TaskSpec::FoldPhases { job }
+            | TaskSpec::FoldSettle { job, .. }
             | TaskSpec::FoldMerge { job }
             | TaskSpec::FoldFiles { job }
             | TaskSpec::WeightBlock { job, .. }

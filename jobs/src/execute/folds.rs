@@ -2,7 +2,8 @@
 //! a frame chunk (or the whole sequence), stores its anchors and writes the inspection files the detector drew
 //! for those frames (overlays); `merge` assembles the anchors into their binary form (`anchors.bin`, which the
 //! later tasks read and whose per-frame anchor counts let the planner size the weight blocks); `files` writes
-//! the user-facing `anchors.json` and `folds/control_lines.obj` from it.
+//! the user-facing `anchors.json` and `folds/control_lines.obj` from it (and a stretch job's `folds.png`).
+//! The temporal coherence between them runs in `fold-settle` tasks ([`crate::settle_tasks`]).
 //!
 //! Why two tasks: `merge` is on every detection job's critical path (all deformation tasks wait for it), and
 //! the text of the two user files (tens of MB at paper scale) was the larger part of it. No task reads them,
@@ -37,7 +38,7 @@ fn job_detector(
 }
 
 /// The job's detection chunks over `n` frames.
-fn chunks(env: &TaskEnv, n: usize) -> Vec<Range<usize>> {
+pub(super) fn chunks(env: &TaskEnv, n: usize) -> Vec<Range<usize>> {
     granularity(&env.job.folds)
         .map(|g| detection_chunks(g, n, env.job.partition.fold_frames_per_chunk))
         .unwrap_or_default()
@@ -101,16 +102,12 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let mut written = Vec::new();
     let (frames, mut summary_extra) = if matches!(env.job.folds, FoldSpec::Stretch { .. }) {
         let g = super::stretch::gather(env, &opened)?;
-        for a in g.artifacts {
-            env.put(&a.key, a.bytes)?;
-            written.push(a.key);
-        }
         (
             g.frames,
             json!({ "per_frame": g.per_frame, "retraced_frames": g.retraced }),
         )
     } else {
-        let (frames, per_frame) = gather_chunks(env, opened.source.as_ref(), d.as_ref(), n)?;
+        let (frames, per_frame) = gather_chunks(env, &opened, d.as_ref(), n)?;
         (frames, json!({ "per_frame": per_frame }))
     };
     lap.lap("fold-merge: gathering, in all");
@@ -181,15 +178,21 @@ pub fn files(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     };
     // Read as the weight tasks read it, which checks it against the input and gives the control lines.
     let set = AnchorSet::from_binary(&bytes, path, n, n_tri).map_err(bad)?;
+    let total = set.total();
     drop(bytes);
     env.check_cancelled()?;
     env.put(keys::ANCHORS, anchors_json(&stored))?;
     // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
     env.put(keys::CONTROL_LINES, set.control_lines_obj())?;
-    Ok((
-        json!({ "anchors": set.total() }),
-        vec![keys::ANCHORS.to_string(), keys::CONTROL_LINES.to_string()],
-    ))
+    let mut written = vec![keys::ANCHORS.to_string(), keys::CONTROL_LINES.to_string()];
+    drop(set);
+    if matches!(env.job.folds, FoldSpec::Stretch { .. }) {
+        for a in super::stretch::folds_png(env, &opened)? {
+            env.put(&a.key, a.bytes)?;
+            written.push(a.key);
+        }
+    }
+    Ok((json!({ "anchors": total }), written))
 }
 
 /// The anchors file (`AnchorSet::to_json`'s format: version 1, frames without anchors or lines left out) of
@@ -210,12 +213,12 @@ fn anchors_json(frames: &[FrameAnchors]) -> String {
     serde_json::to_string(&file).expect("anchors serialise")
 }
 
-/// The anchors of every detection chunk in frame order, finished by the detector's [`FoldDetector::settle`],
-/// and per frame, for report.json: anchors, control lines and detection seconds (a chunk's time spread evenly
-/// over its frames).
+/// The anchors of every detection chunk in frame order, finished by the detector's [`FoldDetector::settle`]
+/// (as the job's `fold-settle` tasks stored it, when it has them), and per frame, for report.json: anchors,
+/// control lines and detection seconds (a chunk's time spread evenly over its frames).
 fn gather_chunks(
     env: &TaskEnv,
-    source: &dyn crease_core::mesh::FrameSource,
+    opened: &OpenedSequence,
     d: &dyn FoldDetector,
     n: usize,
 ) -> Result<(Vec<FrameAnchors>, Vec<Value>), TaskError> {
@@ -243,9 +246,14 @@ fn gather_chunks(
         }
         frames.extend(chunk);
     }
-    let frames = d
-        .settle(source, frames)
-        .map_err(|e| TaskError::from_core(&format!("{} fold merge", d.name()), e))?;
+    let label = format!("{} fold merge", d.name());
+    let frames = if crate::settle_tasks::settle_radius(env.job, n).is_some() {
+        // Settled by the job's `fold-settle` tasks, range by range, as `d.settle` would.
+        super::settle::settled(env, opened, frames, &[], &label)?
+    } else {
+        d.settle(opened.source.as_ref(), frames)
+            .map_err(|e| TaskError::from_core(&label, e))?
+    };
     Ok((frames, per_frame))
 }
 

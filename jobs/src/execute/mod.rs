@@ -1,8 +1,8 @@
 //! Running one task on a worker: crease-core on a blocking thread, inputs and results through storage.
 //!
-//! Each task kind has its own module named after what it computes: `folds` (detection and merge),
-//! `weights` (a fused window, an anchor block, the reduce of a window), `position` (cross-fade, positioning
-//! and stretch passes of a frame chunk), `finalize` (output sequence, previews, report). They share
+//! Each task kind has its own module named after what it computes: `folds` (detection and merge), `settle`
+//! (temporal coherence of a frame range), `weights` (a fused window, an anchor block, the reduce of a window),
+//! `position` (cross-fade, positioning and stretch passes of a frame chunk), `finalize` (output sequence, previews, report). They share
 //! `env::TaskEnv`: the job's storage, input and anchors, opened the same way by every task.
 //!
 //! Determinism: a task reads only what its dependencies wrote under deterministic keys and calls the
@@ -18,6 +18,7 @@ mod folds;
 mod partial_file;
 pub mod phase_times;
 mod position;
+mod settle;
 mod stretch;
 mod weights;
 pub mod window_cache;
@@ -88,6 +89,7 @@ fn run_kind(
         TaskSpec::FoldDetect { frames, .. } => folds::detect(&env, frames.clone())?,
         TaskSpec::FoldSteps { frames, .. } => stretch::steps(&env, frames.clone())?,
         TaskSpec::FoldPhases { .. } => stretch::phases(&env)?,
+        TaskSpec::FoldSettle { frames, .. } => settle::settle(&env, frames.clone())?,
         TaskSpec::FoldMerge { .. } => folds::merge(&env)?,
         TaskSpec::FoldFiles { .. } => folds::files(&env)?,
         TaskSpec::WeightWindow { window, .. } => weights::fused_window(&env, *window)?,

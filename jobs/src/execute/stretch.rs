@@ -199,81 +199,100 @@ pub fn trace(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
     Ok((json!({ "anchors_per_frame": counts }), vec![key, timing]))
 }
 
-/// What `fold-merge` needs of a stretch job: the settled frames, the per-frame report lines, `folds.png`, and
-/// how many frames the reconcile traced again.
+/// The tracing chunk `r` as its `fold-detect` task stored it, checked to hold exactly the frames `r`.
+pub(super) fn read_trace_chunk(env: &TaskEnv, r: &Range<usize>) -> Result<TracedChunk, TaskError> {
+    env.check_cancelled()?;
+    let key = keys::fold_trace_chunk(r.start);
+    let bytes = env.get(&key)?;
+    let chunk = TracedChunk::from_binary(&bytes, Path::new(&env.out.describe(&key)))
+        .map_err(|e| TaskError::fatal(e.to_string()))?;
+    let frames: Vec<usize> = chunk.frames.iter().map(|f| f.anchors.frame).collect();
+    if chunk.first != r.start || frames != r.clone().collect::<Vec<_>>() {
+        return Err(TaskError::fatal(format!(
+            "{}: holds {} frames from {}, expected frames {}..{}",
+            env.out.describe(&key),
+            chunk.frames.len(),
+            chunk.first,
+            r.start,
+            r.end
+        )));
+    }
+    Ok(chunk)
+}
+
+/// The stretch job's tracing chunks and frame count as its settle tasks see them.
+pub(super) fn traced_chunks(env: &TaskEnv, opened: &OpenedSequence) -> (Vec<Range<usize>>, usize) {
+    let (n, nt) = traced_size(opened);
+    (trace_chunks(env.job, n, nt), nt)
+}
+
+/// The frames of every tracing chunk as the whole-sequence detector traced them: the chunks reconciled
+/// ([`split::reconcile`]), tracing again (with a tracer made on first need) the frames whose chunk's warm-up
+/// missed the true seed memory. Also returns the frames traced again, in order.
+fn reconciled(
+    env: &TaskEnv,
+    opened: &OpenedSequence,
+    det: &StretchDetector,
+    label: &str,
+    mut each_chunk: impl FnMut(&Range<usize>) -> Result<(), TaskError>,
+) -> Result<(Vec<split::ChunkFrame>, Vec<usize>), TaskError> {
+    let (n, nt) = traced_size(opened);
+    let source: &dyn FrameSource = opened.source.as_ref();
+    let chunks = trace_chunks(env.job, n, nt);
+    let carry = Carry::new();
+    let tracer: RefCell<Option<ChunkTracer>> = RefCell::new(None);
+    let again = RefCell::new(Vec::new());
+    let r = split::reconcile(
+        chunks.iter().map(|r| {
+            carry.wrap(read_trace_chunk(env, r).and_then(|c| {
+                each_chunk(r)?;
+                Ok(c)
+            }))
+        }),
+        n,
+        |t, seeds| {
+            let (f, b) = carry.wrap(read_codes(env, t, n, nt))?;
+            let mut tracer = tracer.borrow_mut();
+            if tracer.is_none() {
+                *tracer = Some(ChunkTracer::new(det, source)?);
+            }
+            let tracer = tracer.as_mut().expect("made above");
+            tracer.set_seeds(seeds);
+            again.borrow_mut().push(t);
+            tracer.trace(t, f.as_deref(), b.as_deref())
+        },
+    );
+    let (frames, _) = carry.finish(label, r)?;
+    Ok((frames, again.into_inner()))
+}
+
+/// What `fold-merge` needs of a stretch job: the settled frames, the per-frame report lines and how many frames
+/// the reconcile traced again. (`folds.png` is drawn by `fold-files`, off the job's critical path:
+/// [`folds_png`].)
 pub struct Gathered {
     pub frames: Vec<FrameAnchors>,
     pub per_frame: Vec<Value>,
-    pub artifacts: Vec<Artifact>,
     pub retraced: usize,
 }
 
 pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskError> {
-    let lap = RefCell::new(Lap::start());
-    let (n, nt) = traced_size(opened);
+    let mut lap = Lap::start();
+    let (n, _) = traced_size(opened);
     let det = detector(env, n)?;
-    let source: &dyn FrameSource = opened.source.as_ref();
     let label = "stretch fold merge";
-    let chunks = trace_chunks(env.job, n, nt);
     let mut per_frame_seconds: Vec<f64> = Vec::with_capacity(n);
-    let carry = Carry::new();
-    let r = ChunkTracer::new(&det, source).and_then(|tracer| {
-        let tracer = RefCell::new(tracer);
-        let mut read_chunk = |r: &Range<usize>| -> Result<TracedChunk, TaskError> {
-            env.check_cancelled()?;
-            let key = keys::fold_trace_chunk(r.start);
-            let bytes = env.get(&key)?;
-            let chunk = TracedChunk::from_binary(&bytes, Path::new(&env.out.describe(&key)))
-                .map_err(|e| TaskError::fatal(e.to_string()))?;
-            let seconds = super::folds::chunk_seconds(env, r.start)?;
-            if chunk.first != r.start || chunk.frames.len() != r.len() {
-                return Err(TaskError::fatal(format!(
-                    "{}: holds {} frames from {}, expected frames {}..{}",
-                    env.out.describe(&keys::fold_trace_chunk(r.start)),
-                    chunk.frames.len(),
-                    chunk.first,
-                    r.start,
-                    r.end
-                )));
-            }
-            per_frame_seconds.extend(std::iter::repeat_n(
-                seconds / r.len().max(1) as f64,
-                r.len(),
-            ));
-            Ok(chunk)
-        };
-        let (frames, retraced) = split::reconcile(
-            chunks.iter().map(|r| carry.wrap(read_chunk(r))),
-            n,
-            |t, seeds| {
-                let (f, b) = carry.wrap(read_codes(env, t, n, nt))?;
-                let mut tracer = tracer.borrow_mut();
-                tracer.set_seeds(seeds);
-                tracer.trace(t, f.as_deref(), b.as_deref())
-            },
-        )?;
-        lap.borrow_mut()
-            .lap("fold-merge: read and reconcile chunks");
-        let mut shown = Vec::new();
-        for f in &frames {
-            if f.overlay.is_some() {
-                let (a, b) = carry.wrap(read_codes(env, f.anchors.frame, n, nt))?;
-                let o =
-                    split::overlay_frame(&mut tracer.borrow_mut(), f, a.as_deref(), b.as_deref())?;
-                shown.extend(o);
-            }
-        }
-        lap.borrow_mut().lap("fold-merge: overlay frames' signals");
-        let (frames, artifacts) = det.finish(
-            source,
-            frames.into_iter().map(|f| f.anchors).collect(),
-            &shown,
-        )?;
-        lap.borrow_mut()
-            .lap("fold-merge: temporal coherence, folds.png");
-        Ok((frames, artifacts, retraced))
-    });
-    let (frames, artifacts, retraced) = carry.finish(label, r)?;
+    let (frames, again) = reconciled(env, opened, &det, label, |r| {
+        let seconds = super::folds::chunk_seconds(env, r.start)?;
+        per_frame_seconds.extend(std::iter::repeat_n(
+            seconds / r.len().max(1) as f64,
+            r.len(),
+        ));
+        Ok(())
+    })?;
+    lap.lap("fold-merge: read and reconcile chunks");
+    let frames: Vec<FrameAnchors> = frames.into_iter().map(|f| f.anchors).collect();
+    let frames = super::settle::settled(env, opened, frames, &again, label)?;
+    lap.lap("fold-merge: settled ranges (read, or settled again where traced again)");
     // As the single detection task reported them: settled anchors, the tracing time spread over its frames.
     let per_frame = frames
         .iter()
@@ -292,7 +311,41 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
     Ok(Gathered {
         frames,
         per_frame,
-        artifacts,
-        retraced,
+        retraced: again.len(),
     })
+}
+
+/// `folds.png` of a stretch job (empty when it draws none): the overlay frames' fold signal and anchors as the
+/// whole-sequence detector drew them. Written by `fold-files`: no task reads it, so it need not lengthen the
+/// chain every deformation task waits on, as it did in `fold-merge`.
+pub fn folds_png(env: &TaskEnv, opened: &OpenedSequence) -> Result<Vec<Artifact>, TaskError> {
+    let mut lap = Lap::start();
+    let (n, nt) = traced_size(opened);
+    let det = detector(env, n)?;
+    if det.overlay_size == 0 || det.overlay_frames.is_empty() {
+        return Ok(Vec::new());
+    }
+    let label = "stretch folds.png";
+    let (frames, _) = reconciled(env, opened, &det, label, |_| Ok(()))?;
+    let source: &dyn FrameSource = opened.source.as_ref();
+    let carry = Carry::new();
+    let r = ChunkTracer::new(&det, source).and_then(|mut tracer| {
+        let mut shown = Vec::new();
+        for f in &frames {
+            if f.overlay.is_some() {
+                let (a, b) = carry.wrap(read_codes(env, f.anchors.frame, n, nt))?;
+                shown.extend(split::overlay_frame(
+                    &mut tracer,
+                    f,
+                    a.as_deref(),
+                    b.as_deref(),
+                )?);
+            }
+        }
+        // Nothing to settle here (no frames): only the drawing of `finish`.
+        Ok(det.finish(source, Vec::new(), &shown)?.1)
+    });
+    let artifacts = carry.finish(label, r)?;
+    lap.lap("fold-files: overlay frames' signals, folds.png");
+    Ok(artifacts)
 }

@@ -21,10 +21,11 @@ use serde_json::json;
 pub const DEFAULT_BLOCK_SLOTS: usize = 4;
 
 /// The stages, in graph order. Names are the farm's step names.
-pub const STAGES: [Stage; 9] = [
+pub const STAGES: [Stage; 10] = [
     Stage::FoldSteps,
     Stage::FoldPhases,
     Stage::FoldDetect,
+    Stage::FoldSettle,
     Stage::FoldMerge,
     Stage::FoldFiles,
     Stage::Weights,
@@ -40,6 +41,8 @@ pub enum Stage {
     /// Stretch detector: the phase test (one task).
     FoldPhases,
     FoldDetect,
+    /// Temporal coherence of detected anchors, per frame range.
+    FoldSettle,
     FoldMerge,
     /// The user-facing anchor files (one task, beside the weights; finalize waits for it).
     FoldFiles,
@@ -56,6 +59,7 @@ impl Stage {
             Stage::FoldSteps => "fold-steps",
             Stage::FoldPhases => "fold-phases",
             Stage::FoldDetect => "fold-detect",
+            Stage::FoldSettle => "fold-settle",
             Stage::FoldMerge => "fold-merge",
             Stage::FoldFiles => "fold-files",
             Stage::Weights => "weights",
@@ -71,6 +75,7 @@ impl Stage {
             Stage::FoldSteps => "FoldSteps",
             Stage::FoldPhases => "FoldPhases",
             Stage::FoldDetect => "FoldDetect",
+            Stage::FoldSettle => "FoldSettle",
             Stage::FoldMerge => "FoldMerge",
             Stage::FoldFiles => "FoldFiles",
             Stage::Weights => "Weights",
@@ -91,6 +96,7 @@ impl Stage {
             TaskSpec::FoldSteps { .. } => Stage::FoldSteps,
             TaskSpec::FoldPhases { .. } => Stage::FoldPhases,
             TaskSpec::FoldDetect { .. } => Stage::FoldDetect,
+            TaskSpec::FoldSettle { .. } => Stage::FoldSettle,
             TaskSpec::FoldMerge { .. } => Stage::FoldMerge,
             TaskSpec::FoldFiles { .. } => Stage::FoldFiles,
             TaskSpec::WeightBlock { .. } | TaskSpec::WeightWindow { .. } => Stage::Weights,

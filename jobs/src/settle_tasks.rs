@@ -1,0 +1,115 @@
+//! Temporal coherence of detected folds split into tasks (issue 14): the detector's whole-sequence settle
+//! ([`crease_core::folds::temporal`]) becomes one `fold-settle` task per frame range, between the detection
+//! tasks and the expanding `fold-merge`:
+//!
+//! ```text
+//!   fold-detect (chunks) ─► fold-settle (ranges; each reads its range ± radius) ─► fold-merge (concatenates)
+//! ```
+//!
+//! Settling frame `t` reads only the detected anchors and meshes of frames `t ± radius`
+//! ([`crease_core::folds::temporal::settle_range`]), so each range depends only on the detection tasks whose
+//! chunks overlap its input window, and the ranges give the whole settle's bits for any split. The settle was
+//! most of `fold-merge`, the one task every deformation task waits for; split, it runs on all workers.
+//!
+//! Stretch folds: the tracing chunks are what the merge's reconcile gives unless a chunk's warm-up missed the
+//! true seed memory (only with `seed_memory`, which is off by default). A settle task settles the chunks as
+//! traced; the merge reconciles as before and settles again, from the reconciled frames, only the ranges whose
+//! input window holds a frame it traced again, so the output stays exact either way.
+
+use crate::keys;
+use crate::plan::chunk_ranges;
+use crate::spec::{FoldSpec, JobSpec};
+use crate::task::{TaskDef, TaskSpec};
+use crease_core::folds::temporal::settle_input;
+use std::ops::Range;
+
+/// The temporal radius of the job's settle when its detector settles its anchors over time and the settle
+/// changes something (`None`: no settle tasks; the merge gathers the detection's anchors as they are). It is
+/// what the detector's own `settle` uses: both the stretch and the video detector call
+/// [`crease_core::folds::temporal::settle`] with their parameters' `temporal_radius`.
+pub fn settle_radius(job: &JobSpec, n_frames: usize) -> Option<usize> {
+    let radius = match &job.folds {
+        FoldSpec::Stretch { params, .. } => params.temporal_radius,
+        FoldSpec::Video { params, .. } => params.temporal_radius,
+        _ => return None,
+    };
+    (radius > 0 && n_frames >= 2).then_some(radius)
+}
+
+/// Frames per settle task: `partition.settle_frames_per_chunk`, or (0) `detect_chunk` (the detection's chunk
+/// size) but at most half the sequence, so that two workers share even a short one.
+fn frames_per_chunk(job: &JobSpec, n_frames: usize, detect_chunk: usize) -> usize {
+    match job.partition.settle_frames_per_chunk {
+        0 => detect_chunk.min(n_frames.div_ceil(2)).max(1),
+        k => k,
+    }
+}
+
+/// The job's settle ranges over `n_frames` frames detected in chunks of `detect_chunk` frames (empty when the
+/// job has no settle tasks, see [`settle_radius`]).
+pub fn settle_chunks(job: &JobSpec, n_frames: usize, detect_chunk: usize) -> Vec<Range<usize>> {
+    if settle_radius(job, n_frames).is_none() {
+        return Vec::new();
+    }
+    chunk_ranges(n_frames, frames_per_chunk(job, n_frames, detect_chunk))
+}
+
+/// The settle ranges of the job as its tasks see them: `n_triangles` is the traced (input) mesh's for stretch
+/// folds (it sets the tracing chunk size), unused otherwise.
+pub fn job_settle_chunks(job: &JobSpec, n_frames: usize, n_triangles: usize) -> Vec<Range<usize>> {
+    let detect_chunk = match &job.folds {
+        FoldSpec::Stretch { .. } => {
+            crate::stretch_tasks::trace_frames_per_chunk(job, n_frames, n_triangles)
+        }
+        _ => job.partition.fold_frames_per_chunk,
+    };
+    settle_chunks(job, n_frames, detect_chunk)
+}
+
+/// The detection chunks (of `detected`, in frame order) a settle of `range` reads: those overlapping its input
+/// window.
+pub fn inputs_of(
+    range: &Range<usize>,
+    n_frames: usize,
+    radius: usize,
+    detected: &[Range<usize>],
+) -> Vec<Range<usize>> {
+    let need = settle_input(range.clone(), n_frames, radius);
+    detected
+        .iter()
+        .filter(|c| c.start < need.end && need.start < c.end)
+        .cloned()
+        .collect()
+}
+
+/// The settle tasks of a job whose detection tasks are `detect` (frame range and task key, in frame order):
+/// one per settle range, each depending on the detection tasks its input window overlaps.
+pub fn tasks(
+    job: &JobSpec,
+    n_frames: usize,
+    n_triangles: usize,
+    detect: &[(Range<usize>, String)],
+) -> Vec<TaskDef> {
+    let Some(radius) = settle_radius(job, n_frames) else {
+        return Vec::new();
+    };
+    let chunks: Vec<Range<usize>> = detect.iter().map(|(r, _)| r.clone()).collect();
+    job_settle_chunks(job, n_frames, n_triangles)
+        .into_iter()
+        .map(|r| {
+            let deps = inputs_of(&r, n_frames, radius, &chunks)
+                .iter()
+                .filter_map(|c| detect.iter().find(|(d, _)| d == c).map(|(_, k)| k.clone()))
+                .collect();
+            TaskDef {
+                key: keys::fold_settle_task(r.start),
+                spec: TaskSpec::FoldSettle {
+                    job: job.clone(),
+                    frames: r,
+                },
+                deps,
+                expands: false,
+            }
+        })
+        .collect()
+}

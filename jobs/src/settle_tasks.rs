@@ -113,3 +113,58 @@ pub fn tasks(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn job(folds: &str, partition: &str) -> JobSpec {
+        JobSpec::from_toml_str(&format!(
+            "input = \"/in\"\noutput = \"/out\"\n[folds]\n{folds}\n[partition]\n{partition}\n"
+        ))
+        .unwrap()
+    }
+
+    #[test]
+    fn settle_ranges_depend_on_the_detection_chunks_their_window_reads() {
+        let j = job(
+            "kind = \"video\"\ncameras = \"/c.json\"",
+            "fold_frames_per_chunk = 4",
+        );
+        // 11 frames detected in chunks of 4: settle ranges of 4 (at most half the sequence), radius 2.
+        assert_eq!(settle_radius(&j, 11), Some(2));
+        let detect: Vec<(Range<usize>, String)> = chunk_ranges(11, 4)
+            .into_iter()
+            .map(|r| (r.clone(), keys::fold_detect_task(r.start)))
+            .collect();
+        let t = tasks(&j, 11, 0, &detect);
+        let ranges: Vec<Range<usize>> = t
+            .iter()
+            .map(|t| match &t.spec {
+                TaskSpec::FoldSettle { frames, .. } => frames.clone(),
+                _ => panic!("{:?}", t.spec),
+            })
+            .collect();
+        assert_eq!(ranges, [0..4, 4..8, 8..11]);
+        // 0..4 reads 0..6 (chunks 0..4, 4..8); 4..8 reads 2..10 (all three); 8..11 reads 6..11.
+        assert_eq!(t[0].deps, ["folds/f000000", "folds/f000004"]);
+        assert_eq!(t[1].deps.len(), 3);
+        assert_eq!(t[2].deps, ["folds/f000004", "folds/f000008"]);
+        assert_eq!(t[1].key, "folds/settle/f000004");
+        // A settle that changes nothing has no tasks; a given size overrides the detection's.
+        let none = job(
+            "kind = \"video\"\ncameras = \"/c.json\"\n[folds.params]\ntemporal_radius = 0",
+            "",
+        );
+        assert_eq!(settle_radius(&none, 11), None);
+        assert!(tasks(&none, 11, 0, &detect).is_empty());
+        assert!(settle_chunks(&j, 1, 4).is_empty(), "one frame: nothing to settle");
+        let sized = job(
+            "kind = \"video\"\ncameras = \"/c.json\"",
+            "settle_frames_per_chunk = 5",
+        );
+        assert_eq!(settle_chunks(&sized, 11, 8), [0..5, 5..10, 10..11]);
+        assert_eq!(settle_chunks(&job("kind = \"stretch\"", ""), 7, 3), [0..3, 3..6, 6..7]);
+        assert_eq!(settle_radius(&job("kind = \"none\"", ""), 7), None);
+    }
+}

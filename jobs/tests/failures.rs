@@ -241,6 +241,13 @@ async fn cancellation_and_malformed_tasks() {
             "8..12",
         ),
         (TaskSpec::FoldMerge { job: spec.clone() }, "not detected"),
+        (
+            TaskSpec::FoldSettle {
+                job: spec.clone(),
+                frames: 0..3,
+            },
+            "no settle tasks",
+        ),
     ] {
         let err = execute(&task, &ctx).await.unwrap_err();
         assert!(!err.retryable() && err.reason.contains(needle), "{err:?}");

@@ -129,6 +129,7 @@ fn farm_graph_mirrors_the_planner_and_slots_cover_detected_blocks() {
             "fold-steps",
             "fold-phases",
             "fold-detect",
+            "fold-settle",
             "fold-merge",
             "fold-files",
             "weights",
@@ -145,10 +146,16 @@ fn farm_graph_mirrors_the_planner_and_slots_cover_detected_blocks() {
         g.stage(Stage::FoldDetect).unwrap().depends_on,
         [Stage::FoldPhases]
     );
+    // The merge reconciles the tracing chunks and concatenates the settled ranges.
     assert_eq!(
-        g.stage(Stage::FoldMerge).unwrap().depends_on,
+        g.stage(Stage::FoldSettle).unwrap().depends_on,
         [Stage::FoldDetect]
     );
+    assert_eq!(
+        g.stage(Stage::FoldMerge).unwrap().depends_on,
+        [Stage::FoldDetect, Stage::FoldSettle]
+    );
+    assert_eq!(g.stage(Stage::FoldSettle).unwrap().tasks.len(), 2);
     // 9 frames at 180 triangles: tracing chunks of 5 frames (half the sequence); step chunks of 4 × 5 frames,
     // but at most half the sequence, so two workers share them too.
     assert_eq!(g.stage(Stage::FoldDetect).unwrap().tasks.len(), 2);

@@ -1,6 +1,7 @@
-//! Stretch fold detection split into tasks (step chunks → phases → tracing chunks → merge) writes the single
-//! detector's anchors and `folds.png` byte for byte, for any chunking and warm-up and any valid task order
-//! with duplicates; the whole output is then the same for every partition.
+//! Stretch fold detection split into tasks (step chunks → phases → tracing chunks → settle ranges → merge)
+//! writes the single detector's anchors and `folds.png` byte for byte, for any chunking, warm-up and settle
+//! split and any valid task order with duplicates; the whole output (and report.json's per-frame detection
+//! lines) is then the same for every partition.
 
 mod common;
 
@@ -68,6 +69,7 @@ async fn split_is_single(seed_memory: bool) {
     let png = &artifacts[0].bytes;
 
     let mut reference: Option<BTreeMap<String, Vec<u8>>> = None;
+    let mut reference_lines: Option<Vec<serde_json::Value>> = None;
     let mut retraced_total = 0;
     for (i, (partition, order)) in [
         ("", PLAN_ORDER),
@@ -84,6 +86,23 @@ async fn split_is_single(seed_memory: bool) {
             Order { seed: 2, rerun: 4 },
         ),
         ("stretch_frames_per_chunk = 11", PLAN_ORDER),
+        // The temporal settle in 1, 2 (uneven), 3 (uneven) and 11 ranges, cut across the tracing chunks.
+        (
+            "stretch_frames_per_chunk = 4\nsettle_frames_per_chunk = 11",
+            Order { seed: 7, rerun: 2 },
+        ),
+        (
+            "stretch_frames_per_chunk = 3\nstretch_warm_up = 0\nsettle_frames_per_chunk = 6",
+            Order { seed: 3, rerun: 5 },
+        ),
+        (
+            "stretch_frames_per_chunk = 5\nsettle_frames_per_chunk = 4",
+            PLAN_ORDER,
+        ),
+        (
+            "stretch_frames_per_chunk = 2\nstretch_warm_up = 0\nsettle_frames_per_chunk = 1",
+            Order { seed: 9, rerun: 6 },
+        ),
     ]
     .into_iter()
     .enumerate()
@@ -103,6 +122,29 @@ async fn split_is_single(seed_memory: bool) {
         assert!(count(|t| matches!(t, TaskSpec::FoldSteps { .. })) >= 1);
         let expected = crease_jobs::stretch_tasks::trace_chunks(&s, 11, 900).len();
         assert_eq!(traces, expected, "{partition}: tracing tasks");
+        // The settle runs in its own tasks, one per range; the merge waits for them all.
+        let settles = crease_jobs::settle_tasks::job_settle_chunks(&s, 11, 900);
+        assert_eq!(
+            count(|t| matches!(t, TaskSpec::FoldSettle { .. })),
+            settles.len(),
+            "{partition}: settle tasks"
+        );
+        if let Some(k) = partition
+            .split("settle_frames_per_chunk = ")
+            .nth(1)
+            .and_then(|k| k.parse::<usize>().ok())
+        {
+            assert_eq!(settles.len(), 11usize.div_ceil(k), "{partition}");
+        }
+        let merge = run
+            .tasks
+            .iter()
+            .find(|t| matches!(t.spec, TaskSpec::FoldMerge { .. }))
+            .unwrap();
+        for r in &settles {
+            let key = crease_jobs::keys::fold_settle_task(r.start);
+            assert!(merge.deps.contains(&key), "{partition}: merge waits for {key}");
+        }
         // The user-facing anchor files are written off the chain: after the merge, and only finalize waits.
         assert_eq!(count(|t| matches!(t, TaskSpec::FoldFiles { .. })), 1);
         for t in &run.tasks {
@@ -126,6 +168,23 @@ async fn split_is_single(seed_memory: bool) {
         let report: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
         assert_eq!(report["complete"], true);
+        // The per-frame detection lines (settled anchors, control lines, folds) are the same for every
+        // partition; only the tracing seconds differ.
+        let lines: Vec<serde_json::Value> = report["fold_detection"]["per_frame"]
+            .as_array()
+            .unwrap_or_else(|| panic!("no per_frame in {}", report["fold_detection"]))
+            .iter()
+            .map(|l| {
+                let mut l = l.clone();
+                l.as_object_mut().unwrap().remove("detection_seconds");
+                l
+            })
+            .collect();
+        assert_eq!(lines.len(), 11);
+        match &reference_lines {
+            None => reference_lines = Some(lines),
+            Some(r) => assert_eq!(*r, lines, "{partition}: report lines differ"),
+        }
         retraced_total += report["fold_detection"]["retraced_frames"]
             .as_u64()
             .unwrap_or_else(|| panic!("no retraced_frames in {}", report["fold_detection"]));

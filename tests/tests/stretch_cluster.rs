@@ -1,6 +1,6 @@
 //! Stretch fold detection split across a real coordinator and two workers on 127.0.0.1 (step chunks, the
-//! phase task, one-frame tracing chunks without warm-up, the reconciling merge) writes the same bytes as
-//! `crease run --folds stretch` with its default chunking.
+//! phase task, one-frame tracing chunks without warm-up, one-frame settle ranges, the reconciling merge) writes
+//! the same bytes as `crease run --folds stretch` with its default chunking.
 
 use crease_e2e::*;
 use std::collections::BTreeMap;
@@ -63,6 +63,11 @@ fn split_stretch_detection_on_two_workers_matches_crease_run() {
         kinds.get("fold-detect"),
         Some(&4),
         "one tracing task per frame: {kinds:?}"
+    );
+    assert_eq!(
+        kinds.get("fold-settle"),
+        Some(&4),
+        "one temporal-coherence task per frame: {kinds:?}"
     );
     assert_complete_and_identical(&reference, &out);
     for f in ["anchors.json", "folds.png", "folds/control_lines.obj"] {

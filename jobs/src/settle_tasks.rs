@@ -158,13 +158,19 @@ mod tests {
         );
         assert_eq!(settle_radius(&none, 11), None);
         assert!(tasks(&none, 11, 0, &detect).is_empty());
-        assert!(settle_chunks(&j, 1, 4).is_empty(), "one frame: nothing to settle");
+        assert!(
+            settle_chunks(&j, 1, 4).is_empty(),
+            "one frame: nothing to settle"
+        );
         let sized = job(
             "kind = \"video\"\ncameras = \"/c.json\"",
             "settle_frames_per_chunk = 5",
         );
         assert_eq!(settle_chunks(&sized, 11, 8), [0..5, 5..10, 10..11]);
-        assert_eq!(settle_chunks(&job("kind = \"stretch\"", ""), 7, 3), [0..3, 3..6, 6..7]);
+        assert_eq!(
+            settle_chunks(&job("kind = \"stretch\"", ""), 7, 3),
+            [0..3, 3..6, 6..7]
+        );
         assert_eq!(settle_radius(&job("kind = \"none\"", ""), 7), None);
     }
 }

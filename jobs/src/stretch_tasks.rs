@@ -96,11 +96,7 @@ pub fn tasks(job: &JobSpec, info: &InputInfo) -> Vec<TaskDef> {
     let merge = TaskDef {
         key: keys::FOLD_MERGE_TASK.to_string(),
         spec: TaskSpec::FoldMerge { job: job.clone() },
-        deps: trace
-            .iter()
-            .chain(&settle)
-            .map(|t| t.key.clone())
-            .collect(),
+        deps: trace.iter().chain(&settle).map(|t| t.key.clone()).collect(),
         expands: true,
     };
     tasks.extend(trace);

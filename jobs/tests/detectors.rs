@@ -176,17 +176,31 @@ async fn video_folds_are_partition_and_order_independent() {
     // The temporal settle in one range (the whole-sequence settle), and in two uneven ones across the
     // detection chunks (a: 2 ranges of 3 frames, b: 6 of 1).
     for (name, partition, settles) in [
-        ("c", "fold_frames_per_chunk = 4\nsettle_frames_per_chunk = 6", 1),
-        ("d", "fold_frames_per_chunk = 2\nsettle_frames_per_chunk = 4", 2),
+        (
+            "c",
+            "fold_frames_per_chunk = 4\nsettle_frames_per_chunk = 6",
+            1,
+        ),
+        (
+            "d",
+            "fold_frames_per_chunk = 2\nsettle_frames_per_chunk = 4",
+            2,
+        ),
     ] {
         let s = spec(&input, &root.join(name), &folds, partition);
-        let planned = crease_jobs::plan(&s, &crease_jobs::inspect_input(&s).await.unwrap()).unwrap();
+        let planned =
+            crease_jobs::plan(&s, &crease_jobs::inspect_input(&s).await.unwrap()).unwrap();
         let n_settle = planned
             .iter()
             .filter(|t| matches!(t.spec, crease_jobs::TaskSpec::FoldSettle { .. }))
             .count();
         assert_eq!(n_settle, settles, "{partition}");
-        let t = run_ok(&s, &root.join(format!("cache-{name}")), Order { seed: 5, rerun: 2 }).await;
+        let t = run_ok(
+            &s,
+            &root.join(format!("cache-{name}")),
+            Order { seed: 5, rerun: 2 },
+        )
+        .await;
         assert_same(&ta, &t, &format!("video, {partition}"));
     }
     let set = AnchorSet::parse(

@@ -143,7 +143,10 @@ async fn split_is_single(seed_memory: bool) {
             .unwrap();
         for r in &settles {
             let key = crease_jobs::keys::fold_settle_task(r.start);
-            assert!(merge.deps.contains(&key), "{partition}: merge waits for {key}");
+            assert!(
+                merge.deps.contains(&key),
+                "{partition}: merge waits for {key}"
+            );
         }
         // The user-facing anchor files are written off the chain: after the merge, and only finalize waits.
         assert_eq!(count(|t| matches!(t, TaskSpec::FoldFiles { .. })), 1);

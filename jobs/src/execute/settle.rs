@@ -27,7 +27,10 @@ fn plan(env: &TaskEnv, opened: &OpenedSequence) -> (Vec<Range<usize>>, Vec<Range
         let (chunks, nt) = super::stretch::traced_chunks(env, opened);
         (chunks, job_settle_chunks(env.job, n, nt))
     } else {
-        (super::folds::chunks(env, n), job_settle_chunks(env.job, n, 0))
+        (
+            super::folds::chunks(env, n),
+            job_settle_chunks(env.job, n, 0),
+        )
     }
 }
 

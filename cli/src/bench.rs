@@ -396,8 +396,8 @@ fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
         flattening.name()
     );
     println!(
-        "(tracing: seconds per frame in tracing, which overlaps the next frame's step; ahead/f: seeds per frame \
-         traced ahead of their turn on another thread, of them wasted/f discarded)"
+        "(tracing: its seconds per frame, the rest of s/frame is the two passes; ahead/f: seeds per frame traced \
+         ahead of their turn on another thread, of them wasted/f discarded)"
     );
     println!(
         "{:>8} {:>10} {:>10} {:>10} {:>10} {:>12} {:>9} {:>8} {:>9}",

@@ -102,8 +102,7 @@ fn decode_record(b: &[u8]) -> (f32, f32) {
 /// What [`StretchDetector::run_timed`] measured besides the folds.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RunTiming {
-    /// Seconds spent tracing, summed over frames. Each frame's tracing overlaps the next frame's step, so this
-    /// and the passes add up to more than the run's wall time.
+    /// Seconds spent tracing, summed over frames (the rest is the two passes and `each`).
     pub tracing: f64,
     /// Seeds traced ahead of their turn on other threads ([`speculate`]), and those of them discarded because
     /// an earlier fold consumed their seed.
@@ -193,24 +192,29 @@ impl StretchDetector {
             }
             progress.advance(STAGE, 1);
         }
-        // Forward pass, combined with the backward signal and traced frame by frame. Frame t is traced while
-        // frame t + 1's signal (its step and the backward record) is computed beside it: tracing reads only
-        // its own frame's field and the step only the phase tracker, so running them side by side on the pool
-        // fills the cores that tracing, whose seeds are only partly parallel, leaves idle, with the results of
-        // one after the other.
+        // Forward pass, combined with the backward signal and traced frame by frame.
         let first = source.read_frame(0)?;
         let h = mean_edge_length(&topo, &first);
         let mut tracker = PhaseTracker::new(&topo, &first);
         let mut tracer = trace::FoldTracer::new(&topo, levels);
+        let mut prev = first;
         let mut buf = vec![0u8; record];
-        // Frame t's fold signal: the step from `prev` (none at frame 0), combined with the backward record.
-        let mut signal = |t: usize, prev: Option<&[V3]>, cur: &[V3], geom: &FrameGeometry| {
-            let mut sig = match prev {
-                None => Signal {
+        let mut timing = RunTiming::default();
+        for t in 0..n {
+            check()?;
+            let cur = if t == 0 {
+                prev.clone()
+            } else {
+                source.read_frame(t)?
+            };
+            let geom = FrameGeometry::new(&topo, &cur);
+            let mut sig = if t == 0 {
+                Signal {
                     shrink: vec![1.0; nt],
                     dir: geom.e1.clone(),
-                },
-                Some(prev) => tracker.step(&topo, prev, cur, geom, params),
+                }
+            } else {
+                tracker.step(&topo, &prev, &cur, &geom, params)
             };
             if t + 1 < n {
                 spill
@@ -227,56 +231,20 @@ impl StretchDetector {
                         combine_one(shrink, dir, (geom.e1[i], geom.e2[i]), decode_record(b));
                     });
             }
-            Ok::<_, Error>(sig)
-        };
-        let geom = FrameGeometry::new(&topo, &first);
-        let sig = signal(0, None, &first, &geom)?;
-        let mut now = (first, geom, sig);
-        let mut timing = RunTiming::default();
-        // Experiment switch while measuring (CREASE_STRETCH_OVERLAP=0: one after the other).
-        let overlap = std::env::var_os("CREASE_STRETCH_OVERLAP").is_none_or(|v| v != "0");
-        for t in 0..n {
-            check()?;
-            let next = if t + 1 < n {
-                Some(source.read_frame(t + 1)?)
-            } else {
-                None
-            };
-            let (cur, geom, sig) = &now;
             let field = trace::FrameField {
                 topo: &topo,
-                p: cur,
-                geom,
+                p: &cur,
+                geom: &geom,
                 shrink: &sig.shrink,
                 dir: &sig.dir,
                 h,
             };
-            let mut trace_now = || {
-                let started = std::time::Instant::now();
-                let folds = tracer.trace(&field, params);
-                (folds, started.elapsed().as_secs_f64())
-            };
-            let prepare_next = || {
-                next.map(|p| {
-                    let geom = FrameGeometry::new(&topo, &p);
-                    let sig = signal(t + 1, Some(&cur[..]), &p, &geom)?;
-                    Ok::<_, Error>((p, geom, sig))
-                })
-                .transpose()
-            };
-            let (traced, next) = if overlap {
-                rayon::join(trace_now, prepare_next)
-            } else {
-                (trace_now(), prepare_next())
-            };
-            let next = next?;
-            timing.tracing += traced.1;
-            each(t, cur, &sig.shrink, traced.0)?;
+            let started = std::time::Instant::now();
+            let folds = tracer.trace(&field, params);
+            timing.tracing += started.elapsed().as_secs_f64();
+            each(t, &cur, &sig.shrink, folds)?;
+            prev = cur;
             progress.advance(STAGE, 1);
-            match next {
-                Some(next) => now = next,
-                None => break,
-            }
         }
         (timing.traced_ahead, timing.wasted) = tracer.traced_ahead();
         progress.end(STAGE);
@@ -399,10 +367,10 @@ impl FoldDetector for StretchDetector {
 mod tests {
     use super::*;
 
-    /// The forward pass traces each frame beside the next frame's step; on several threads the run gives what
-    /// one thread (one after the other) gives, bit for bit: positions, fold signal and folds of every frame.
+    /// On several threads (seeds traced ahead, passes split over triangles) the run gives what one thread gives,
+    /// bit for bit: positions, fold signal and folds of every frame.
     #[test]
-    fn overlapped_tracing_is_the_sequential_run() {
+    fn runs_on_several_threads_are_the_one_thread_run() {
         let seq = crate::synth::compressed_tube(4000, 6, 0.3, -1.0).unwrap();
         let run = |threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new()

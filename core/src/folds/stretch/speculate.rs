@@ -32,14 +32,6 @@ pub(super) type Entry = (bool, u64, Reverse<u32>);
 /// Queue entries looked at past the next seed when choosing seeds to trace ahead.
 const LOOKAHEAD: usize = 64;
 
-/// [`LOOKAHEAD`], or CREASE_STRETCH_LOOKAHEAD while measuring.
-fn lookahead() -> usize {
-    std::env::var("CREASE_STRETCH_LOOKAHEAD")
-        .ok()
-        .and_then(|b| b.parse().ok())
-        .unwrap_or(LOOKAHEAD)
-}
-
 /// Patch patterns whose symbolic factorisation is kept ([`SymbolicCache`]), per generation.
 const PATTERNS_PER_GENERATION: usize = 1024;
 
@@ -106,8 +98,8 @@ impl SeedPool {
 /// The seed queue of one frame with the outcomes traced ahead of their turn.
 pub(super) struct SeedQueue {
     /// The entries not taken yet, largest first.
-    heap: std::vec::IntoIter<Entry>,
-    /// Entries taken from the heap but not yet handed out, in queue order.
+    order: std::vec::IntoIter<Entry>,
+    /// Entries taken from `order` but not yet handed out, in queue order.
     ahead: VecDeque<u32>,
     ready: HashMap<u32, Outcome>,
     /// Seeds traced together: 1 traces one seed at a time (no look-ahead).
@@ -122,17 +114,10 @@ impl SeedQueue {
     pub(super) fn new(order: Vec<Entry>) -> Self {
         let threads = rayon::current_num_threads();
         SeedQueue {
-            heap: order.into_iter(),
+            order: order.into_iter(),
             ahead: VecDeque::new(),
             ready: HashMap::new(),
-            batch: match std::env::var("CREASE_STRETCH_BATCH")
-                .ok()
-                .and_then(|b| b.parse().ok())
-            {
-                Some(b) if threads > 1 => b,
-                _ if threads > 1 => 2 * threads,
-                _ => 1,
-            },
+            batch: if threads > 1 { 2 * threads } else { 1 },
             traced_ahead: 0,
             wasted: 0,
         }
@@ -143,7 +128,7 @@ impl SeedQueue {
         loop {
             let s = match self.ahead.pop_front() {
                 Some(s) => s,
-                None => self.heap.next()?.2 .0,
+                None => self.order.next()?.2 .0,
             };
             if !consumed[s as usize] {
                 return Some(s as usize);
@@ -170,8 +155,8 @@ impl SeedQueue {
         }
         let mut chosen = vec![s];
         if self.batch > 1 {
-            while self.ahead.len() < lookahead() {
-                let Some(e) = self.heap.next() else { break };
+            while self.ahead.len() < LOOKAHEAD {
+                let Some(e) = self.order.next() else { break };
                 self.ahead.push_back(e.2 .0);
             }
             // A seed's fold stays within its patch; a candidate closer than that to a seed before it that may

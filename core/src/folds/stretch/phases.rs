@@ -14,7 +14,7 @@
 //! signal in either pass.
 
 use super::params::StretchParams;
-use super::smooth::{remove_outliers, smooth, FrameGeometry};
+use super::smooth::{remove_outliers, smooth_in, FrameGeometry, SmoothScratch};
 use super::tensor::{
     absolute_change, axial_angle, axial_difference, jacobian, shape, Shape, Tensor,
 };
@@ -39,6 +39,8 @@ struct TriState {
 /// One pass over the sequence (forward or backward in time).
 pub struct PhaseTracker {
     tris: Vec<TriState>,
+    /// The smoothing's buffers, reused from step to step.
+    scratch: SmoothScratch,
 }
 
 fn triangle(topo: &Topology, p: &[V3], t: usize) -> [V3; 3] {
@@ -53,18 +55,42 @@ pub fn smoothed_field(
     to: &[V3],
     params: &StretchParams,
 ) -> Vec<Tensor> {
-    let mut field: Vec<Option<Tensor>> = (0..topo.n_triangles())
+    smoothed_field_in(
+        topo,
+        geom,
+        shapes,
+        to,
+        params,
+        &mut SmoothScratch::default(),
+    )
+}
+
+/// [`smoothed_field`] in `scratch`'s buffers.
+fn smoothed_field_in(
+    topo: &Topology,
+    geom: &FrameGeometry,
+    shapes: impl Fn(usize) -> Shape + Sync,
+    to: &[V3],
+    params: &StretchParams,
+    scratch: &mut SmoothScratch,
+) -> Vec<Tensor> {
+    let SmoothScratch {
+        field,
+        shares,
+        next,
+    } = scratch;
+    (0..topo.n_triangles())
         .into_par_iter()
         .with_min_len(2048)
         .map(|t| jacobian(shapes(t), triangle(topo, to, t)))
-        .collect();
+        .collect_into_vec(field);
     remove_outliers(
-        &mut field,
+        field,
         &geom.normals,
         params.max_change,
         params.tail_fraction,
     );
-    smooth(topo, geom, &field, params.smooth_iterations)
+    smooth_in(topo, geom, field, params.smooth_iterations, shares, next)
 }
 
 /// What one non-isometric-or-isometric step decides for a triangle's phase reference.
@@ -131,7 +157,26 @@ pub fn step_dominants(
     geom: &FrameGeometry,
     params: &StretchParams,
 ) -> Vec<(f64, f64)> {
-    let step = smoothed_field(topo, geom, |t| shape(triangle(topo, prev, t)), cur, params);
+    step_dominants_in(topo, prev, cur, geom, params, &mut SmoothScratch::default())
+}
+
+/// [`step_dominants`] in `scratch`'s buffers.
+fn step_dominants_in(
+    topo: &Topology,
+    prev: &[V3],
+    cur: &[V3],
+    geom: &FrameGeometry,
+    params: &StretchParams,
+    scratch: &mut SmoothScratch,
+) -> Vec<(f64, f64)> {
+    let step = smoothed_field_in(
+        topo,
+        geom,
+        |t| shape(triangle(topo, prev, t)),
+        cur,
+        params,
+        scratch,
+    );
     step.par_iter()
         .with_min_len(2048)
         .enumerate()
@@ -152,7 +197,21 @@ pub fn integrated_signal(
     cur: &[V3],
     params: &StretchParams,
 ) -> Signal {
-    let integrated = smoothed_field(topo, geom, reference, cur, params);
+    let scratch = &mut SmoothScratch::default();
+    integrated_signal_in(topo, geom, reference, shrinking, cur, params, scratch)
+}
+
+/// [`integrated_signal`] in `scratch`'s buffers.
+fn integrated_signal_in(
+    topo: &Topology,
+    geom: &FrameGeometry,
+    reference: impl Fn(usize) -> Shape + Sync,
+    shrinking: impl Fn(usize) -> bool + Sync,
+    cur: &[V3],
+    params: &StretchParams,
+    scratch: &mut SmoothScratch,
+) -> Signal {
+    let integrated = smoothed_field_in(topo, geom, reference, cur, params, scratch);
     let (shrink, dir) = integrated
         .par_iter()
         .with_min_len(2048)
@@ -178,7 +237,10 @@ impl PhaseTracker {
                 clock: PhaseClock::default(),
             })
             .collect();
-        PhaseTracker { tris }
+        PhaseTracker {
+            tris,
+            scratch: SmoothScratch::default(),
+        }
     }
 
     /// Advances the pass by one step, `prev → cur`, and returns the integrated shrinkage at `cur`.
@@ -191,7 +253,7 @@ impl PhaseTracker {
         params: &StretchParams,
     ) -> Signal {
         let theta0 = params.theta0_deg.to_radians();
-        let step = step_dominants(topo, prev, cur, geom, params);
+        let step = step_dominants_in(topo, prev, cur, geom, params, &mut self.scratch);
         // Continuity test (eq. 4.2) and reference update, per triangle.
         self.tris
             .par_iter_mut()
@@ -206,13 +268,44 @@ impl PhaseTracker {
             );
         // Integrated tensor: the current triangle against its phase's first frame.
         let tris = &self.tris;
-        integrated_signal(
+        integrated_signal_in(
             topo,
             geom,
             |t| tris[t].reference,
             |t| tris[t].clock.state == -1,
             cur,
             params,
+            &mut self.scratch,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Smoothing in buffers reused from step to step (the tracker's) gives the fields of fresh buffers bit for
+    /// bit, whatever the buffers held before.
+    #[test]
+    fn reused_buffers_smooth_like_fresh_ones() {
+        let seq = crate::synth::compressed_tube(3000, 5, 0.3, -1.0).unwrap();
+        let topo = &seq.topology;
+        let params = StretchParams::default();
+        let mut scratch = SmoothScratch::default();
+        let mut shrunk = 0;
+        for t in 1..seq.frames.len() {
+            let cur = &seq.frames[t];
+            let geom = FrameGeometry::new(topo, cur);
+            // Steps from the previous frame and integrations from frame 0, alternately into the same buffers.
+            for from in [&seq.frames[t - 1], &seq.frames[0]] {
+                let shapes = |i: usize| shape(triangle(topo, from, i));
+                let fresh = smoothed_field(topo, &geom, shapes, cur, &params);
+                let reused = smoothed_field_in(topo, &geom, shapes, cur, &params, &mut scratch);
+                assert_eq!(fresh.len(), topo.n_triangles());
+                shrunk += fresh.iter().filter(|x| x.small < 0.999).count();
+                assert_eq!(format!("{fresh:?}"), format!("{reused:?}"), "frame {t}");
+            }
+        }
+        assert!(shrunk > 0, "no shrinkage to smooth");
     }
 }

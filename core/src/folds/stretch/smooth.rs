@@ -27,35 +27,31 @@ pub struct FrameGeometry {
 }
 
 impl FrameGeometry {
-    /// Per triangle in parallel (twice per frame, once per pass).
+    /// Per triangle in parallel (twice per frame, once per pass), written straight into the five arrays.
     pub fn new(topo: &Topology, p: &[V3]) -> Self {
         let n = topo.n_triangles();
         let mut g = FrameGeometry {
-            normals: Vec::with_capacity(n),
-            e1: Vec::with_capacity(n),
-            e2: Vec::with_capacity(n),
-            areas: Vec::with_capacity(n),
-            centroids: Vec::with_capacity(n),
+            normals: vec![[0.0; 3]; n],
+            e1: vec![[0.0; 3]; n],
+            e2: vec![[0.0; 3]; n],
+            areas: vec![0.0; n],
+            centroids: vec![[0.0; 3]; n],
         };
-        let per: Vec<(V3, V3, V3, f64, V3)> = topo
-            .triangles()
+        topo.triangles()
             .par_iter()
+            .zip(g.normals.par_iter_mut())
+            .zip(g.e1.par_iter_mut())
+            .zip(g.e2.par_iter_mut())
+            .zip(g.areas.par_iter_mut())
+            .zip(g.centroids.par_iter_mut())
             .with_min_len(4096)
-            .map(|tri| {
+            .for_each(|(((((tri, nrm), e1), e2), area), centroid)| {
                 let q = tri.map(|v| p[v as usize]);
                 let c = vec3::cross(vec3::sub(q[1], q[0]), vec3::sub(q[2], q[0]));
-                let (e1, e2, nrm) = super::tensor::local_frame(q);
-                let centroid = vec3::scale(vec3::add(vec3::add(q[0], q[1]), q[2]), 1.0 / 3.0);
-                (nrm, e1, e2, 0.5 * vec3::norm(c), centroid)
-            })
-            .collect();
-        for (nrm, e1, e2, area, centroid) in per {
-            g.normals.push(nrm);
-            g.e1.push(e1);
-            g.e2.push(e2);
-            g.areas.push(area);
-            g.centroids.push(centroid);
-        }
+                (*e1, *e2, *nrm) = super::tensor::local_frame(q);
+                *centroid = vec3::scale(vec3::add(vec3::add(q[0], q[1]), q[2]), 1.0 / 3.0);
+                *area = 0.5 * vec3::norm(c);
+            });
         g
     }
 }
@@ -144,7 +140,7 @@ pub fn remove_outliers(
 /// weighted principal values, the direction weight (area × anisotropy) and the Γ direction. A sweep writes its
 /// triangles' shares for the next sweep straight away, so the field itself is written once, by the last.
 #[derive(Clone, Copy)]
-struct Share {
+pub(super) struct Share {
     w: f64,
     big: f64,
     small: f64,
@@ -207,6 +203,17 @@ fn half_angle_direction(c2: f64, s2: f64, e1: V3, e2: V3) -> V3 {
     vec3::add(vec3::scale(e1, cos), vec3::scale(e2, sin))
 }
 
+/// Buffers of the field operations kept by a caller that smooths frame after frame (the phase tracker): the
+/// raw field and the two sweeps' shares, about 18 MB at 100K triangles, four times per frame. Fresh buffers of
+/// that size come from the kernel as new pages, zeroed and faulted in one by one (a twentieth of the
+/// detector's time); reused ones are written in place. Results do not depend on what a buffer held before.
+#[derive(Default)]
+pub struct SmoothScratch {
+    pub(super) field: Vec<Option<Tensor>>,
+    pub(super) shares: Vec<Share>,
+    pub(super) next: Vec<Share>,
+}
+
 /// Smooths Γ, γ and the direction angle separately (see the module doc) for `iterations` Jacobi sweeps.
 /// Triangles with no data take their neighbours' values; those with no valid neighbour stay the identity.
 /// The direction is averaged as doubled-angle unit vectors (cos 2θ, sin 2θ) and halved back with the
@@ -216,6 +223,26 @@ pub fn smooth(
     geom: &FrameGeometry,
     field: &[Option<Tensor>],
     iterations: usize,
+) -> Vec<Tensor> {
+    let mut scratch = SmoothScratch::default();
+    smooth_in(
+        topo,
+        geom,
+        field,
+        iterations,
+        &mut scratch.shares,
+        &mut scratch.next,
+    )
+}
+
+/// [`smooth`] with its sweeps' shares in `shares` and `next` (any previous contents are overwritten).
+pub(super) fn smooth_in(
+    topo: &Topology,
+    geom: &FrameGeometry,
+    field: &[Option<Tensor>],
+    iterations: usize,
+    shares: &mut Vec<Share>,
+    next: &mut Vec<Share>,
 ) -> Vec<Tensor> {
     let adj = topo.tri_adj();
     // One Jacobi update of triangle i from the previous sweep's shares.
@@ -267,27 +294,25 @@ pub fn smooth(
             .map(|(i, t)| t.unwrap_or_else(|| identity(i)))
             .collect();
     }
-    let mut shares: Vec<Share> = Vec::with_capacity(field.len());
     field
         .par_iter()
         .zip(geom.areas.par_iter())
         .with_min_len(4096)
         .map(|(&t, &a)| Share::of(t, a))
-        .collect_into_vec(&mut shares);
+        .collect_into_vec(shares);
     // Every sweep but the last writes the shares the next one reads.
-    let mut next: Vec<Share> = Vec::with_capacity(field.len());
     for _ in 1..iterations {
         (0..field.len())
             .into_par_iter()
             .with_min_len(1024)
-            .map(|i| Share::of(update(&shares, i), geom.areas[i]))
-            .collect_into_vec(&mut next);
-        std::mem::swap(&mut shares, &mut next);
+            .map(|i| Share::of(update(shares, i), geom.areas[i]))
+            .collect_into_vec(next);
+        std::mem::swap(shares, next);
     }
     (0..field.len())
         .into_par_iter()
         .with_min_len(1024)
-        .map(|i| update(&shares, i).unwrap_or_else(|| identity(i)))
+        .map(|i| update(shares, i).unwrap_or_else(|| identity(i)))
         .collect()
 }
 

@@ -19,7 +19,7 @@ use crate::mesh::Topology;
 use crate::vec3::{self, V3};
 use rayon::prelude::*;
 use std::cmp::Reverse;
-use std::collections::{BinaryHeap, HashMap, VecDeque};
+use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
 
 /// What tracing one seed gives: its fold and the triangles of the fold's region of influence, or nothing (no
@@ -97,8 +97,9 @@ impl SeedPool {
 
 /// The seed queue of one frame with the outcomes traced ahead of their turn.
 pub(super) struct SeedQueue {
-    heap: BinaryHeap<Entry>,
-    /// Entries taken from the heap but not yet handed out, in queue order.
+    /// The entries not taken yet, largest first.
+    order: std::vec::IntoIter<Entry>,
+    /// Entries taken from `order` but not yet handed out, in queue order.
     ahead: VecDeque<u32>,
     ready: HashMap<u32, Outcome>,
     /// Seeds traced together: 1 traces one seed at a time (no look-ahead).
@@ -109,10 +110,11 @@ pub(super) struct SeedQueue {
 }
 
 impl SeedQueue {
-    pub(super) fn new(heap: BinaryHeap<Entry>) -> Self {
+    /// A queue handing out `order` (sorted largest first) front to back.
+    pub(super) fn new(order: Vec<Entry>) -> Self {
         let threads = rayon::current_num_threads();
         SeedQueue {
-            heap,
+            order: order.into_iter(),
             ahead: VecDeque::new(),
             ready: HashMap::new(),
             batch: if threads > 1 { 2 * threads } else { 1 },
@@ -126,7 +128,7 @@ impl SeedQueue {
         loop {
             let s = match self.ahead.pop_front() {
                 Some(s) => s,
-                None => self.heap.pop()?.2 .0,
+                None => self.order.next()?.2 .0,
             };
             if !consumed[s as usize] {
                 return Some(s as usize);
@@ -154,7 +156,7 @@ impl SeedQueue {
         let mut chosen = vec![s];
         if self.batch > 1 {
             while self.ahead.len() < LOOKAHEAD {
-                let Some(e) = self.heap.pop() else { break };
+                let Some(e) = self.order.next() else { break };
                 self.ahead.push_back(e.2 .0);
             }
             // A seed's fold stays within its patch; a candidate closer than that to a seed before it that may

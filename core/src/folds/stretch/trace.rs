@@ -1,6 +1,6 @@
 //! Fold tracing on one frame (Chen 2011 §4.4): seeds, axis, control lines, region of influence, anchors.
 //!
-//! * **Seeds** come from a priority queue of integrated shrinkage (absolute change), largest first, one at a
+//! * **Seeds** come in order of integrated shrinkage (absolute change), largest first, one at a
 //!   time; with `seed_memory` on, seeds of the previous frame go first (the thesis' seed memory; off by default,
 //!   see [`StretchParams::seed_memory`]).
 //! * **Axis** ([`FoldTracer::axis`]): the patch around the seed is flattened ([`super::unfold`] by default, with
@@ -31,7 +31,7 @@ use super::tensor::shape;
 use super::unfold::{PatchRef, Unfolder};
 use crate::mesh::{Topology, NONE};
 use crate::vec3::{self, V3};
-use std::collections::BinaryHeap;
+use rayon::prelude::*;
 use std::sync::Arc;
 
 /// What tracing reads of one frame.
@@ -218,25 +218,30 @@ impl FoldTracer {
     pub fn trace(&mut self, f: &FrameField, params: &StretchParams) -> FrameFolds {
         let n_tri = f.topo.n_triangles();
         let seed_min = 1.0 + params.min_shrink;
-        let heap: BinaryHeap<Entry> = f
+        let prev_seed = &self.prev_seed;
+        let mut order: Vec<Entry> = f
             .shrink
-            .iter()
+            .par_iter()
+            .with_min_len(4096)
             .enumerate()
             .filter(|(_, &s)| s >= seed_min && s.is_finite())
             .map(|(t, &s)| {
                 (
-                    params.seed_memory && self.prev_seed[t],
+                    params.seed_memory && prev_seed[t],
                     seed_priority(s),
                     std::cmp::Reverse(t as u32),
                 )
             })
             .collect();
+        // Largest first: the order a max-heap pops them in (the entries are distinct, one per triangle), for
+        // one sort instead of a heap operation per seed on the sequential path.
+        order.par_sort_unstable_by(|a, b| b.cmp(a));
         let centroid = crate::folds::video::views::centroid(f.p);
         let mut consumed = vec![false; n_tri];
         let mut new_seed = vec![false; n_tri];
         let mut folds = Vec::new();
         let mut seeds_tried = 0;
-        let mut queue = SeedQueue::new(heap);
+        let mut queue = SeedQueue::new(order);
         while let Some(s) = queue.next(&consumed) {
             consumed[s] = true;
             seeds_tried += 1;
@@ -302,6 +307,8 @@ impl SeedWork {
     fn patch(&mut self, f: &FrameField, s: usize, radius: f64, how: Flattening) -> Option<Patch> {
         let (topo, geom) = (f.topo, f.geom);
         let c0 = geom.centroids[s];
+        // `norm(d) <= radius` without the square root, decided exactly as with it (see `SqrtBound`).
+        let near = SqrtBound::new(radius);
         let mut tris = vec![s as u32];
         self.tri_local[s] = 0;
         let mut k = 0;
@@ -312,7 +319,8 @@ impl SeedWork {
                 if u == NONE || self.tri_local[u as usize] != NONE {
                     continue;
                 }
-                if vec3::norm(vec3::sub(geom.centroids[u as usize], c0)) <= radius {
+                let d = vec3::sub(geom.centroids[u as usize], c0);
+                if near.holds(vec3::dot(d, d)) {
                     self.tri_local[u as usize] = tris.len() as u32;
                     tris.push(u);
                 }
@@ -678,20 +686,16 @@ impl SeedWork {
 
     /// Region of influence (eq. 4.3): the patch triangles within `reach` of the axis, in the plane. Most of a
     /// patch lies beyond reach of the axis' bounding box, which rules a triangle out without looking at the
-    /// axis' segments one by one.
+    /// axis' segments one by one; within the box, a segment whose own box (widened by the same margin) does not
+    /// hold the centroid is ruled out the same way, and the distance to the others is compared squared
+    /// ([`SqrtBound`]): the same verdicts as [`within_polyline`], which was most of a seed's own time.
     fn region(&self, f: &FrameField, patch: &Patch, axis: &Axis, reach: f64) -> Vec<u32> {
         let axis_uv: Vec<[f64; 2]> = axis.iter().map(|a| a.0).collect();
-        // Beyond this margin outside the box no point of the axis is within reach, rounding included.
+        // Beyond this margin outside a box no point of the segments in it is within reach, rounding included.
         let margin = reach * (1.0 + 1e-9) + 1e-12 * f.h;
-        let (lo, hi) = axis_uv.iter().fold(
-            ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
-            |(lo, hi), q| {
-                (
-                    [lo[0].min(q[0]), lo[1].min(q[1])],
-                    [hi[0].max(q[0]), hi[1].max(q[1])],
-                )
-            },
-        );
+        let (lo, hi) = bounds(&axis_uv);
+        let segments = Segments::new(&axis_uv, margin);
+        let bound = SqrtBound::new(reach);
         let mut region = Vec::new();
         for &t in &patch.tris {
             let c = self.uv_centroid(f.topo, patch, t as usize);
@@ -699,11 +703,116 @@ impl SeedWork {
                 || c[0] > hi[0] + margin
                 || c[1] < lo[1] - margin
                 || c[1] > hi[1] + margin;
-            if !outside && within_polyline(c, &axis_uv, reach) {
+            if outside {
+                continue;
+            }
+            let within = match (&segments, bound.limit) {
+                (Some(segments), Some(_)) => segments.within(c, &bound),
+                _ => within_polyline(c, &axis_uv, reach),
+            };
+            if within {
                 region.push(t);
             }
         }
         region
+    }
+}
+
+/// The bounding box of plane points.
+fn bounds(points: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
+    points.iter().fold(
+        ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+        |(lo, hi), q| {
+            (
+                [lo[0].min(q[0]), lo[1].min(q[1])],
+                [hi[0].max(q[0]), hi[1].max(q[1])],
+            )
+        },
+    )
+}
+
+/// `x.sqrt() <= r` decided as `x <= limit`, without the square root: IEEE square roots are correctly rounded,
+/// hence monotone, so the `x ≥ 0` with `x.sqrt() <= r` are exactly those up to the largest such `x`, found once
+/// per bound by stepping from `r * r` one representable number at a time (a step or two). NaN and +∞ fail both
+/// tests alike. `limit` is `None` (use the square root) unless `r` is positive, finite and `r * r` is too.
+struct SqrtBound {
+    limit: Option<f64>,
+    r: f64,
+}
+
+impl SqrtBound {
+    fn new(r: f64) -> Self {
+        let limit = (r > 0.0 && (r * r).is_finite()).then(|| {
+            let mut x = r * r;
+            while x > 0.0 && x.sqrt() > r {
+                x = x.next_down();
+            }
+            while x.next_up().is_finite() && x.next_up().sqrt() <= r {
+                x = x.next_up();
+            }
+            x
+        });
+        SqrtBound { limit, r }
+    }
+
+    /// Whether `x.sqrt() <= r`, for `x` a sum of squares (never below zero).
+    #[inline]
+    fn holds(&self, x: f64) -> bool {
+        match self.limit {
+            Some(limit) => x <= limit,
+            None => x.sqrt() <= self.r,
+        }
+    }
+}
+
+/// An axis polyline's segments as [`dist_to_segment`] uses them (start, direction, squared length), each with
+/// its bounding box widened by a margin beyond which nothing is within reach. `None` for a single point.
+struct Segments(Vec<Segment>);
+
+struct Segment {
+    a: [f64; 2],
+    ab: [f64; 2],
+    l2: f64,
+    lo: [f64; 2],
+    hi: [f64; 2],
+}
+
+impl Segments {
+    fn new(line: &[[f64; 2]], margin: f64) -> Option<Self> {
+        (line.len() >= 2).then(|| {
+            Segments(
+                line.windows(2)
+                    .map(|w| {
+                        let (a, b) = (w[0], w[1]);
+                        let ab = [b[0] - a[0], b[1] - a[1]];
+                        Segment {
+                            a,
+                            ab,
+                            l2: ab[0] * ab[0] + ab[1] * ab[1],
+                            lo: [a[0].min(b[0]) - margin, a[1].min(b[1]) - margin],
+                            hi: [a[0].max(b[0]) + margin, a[1].max(b[1]) + margin],
+                        }
+                    })
+                    .collect(),
+            )
+        })
+    }
+
+    /// `within_polyline(q, line, bound.r)`: the same arithmetic as [`dist_to_segment`] up to its square root.
+    #[inline]
+    fn within(&self, q: [f64; 2], bound: &SqrtBound) -> bool {
+        self.0.iter().any(|s| {
+            if !(q[0] >= s.lo[0] && q[0] <= s.hi[0] && q[1] >= s.lo[1] && q[1] <= s.hi[1]) {
+                return false;
+            }
+            let t = if s.l2 > 0.0 {
+                (((q[0] - s.a[0]) * s.ab[0] + (q[1] - s.a[1]) * s.ab[1]) / s.l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let d = [q[0] - s.a[0] - t * s.ab[0], q[1] - s.a[1] - t * s.ab[1]];
+            bound.holds(d[0] * d[0] + d[1] * d[1])
+        })
     }
 }
 
@@ -814,6 +923,102 @@ mod tests {
         assert!(near > 50 && near < 800, "{near}");
         assert!(within_polyline([0.0, 0.1], &line[..1], 0.2));
         assert!(!within_polyline([0.0, 0.3], &line[..1], 0.2));
+    }
+
+    /// A small deterministic generator in [0, 1) for the tests below.
+    fn uniform(state: &mut u64) -> f64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        (*state >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// The square-root-free bound gives the square root's verdict for every x, at the boundary (where `r * r`
+    /// alone would be wrong) and for the values no bound is made for.
+    #[test]
+    fn sqrt_bound_is_the_square_root_test() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut moved = 0;
+        for _ in 0..5000 {
+            let r = 10f64.powf(12.0 * uniform(&mut state) - 6.0);
+            let b = SqrtBound::new(r);
+            let limit = b.limit.expect("a positive finite bound");
+            assert!(limit.sqrt() <= r && limit.next_up().sqrt() > r, "{r}");
+            moved += (limit != r * r) as usize;
+            let x = 4.0 * r * r * uniform(&mut state);
+            for x in [
+                limit,
+                limit.next_up(),
+                limit.next_down(),
+                r * r,
+                (r * r).next_up(),
+                (r * r).next_down(),
+                x,
+                0.0,
+                f64::INFINITY,
+                f64::NAN,
+            ] {
+                assert_eq!(b.holds(x), x.sqrt() <= r, "{x} against {r}");
+            }
+        }
+        // `x <= r * r` would have decided these boundaries wrongly.
+        assert!(moved > 100, "{moved}");
+        for r in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e200] {
+            let b = SqrtBound::new(r);
+            assert!(b.limit.is_none());
+            for x in [0.0, 1.0, 1e300, f64::NAN] {
+                assert_eq!(b.holds(x), x.sqrt() <= r);
+            }
+        }
+    }
+
+    /// The region's segment test (boxes, then squared distances) gives `within_polyline`'s verdicts, for
+    /// points scattered round a wiggly axis and for points at exactly the reach from its vertices and segments.
+    #[test]
+    fn segments_decide_like_the_polyline_distance() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let line: Vec<[f64; 2]> = (0..30)
+            .map(|i| {
+                let x = i as f64 * 0.4;
+                [x + 0.05 * (x * 3.1).cos(), (x * 0.7).sin()]
+            })
+            .collect();
+        let (mut inside, mut checked) = (0, 0);
+        for reach in [0.05, 0.37, 1.0, 2.2] {
+            let margin = reach * (1.0 + 1e-9) + 1e-12 * 0.4;
+            let segs = Segments::new(&line, margin).unwrap();
+            let bound = SqrtBound::new(reach);
+            let mut points: Vec<[f64; 2]> = (0..3000)
+                .map(|_| {
+                    [
+                        14.0 * uniform(&mut state) - 1.0,
+                        6.0 * uniform(&mut state) - 3.0,
+                    ]
+                })
+                .collect();
+            // At the reach from vertices (every direction) and from segment midpoints (along the normal).
+            for (k, w) in line.windows(2).enumerate() {
+                let a = (k as f64) * 0.7;
+                points.push([w[0][0] + reach * a.cos(), w[0][1] + reach * a.sin()]);
+                let (d, m) = (
+                    [w[1][0] - w[0][0], w[1][1] - w[0][1]],
+                    [0.5 * (w[0][0] + w[1][0]), 0.5 * (w[0][1] + w[1][1])],
+                );
+                let n = norm2(d);
+                points.push([m[0] - reach * d[1] / n, m[1] + reach * d[0] / n]);
+            }
+            for q in points {
+                let want = within_polyline(q, &line, reach);
+                assert_eq!(segs.within(q, &bound), want, "{q:?} {reach}");
+                inside += want as usize;
+                checked += 1;
+            }
+        }
+        assert!(
+            inside > 1000 && inside < checked - 1000,
+            "{inside} of {checked}"
+        );
+        assert!(Segments::new(&line[..1], 0.1).is_none());
     }
 
     #[test]

@@ -256,7 +256,7 @@ mod tests {
         let pulled: Vec<V3> = flat.iter().map(|q| [1.1 * q[0], q[1], q[2]]).collect();
         let s = rest_stats(&rest, &vec![pulled; 2]);
         assert!((s.max - 0.1).abs() < 1e-9, "{s:?}");
-        assert!(s.p99 > 0.09 && s.p99 <= 0.1, "{s:?}");
+        assert!(s.p99 > 0.09 && s.p99 <= s.max, "{s:?}");
         assert!(s.mean > 0.03 && s.mean < 0.1, "{s:?}");
         assert!(s.above_1pct > 0.5 && s.above_1pct < 1.0, "{s:?}");
     }

@@ -116,6 +116,42 @@ fn table(r: &EvalReport) -> String {
     for (name, a, c) in shape_rows {
         s += &format!("{name:<28} {a:>10.3} {c:>18.3}\n");
     }
+    let st = &r.stretch;
+    let (ro, rg) = (&st.vs_rest.output, &st.vs_rest.ground_truth);
+    s += &format!(
+        "stretch (%; vs rest: {})\n{:<28} {:>10} {:>18}\n",
+        st.rest_reference, "metric", "output", "ground truth"
+    );
+    let pct = |x: Option<f64>| fmt(x.map(|v| 100.0 * v), 2);
+    let (fo, fg) = (
+        st.vs_captured_frame.output,
+        st.vs_captured_frame.ground_truth,
+    );
+    let stretch_rows = [
+        ("vs rest p99", Some(ro.p99), Some(rg.p99)),
+        ("vs rest max", Some(ro.max), Some(rg.max)),
+        ("vs rest mean", Some(ro.mean), Some(rg.mean)),
+        (
+            "vs captured frame p99",
+            fo.map(|f| f.p99),
+            fg.map(|f| f.p99),
+        ),
+        (
+            "vs captured frame max",
+            fo.map(|f| f.max),
+            fg.map(|f| f.max),
+        ),
+    ];
+    for (name, a, c) in stretch_rows {
+        // The per-triangle accumulator's histogram ends at 100%: a p99 beyond it is only known to be beyond.
+        let cap = |x: Option<f64>| match x {
+            Some(v) if name.ends_with("p99") && name.contains("frame") && v > 1.0 => {
+                "> 100".to_string()
+            }
+            _ => pct(x),
+        };
+        s += &format!("{name:<28} {:>10} {:>18}\n", cap(a), cap(c));
+    }
     s
 }
 

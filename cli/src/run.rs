@@ -75,6 +75,11 @@ pub struct DeformArgs {
     /// rims included, keeps the captured shape. 0 = off, at most 1; only with the shape screen on.
     #[arg(long, default_value_t = crease_core::spacetime::shape_projection::DEFAULT_SHAPE_PROJECTION)]
     pub shape_projection: f64,
+    /// Where the shape projection sits relative to the last stretch pass: `last` (after it), `around` (before
+    /// and after it), `screen-to-projected` (the last pass's screen pulls toward the projected shape, then the
+    /// projection). docs/fidelity.md, "The projection and the last stretch pass".
+    #[arg(long, default_value = "last")]
+    pub projection_order: crease_core::spacetime::shape_projection::ProjectionOrder,
 }
 
 fn parse_shape_cutoff(s: &str) -> Result<f64, String> {
@@ -118,6 +123,7 @@ impl DeformArgs {
             pinning: self.pinning,
             fold_restore: self.fold_restore,
             shape_projection: self.shape_projection,
+            projection_order: self.projection_order,
         }
     }
 }
@@ -472,6 +478,13 @@ pub fn run(a: RunArgs) -> Result<()> {
         pick(last, "l2"),
         pick(last, "max") * 100.0,
         pick(last, "p99") * 100.0
+    ));
+    let vs_rest = &report["summary"]["stretch_vs_rest"]["final"];
+    progress.println(&format!(
+        "edge tension against the least-compressed input edge lengths: p99 {:.2}%, max {:.2}%, mean {:.3}%",
+        pick(Some(vs_rest), "p99") * 100.0,
+        pick(Some(vs_rest), "max") * 100.0,
+        pick(Some(vs_rest), "mean") * 100.0
     ));
     progress.println(&format!(
         "wrote {} frames, report.json, preview.png, stretch.png to {} ({} tasks, {:.2}s of work)",

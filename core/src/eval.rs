@@ -17,10 +17,17 @@
 //!
 //! Beside the folds, whether the shape was kept ([`crate::shape`]): displacement, low-frequency drift and extent
 //! change of the output against the input, next to the same figures of the ground truth against the input.
+//!
+//! And stretch, of the output and of the ground truth: edge tension against the least-compressed captured edge
+//! lengths ([`crate::rest_stretch`], the cloth's rest state as far as the input shows it), and the per-triangle
+//! stretch against the captured triangle of the same frame ([`crate::metrics`], what `report.json`'s
+//! `stretch` lists; on captured data it measures the capture's smoothing as much as stretch).
 
 use crate::mesh::{geometry, FrameSource, Topology};
+use crate::metrics::{StretchAccumulator, StretchStats};
 use crate::progress::Progress;
 use crate::render::{caption, grid, render, stretch_color, Camera, Style};
+use crate::rest_stretch::{RestLengths, RestStretchAccumulator, RestStretchStats};
 use crate::shape::{ShapeAccumulator, ShapeStats, TaubinFilter};
 use crate::vec3::{self, V3};
 use crate::{Error, Result};
@@ -201,6 +208,25 @@ pub struct ShapeComparison {
     pub ground_truth: ShapeStats,
 }
 
+/// Stretch figures of the output and of the ground truth, each under the reference it is measured against.
+#[derive(Debug, Clone, Serialize)]
+pub struct StretchComparison {
+    /// How the rest lengths of `vs_rest` are obtained ([`crate::rest_stretch::REFERENCE`]).
+    pub rest_reference: &'static str,
+    /// Edge tension against the least-compressed captured edge lengths: (output, ground truth).
+    pub vs_rest: StretchPair<RestStretchStats>,
+    /// Per-triangle stretch max(σ₁ − 1, 1 − σ₂) against the captured triangle of the same frame; the output's
+    /// is None when it does not have the input's triangles (a subdivided result).
+    pub vs_captured_frame: StretchPair<Option<StretchStats>>,
+}
+
+/// A stretch figure of the output beside the ground truth's.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct StretchPair<T> {
+    pub output: T,
+    pub ground_truth: T,
+}
+
 /// The whole evaluation.
 #[derive(Debug, Clone, Serialize)]
 pub struct EvalReport {
@@ -211,6 +237,7 @@ pub struct EvalReport {
     pub output: Figures,
     pub captured_baseline: Figures,
     pub shape: ShapeComparison,
+    pub stretch: StretchComparison,
     pub per_frame: Vec<FrameEval>,
 }
 
@@ -232,6 +259,10 @@ struct FrameResult {
     captured_error_sum: f64,
     shape_out: ShapeAccumulator,
     shape_gt: ShapeAccumulator,
+    rest_out: RestStretchAccumulator,
+    rest_gt: RestStretchAccumulator,
+    frame_out: Option<StretchAccumulator>,
+    frame_gt: StretchAccumulator,
     s: Vec<f32>,
     s_gt: Vec<f32>,
     input: Vec<V3>,
@@ -291,10 +322,12 @@ fn check_shapes(
     Ok(())
 }
 
+#[allow(clippy::too_many_arguments)]
 fn evaluate_frame(
     t: usize,
     topo: &Topology,
     filter: &TaubinFilter,
+    rest: &RestLengths,
     output: &dyn FrameSource,
     gt: &dyn FrameSource,
     input: &dyn FrameSource,
@@ -344,6 +377,19 @@ fn evaluate_frame(
     for v in 0..n {
         dilated.push(d_r[v], d_gt[v]);
     }
+    let (mut rest_out, mut rest_gt) = (
+        RestStretchAccumulator::default(),
+        RestStretchAccumulator::default(),
+    );
+    rest_out.add_frame(rest, &p_out);
+    rest_gt.add_frame(rest, &p_gt);
+    let mut frame_gt = StretchAccumulator::default();
+    frame_gt.add_frame(topo, &p_in, &p_gt);
+    let frame_out = (output.topology().triangles() == topo.triangles()).then(|| {
+        let mut acc = StretchAccumulator::default();
+        acc.add_frame(topo, &p_in, &p_out);
+        acc
+    });
     let nf = n.max(1) as f64;
     let eval = FrameEval {
         frame: t,
@@ -364,6 +410,10 @@ fn evaluate_frame(
         captured_error_sum: err_in,
         shape_out,
         shape_gt,
+        rest_out,
+        rest_gt,
+        frame_out,
+        frame_gt,
         s,
         s_gt,
         input: p_in,
@@ -394,6 +444,15 @@ pub fn evaluate(
     let (mut err_out, mut err_in) = (0.0, 0.0);
     let filter = TaubinFilter::captured(&topo);
     let (mut shape_out, mut shape_gt) = (ShapeAccumulator::default(), ShapeAccumulator::default());
+    // The rest lengths need the whole input before any frame is measured: one more read of it.
+    let rest = RestLengths::of_sequence(input)?;
+    let (mut rest_out, mut rest_gt) = (
+        RestStretchAccumulator::default(),
+        RestStretchAccumulator::default(),
+    );
+    let mut frame_out =
+        (output.topology().triangles() == topo.triangles()).then(StretchAccumulator::default);
+    let mut frame_gt = StretchAccumulator::default();
     let (mut pop, mut pop_gt) = (0.0f64, 0.0f64);
     let mut prev: Option<(Vec<f32>, Vec<f32>)> = None;
     let mut per_frame = Vec::with_capacity(n_frames);
@@ -406,7 +465,18 @@ pub fn evaluate(
         let end = (start + chunk).min(n_frames);
         let results: Vec<FrameResult> = (start..end)
             .into_par_iter()
-            .map(|t| evaluate_frame(t, &topo, &filter, output, gt, input, params.threshold_deg))
+            .map(|t| {
+                evaluate_frame(
+                    t,
+                    &topo,
+                    &filter,
+                    &rest,
+                    output,
+                    gt,
+                    input,
+                    params.threshold_deg,
+                )
+            })
             .collect::<Result<_>>()?;
         for r in results {
             pearson.merge(&r.pearson);
@@ -416,6 +486,12 @@ pub fn evaluate(
             err_in += r.captured_error_sum;
             shape_out.merge(&r.shape_out);
             shape_gt.merge(&r.shape_gt);
+            rest_out.merge(&r.rest_out);
+            rest_gt.merge(&r.rest_gt);
+            frame_gt.merge(&r.frame_gt);
+            if let (Some(acc), Some(f)) = (frame_out.as_mut(), &r.frame_out) {
+                acc.merge(f);
+            }
             if let Some((ps, pg)) = &prev {
                 for v in 0..n {
                     pop += (r.s[v] - ps[v]).abs() as f64;
@@ -469,6 +545,17 @@ pub fn evaluate(
             shape: ShapeComparison {
                 output: shape_out.stats(),
                 ground_truth: shape_gt.stats(),
+            },
+            stretch: StretchComparison {
+                rest_reference: crate::rest_stretch::REFERENCE,
+                vs_rest: StretchPair {
+                    output: rest_out.stats(),
+                    ground_truth: rest_gt.stats(),
+                },
+                vs_captured_frame: StretchPair {
+                    output: frame_out.map(|a| a.stats()),
+                    ground_truth: Some(frame_gt.stats()),
+                },
             },
             per_frame,
         },
@@ -667,6 +754,53 @@ mod tests {
         // The input has not moved at all.
         assert_eq!(b.shape.output.displacement_max, 0.0);
         assert_eq!(b.shape.output.extent_change, 0.0);
+    }
+
+    /// A capture that flattened a fold region (the sheet compressed along x in the first frames, released
+    /// later): an output that gives the length back everywhere measures no tension against the least-compressed
+    /// captured lengths, but 25% per-triangle stretch against the same captured frame.
+    #[test]
+    fn stretch_against_rest_lengths_forgives_a_released_capture() {
+        let (topo, sheet) = synth::sheet(30, 20, 0.02).unwrap();
+        let squeeze =
+            |f: f64| -> Vec<V3> { sheet.iter().map(|q| [f * q[0], q[1], q[2]]).collect() };
+        let input = Sequence::new(topo.clone(), [0.8, 0.9, 1.0].map(squeeze).into()).unwrap();
+        let released = Sequence::new(topo, vec![sheet.clone(); 3]).unwrap();
+        let (r, _) = evaluate(
+            &released,
+            &released,
+            &input,
+            &EvalParams::default(),
+            &[],
+            &crate::progress::NoProgress,
+        )
+        .unwrap();
+        let st = &r.stretch;
+        assert_eq!(st.rest_reference, crate::rest_stretch::REFERENCE);
+        assert!(st.vs_rest.output.max < 1e-12, "{:?}", st.vs_rest);
+        assert_eq!(st.vs_rest.output.p99, 0.0);
+        let same = st.vs_captured_frame.output.unwrap();
+        assert!((same.max - 0.25).abs() < 1e-9, "{same:?}");
+        assert!(same.p99 > 0.1, "{same:?}");
+        // Stretching the released sheet by 5% along x is tension against the rest lengths.
+        let pulled = Sequence::new(
+            released.topology.clone(),
+            vec![sheet.iter().map(|q| [1.05 * q[0], q[1], q[2]]).collect(); 3],
+        )
+        .unwrap();
+        let (r, _) = evaluate(
+            &pulled,
+            &released,
+            &input,
+            &EvalParams::default(),
+            &[],
+            &crate::progress::NoProgress,
+        )
+        .unwrap();
+        let v = r.stretch.vs_rest;
+        assert!((v.output.max - 0.05).abs() < 1e-9, "{v:?}");
+        assert!(v.output.p99 > 0.04, "{v:?}");
+        assert!(v.ground_truth.max < 1e-12, "{v:?}");
     }
 
     #[test]

@@ -2,7 +2,8 @@
 //!
 //! Maps to the papers as follows: [`spacetime`] is Popa et al. 2009 §5 (space-time rotation weights, Alexa
 //! blending, gradient-domain positioning, stretch reduction); [`folds`] holds fold estimates as anchors;
-//! [`metrics`] measures stretch (Sander et al. 2001). No async and no networking here: services call into this
+//! [`metrics`] measures stretch (Sander et al. 2001) against the captured frame, [`rest_stretch`] against the
+//! least-compressed captured edge lengths. No async and no networking here: services call into this
 //! crate.
 
 pub mod error;
@@ -16,6 +17,7 @@ pub mod npy;
 pub mod preview;
 pub mod progress;
 pub mod render;
+pub mod rest_stretch;
 pub mod shape;
 pub mod spacetime;
 pub mod synth;

@@ -83,6 +83,9 @@ pub struct DeformParams {
     /// it off; it acts only with the shape screen on (`shape_cutoff` > 0: `off` is the paper's unconstrained
     /// system).
     pub shape_projection: f64,
+    /// Where the shape projection sits relative to the last stretch pass (see
+    /// [`super::shape_projection::ProjectionOrder`]).
+    pub projection_order: super::shape_projection::ProjectionOrder,
 }
 
 /// Most fold restoration steps accepted: the deconvolution then multiplies what the capture kept of a fold by
@@ -110,6 +113,7 @@ impl Default for DeformParams {
             pinning: Pinning::Centroid,
             fold_restore: DEFAULT_FOLD_RESTORE,
             shape_projection: super::shape_projection::DEFAULT_SHAPE_PROJECTION,
+            projection_order: Default::default(),
         }
     }
 }
@@ -139,6 +143,7 @@ struct DeformFields {
     pinning: Option<Pinning>,
     fold_restore: Option<f64>,
     shape_projection: Option<f64>,
+    projection_order: Option<super::shape_projection::ProjectionOrder>,
 }
 
 #[derive(Deserialize, Default)]
@@ -182,6 +187,7 @@ impl TryFrom<DeformFields> for DeformParams {
             pinning: f.pinning.unwrap_or(d.pinning),
             fold_restore: f.fold_restore.unwrap_or(d.fold_restore),
             shape_projection: f.shape_projection.unwrap_or(d.shape_projection),
+            projection_order: f.projection_order.unwrap_or(d.projection_order),
         })
     }
 }
@@ -203,6 +209,7 @@ impl DeformParams {
             } else {
                 0.0
             },
+            order: self.projection_order,
         }
     }
 

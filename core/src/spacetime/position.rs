@@ -190,6 +190,16 @@ impl PositionSystem {
     /// the pattern of [`PositionSystem::pattern`]), with the per-triangle gradients, areas and unit normals.
     #[allow(clippy::type_complexity)]
     pub fn assemble(&self, rest: &[V3]) -> Result<(Vec<f64>, Vec<[V3; 3]>, Vec<f64>, Vec<V3>)> {
+        let (values, grads, areas, normals, _) = self.assemble_screened(rest)?;
+        Ok((values, grads, areas, normals))
+    }
+
+    /// [`PositionSystem::assemble`] and the frame's screen weight λ (0 without the screen).
+    #[allow(clippy::type_complexity)]
+    fn assemble_screened(
+        &self,
+        rest: &[V3],
+    ) -> Result<(Vec<f64>, Vec<[V3; 3]>, Vec<f64>, Vec<V3>, f64)> {
         let topo = &self.topo;
         let mut grads = Vec::with_capacity(topo.n_triangles());
         let mut areas = Vec::with_capacity(topo.n_triangles());
@@ -235,7 +245,7 @@ impl PositionSystem {
             areas.push(area);
             normals.push(nh);
         }
-        Ok((values, grads, areas, normals))
+        Ok((values, grads, areas, normals, screen))
     }
 
     /// Sparsity pattern (CSC, lower triangle) of the reduced system: (column pointers, row indices).
@@ -255,7 +265,7 @@ impl PositionSystem {
 
     /// Assembles and factorises the stiffness matrix of one original frame.
     pub fn factor_frame<'a>(&'a self, rest: &'a [V3]) -> Result<FramePositioner<'a>> {
-        let (values, grads, areas, normals) = self.assemble(rest)?;
+        let (values, grads, areas, normals, screen) = self.assemble_screened(rest)?;
         let topo = &self.topo;
         let stack_req = self
             .symbolic
@@ -307,6 +317,7 @@ impl PositionSystem {
             normals,
             l_values,
             vertex_area,
+            screen,
         })
     }
 }
@@ -320,6 +331,8 @@ pub struct FramePositioner<'a> {
     normals: Vec<V3>,
     l_values: Vec<f64>,
     vertex_area: Vec<f64>,
+    /// The shape screen's weight λ for this frame (0 without the screen).
+    screen: f64,
 }
 
 impl FramePositioner<'_> {
@@ -339,6 +352,27 @@ impl FramePositioner<'_> {
     /// sense of the module documentation.
     pub fn solve(&self, rotations: &[M3]) -> Frame {
         let mut rhs = self.rhs(rotations);
+        self.solve_in_place(&mut rhs);
+        self.finish(&rhs)
+    }
+
+    /// [`FramePositioner::solve`] with the shape screen pulling toward `target` instead of the original frame:
+    /// min Σ A ‖F − R‖² + λ ‖x − target‖²_M, whose normal equations add λ M (target − rest) to the right-hand
+    /// side (same factor). Without the screen this is [`FramePositioner::solve`].
+    pub fn solve_toward(&self, rotations: &[M3], target: &[V3]) -> Frame {
+        let mut rhs = self.rhs(rotations);
+        if self.screen > 0.0 {
+            for (v, &fi) in self.sys.free_index.iter().enumerate() {
+                if fi == NONE {
+                    continue;
+                }
+                let w = self.screen * self.vertex_area[v];
+                let d = vec3::sub(target[v], self.rest[v]);
+                for (c, dc) in d.iter().enumerate() {
+                    rhs[(fi as usize, c)] += w * dc;
+                }
+            }
+        }
         self.solve_in_place(&mut rhs);
         self.finish(&rhs)
     }
@@ -428,5 +462,36 @@ impl FramePositioner<'_> {
 
     pub fn topology(&self) -> &Arc<Topology> {
         &self.sys.topo
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth;
+
+    /// With identity rotations the screened solve toward a target is the target wherever the target is a rigid
+    /// translation of the frame (F = I costs nothing, the screen is met exactly); toward the frame itself it is
+    /// the plain solve.
+    #[test]
+    fn screen_toward_a_translated_target_moves_the_output_with_it() {
+        let (topo, p) = synth::sheet(12, 9, 0.1).unwrap();
+        let sys = PositionSystem::new(topo.clone(), Pinning::Centroid, Some(10.0)).unwrap();
+        let fp = sys.factor_frame(&p).unwrap();
+        let identity = vec![vec3::IDENTITY; topo.n_triangles()];
+        let shift = [0.03, -0.02, 0.05];
+        let target: Vec<V3> = p.iter().map(|q| vec3::add(*q, shift)).collect();
+        let got = fp.solve_toward(&identity, &target);
+        for (g, t) in got.iter().zip(&target) {
+            assert!(vec3::norm(vec3::sub(*g, *t)) < 1e-9, "{g:?} vs {t:?}");
+        }
+        let r: Vec<M3> = (0..topo.n_triangles())
+            .map(|t| crate::spacetime::so3::exp([0.0, 0.01 * (t % 7) as f64, 0.0]))
+            .collect();
+        assert_eq!(fp.solve_toward(&r, &p), fp.solve(&r));
+        // Without the screen there is nothing to pull: the plain solve.
+        let bare = PositionSystem::new(topo, Pinning::Centroid, None).unwrap();
+        let fb = bare.factor_frame(&p).unwrap();
+        assert_eq!(fb.solve_toward(&r, &target), fb.solve(&r));
     }
 }

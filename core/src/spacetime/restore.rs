@@ -45,6 +45,8 @@ pub struct Restoration {
     pub reference_tilt: f64,
     /// Fraction of the capture filter's low-pass of the displacement removed before restoring (0: none).
     pub projection: f64,
+    /// Where the projection sits relative to the last stretch pass.
+    pub order: super::shape_projection::ProjectionOrder,
 }
 
 /// The captured surface `c` deconvolved by `filter`: `steps` Van Cittert steps g ← g + (c − filter(g)) from
@@ -179,6 +181,11 @@ pub struct RestoreMesh {
 }
 
 impl RestoreMesh {
+    /// The capture filter the shape projection and the restoration use.
+    pub fn capture_filter(&self) -> &TaubinFilter {
+        self.stencil.filter()
+    }
+
     pub fn new(topo: &Topology) -> Self {
         let nv = topo.n_vertices();
         let mut ring_offsets = Vec::with_capacity(nv + 1);
@@ -254,6 +261,7 @@ mod tests {
             steps: 2.0,
             reference_tilt: 0.1,
             projection: 0.0,
+            order: Default::default(),
         };
         assert_eq!(r.apply(&topo, &p, &p), p);
     }
@@ -279,6 +287,7 @@ mod tests {
             steps: 2.0,
             reference_tilt: 1e-3,
             projection: 0.0,
+            order: Default::default(),
         };
         let got = r.apply(&topo, &rest, &out);
         let mut checked = 0;
@@ -313,11 +322,13 @@ mod tests {
                 steps: 0.0,
                 reference_tilt: 0.1,
                 projection: 0.0,
+                order: Default::default(),
             },
             Restoration {
                 steps: 2.0,
                 reference_tilt: 0.0,
                 projection: 0.0,
+                order: Default::default(),
             },
         ] {
             assert_eq!(r.apply(&topo, &rest, &out), out);

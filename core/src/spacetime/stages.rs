@@ -17,6 +17,7 @@ use super::lean_cg;
 use super::params::DeformParams;
 use super::per_anchor::{self, BlockWorkspace, PartialBlend};
 use super::position::PositionSystem;
+use super::shape_projection::ProjectionOrder;
 use super::weights::WindowProblem;
 use super::windows::{crossfade_weight, Window};
 use crate::error::{Error, Result};
@@ -212,10 +213,32 @@ pub fn position_frame(
     let mut pass_times = Vec::with_capacity(passes);
     for k in 0..passes {
         let clock = Instant::now();
+        let last = k + 1 == passes;
         if moved {
-            out = super::stretch::pass(&fp, &out, rotation, &rotations);
+            // Before the last pass, the orders other than `Last` project once more (docs/fidelity.md).
+            let projected = (restoring && last && restore.projection > 0.0)
+                .then(|| match restore.order {
+                    ProjectionOrder::Last => None,
+                    order => Some((
+                        order,
+                        super::shape_projection::project(
+                            system.restore_mesh().capture_filter(),
+                            &rest,
+                            &out,
+                            restore.projection,
+                        ),
+                    )),
+                })
+                .flatten();
+            out = match projected {
+                Some((ProjectionOrder::ScreenToProjected, p)) => {
+                    super::stretch::pass_toward(&fp, &out, rotation, &rotations, &p)
+                }
+                Some((_, p)) => super::stretch::pass(&fp, &p, rotation, &rotations),
+                None => super::stretch::pass(&fp, &out, rotation, &rotations),
+            };
         }
-        if restoring && k + 1 == passes {
+        if restoring && last {
             out = restore.finish(system.topology(), system.restore_mesh(), &rest, &out);
         }
         pass_times.push(clock.elapsed().as_secs_f64());

@@ -156,12 +156,32 @@ fn closest_rotation(r: [V3; 3], n0: V3, o: [V3; 3]) -> Option<M3> {
 /// One stretch-reduction pass on `current`, reusing the frame's factorisation; `blended` are the rotations
 /// the first positioning was given (read by [`StretchRotation::Anchored`] only).
 pub fn pass(fp: &FramePositioner, current: &[V3], kind: StretchRotation, blended: &[M3]) -> Frame {
-    let r = match kind {
+    fp.solve(&pass_rotations(fp, current, kind, blended))
+}
+
+/// [`pass`] with the shape screen pulling toward `target` instead of the original frame
+/// ([`FramePositioner::solve_toward`]).
+pub fn pass_toward(
+    fp: &FramePositioner,
+    current: &[V3],
+    kind: StretchRotation,
+    blended: &[M3],
+    target: &[V3],
+) -> Frame {
+    fp.solve_toward(&pass_rotations(fp, current, kind, blended), target)
+}
+
+fn pass_rotations(
+    fp: &FramePositioner,
+    current: &[V3],
+    kind: StretchRotation,
+    blended: &[M3],
+) -> Vec<M3> {
+    match kind {
         StretchRotation::Normal => normal_rotations(fp, current),
         StretchRotation::Polar => polar_rotations(fp, current),
         StretchRotation::Anchored => anchored_rotations(fp, current, blended),
-    };
-    fp.solve(&r)
+    }
 }
 
 #[cfg(test)]

@@ -12,6 +12,7 @@ use crate::keys;
 use crate::spec::FoldSpec;
 use crease_core::mesh::{Frame, FrameSource};
 use crease_core::metrics::StretchAccumulator;
+use crease_core::rest_stretch::{self, RestLengths, RestStretchAccumulator};
 use crease_core::shape::ShapeAccumulator;
 use crease_core::spacetime::deform::StageTimings;
 use crease_core::spacetime::weights::WindowStats;
@@ -59,12 +60,16 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     // "Shape kept" (DESIGN §9): every output frame against its input frame, measured by the positioning task
     // and merged here in frame order (the same figures for any chunking and any number of workers).
     let mut shape_kept = ShapeAccumulator::default();
+    // Stretch against the least-compressed captured edge lengths (crease_core::rest_stretch): the rest lengths
+    // need every input frame, so they are measured here, where the whole sequence is, on every output frame.
+    let rest_lengths = RestLengths::of_sequence(source).map_err(core_err("rest lengths"))?;
+    let mut vs_rest = RestStretchAccumulator::default();
     env.progress().begin("finalize", n as u64);
     for (t, stretch_of_t) in frame_stretch.iter_mut().enumerate() {
         env.check_cancelled()?;
-        // Positions are read back only where they are still needed: a point cache written here, and the
+        // Positions are read back for the stretch against the rest lengths, a point cache written here and the
         // preview frames. Frame-per-file layouts were written by the positioning tasks.
-        if sink.is_some() || keep.contains(&t) {
+        {
             let key = keys::positions(t);
             let (shape, data) = env.get_npy::<f64>(&key)?;
             if shape != [topo.n_vertices(), 3] {
@@ -75,6 +80,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
                 )));
             }
             let out: Frame = data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            vs_rest.add_frame(&rest_lengths, &out);
             if let Some(sink) = sink.as_mut() {
                 let tw = Instant::now();
                 sink.write_frame(t, &out).map_err(core_err("output"))?;
@@ -220,8 +226,13 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             "vertices": topo.n_vertices(),
             "triangles": topo.n_triangles(),
             "anchors": report.anchors,
+            "stretch_reference": "per triangle, max(s1 - 1, 1 - s2) against the captured triangle of the same frame",
             "stretch_after_positioning": first,
             "stretch_final": last,
+            "stretch_vs_rest": {
+                "reference": rest_stretch::REFERENCE,
+                "final": vs_rest.stats(),
+            },
             "shape_kept": shape_kept.stats(),
             "seconds_per_frame": {
                 "weights": per_frame(t.weights),

@@ -5,7 +5,8 @@
 //! resolutions and radii, fit and split them with quadrics ([`edges`], [`quadric`]), orient them dark-on-the-left
 //! and drop unclear or hue edges ([`orient`]), merge broken contours ([`merge`]), pair parallel edges of opposite
 //! orientation and unite the levels ([`pairing`]); cast the pairs onto the frame mesh and turn the crossed
-//! triangles into anchors ([`project`]). [`overlay`] draws the stages like the paper's Figure 4.
+//! triangles into anchors ([`project`]), and the cloth beside them into anchors tilted as its lighting residual
+//! shows ([`flanks`]). [`overlay`] draws the stages like the paper's Figure 4.
 //!
 //! Each frame is processed on its own, so any frame range gives the same per-frame answer
 //! ([`Granularity::PerFrame`]); the automatic front/back vertices always come from frame 0 of the sequence.
@@ -15,6 +16,7 @@ pub mod cameras;
 pub mod canny;
 pub mod cover;
 pub mod edges;
+pub mod flanks;
 pub mod merge;
 pub mod orient;
 pub mod overlay;
@@ -86,6 +88,9 @@ pub struct ViewResult {
     pub union: Vec<Pair>,
     /// United pairs that project onto the garment.
     pub projected: Vec<ProjectedPair>,
+    /// The lighting fitted to the captured mesh in this view (`photo` then holds its residual); `None` with
+    /// raw darkness or when too little of the garment is seen for a fit.
+    pub shading: Option<shading::ViewShading>,
 }
 
 /// Everything computed for one frame.
@@ -265,18 +270,21 @@ impl VideoFolds {
                 ));
                 continue;
             }
-            let photo = if self.params.lighting_residual {
+            let (photo, lit) = if self.params.lighting_residual {
                 let camera = &self.rig.cameras[cam].camera;
-                shading::residual_photo(&photo, topo, positions, camera).unwrap_or_else(|| {
-                    notes.push(format!(
-                        "camera {} frame {t}: too little of the garment is seen to fit its lighting; \
-                         fold edges are looked for in the raw image",
-                        self.rig.cameras[cam].name
-                    ));
-                    photo
-                })
+                match shading::fit_view(&photo, topo, positions, camera) {
+                    Some(lit) => (shading::residual_of(&photo, &lit), Some(lit)),
+                    None => {
+                        notes.push(format!(
+                            "camera {} frame {t}: too little of the garment is seen to fit its lighting; \
+                             fold edges are looked for in the raw image",
+                            self.rig.cameras[cam].name
+                        ));
+                        (photo, None)
+                    }
+                }
             } else {
-                photo
+                (photo, None)
             };
             let (levels, union) = image_pairs(&photo, &self.params);
             let mut caster = match ready[cam].take() {
@@ -296,6 +304,7 @@ impl VideoFolds {
                 levels,
                 union,
                 projected,
+                shading: lit,
             });
         }
         let owners = self.params.all_views.then(|| {
@@ -350,6 +359,41 @@ impl VideoFolds {
                 control_lines.push(hits.iter().map(|h| h.point).collect());
             }
         }
+        if let Some(settings) = self.flank_settings() {
+            // Flanks after every edge anchor: a triangle an edge crosses keeps the edge's anchor.
+            let pixels: Vec<Option<flanks::TrianglePixels>> = views
+                .iter()
+                .map(|view| {
+                    let lit = view.shading.as_ref()?;
+                    Some(flanks::TrianglePixels::new(
+                        lit,
+                        &view.photo.mask,
+                        topo.n_triangles(),
+                    ))
+                })
+                .collect();
+            for &(v, p) in &all {
+                let (Some(lit), Some(px)) = (&views[v].shading, &pixels[v]) else {
+                    continue;
+                };
+                let angle = project::pair_angle(p.width, h, &self.params);
+                for a in flanks::pair_flanks(
+                    topo,
+                    positions,
+                    &normals,
+                    p,
+                    lit,
+                    &views[v].photo.gray,
+                    px,
+                    &settings,
+                    angle,
+                ) {
+                    if keep(v, a.triangle) && seen.insert(a.triangle) {
+                        anchors.push(a);
+                    }
+                }
+            }
+        }
         anchors.sort_by_key(|a| a.triangle);
         FrameAnchors {
             frame: t,
@@ -360,6 +404,19 @@ impl VideoFolds {
                 seeds_tried: None,
             }),
         }
+    }
+}
+
+impl VideoFolds {
+    /// The flank settings ([`flanks`]), `None` when flanks are off.
+    fn flank_settings(&self) -> Option<flanks::FlankSettings> {
+        let p = &self.params;
+        p.flank_tilt.then(|| flanks::FlankSettings {
+            band: p.flank_band,
+            min_tilt: p.flank_min_tilt_deg.to_radians(),
+            prior: p.flank_prior_deg.to_radians(),
+            min_pixels: 4,
+        })
     }
 }
 
@@ -601,6 +658,7 @@ mod tests {
             levels: Vec::new(),
             union: Vec::new(),
             projected: pairs,
+            shading: None,
         }
     }
 

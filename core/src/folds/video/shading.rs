@@ -48,6 +48,18 @@ pub fn normal_image(
     positions: &[V3],
     camera: &CalibratedCamera,
 ) -> Vec<Option<V3>> {
+    surface_image(topo, positions, camera)
+        .into_iter()
+        .map(|s| s.map(|(_, n)| n))
+        .collect()
+}
+
+/// [`normal_image`] with the triangle seen at every pixel: `(triangle, camera-facing smooth normal)`.
+pub fn surface_image(
+    topo: &Topology,
+    positions: &[V3],
+    camera: &CalibratedCamera,
+) -> Vec<Option<(u32, V3)>> {
     let (w, h) = (camera.width as usize, camera.height as usize);
     let normals = geometry::vertex_normals(topo, positions);
     let cam: Vec<V3> = positions.iter().map(|&p| camera.to_camera(p)).collect();
@@ -117,11 +129,12 @@ pub fn normal_image(
             if !vec3::is_finite(n) || vec3::norm(n) < 0.5 {
                 return None;
             }
-            Some(if vec3::dot(n, vec3::sub(eye, p)) < 0.0 {
+            let n = if vec3::dot(n, vec3::sub(eye, p)) < 0.0 {
                 vec3::scale(n, -1.0)
             } else {
                 n
-            })
+            };
+            Some((t, n))
         })
         .collect()
 }
@@ -212,6 +225,94 @@ fn dot(a: &[f64; N_SH], b: &[f64; N_SH]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// The lighting of one view fitted to the captured mesh, with what it needs to read normals from the residual.
+#[derive(Debug, Clone)]
+pub struct ViewShading {
+    /// Spherical-harmonic coefficients: the shading of unit normal `n` is `sh_basis(n) · coef`.
+    pub coef: [f64; N_SH],
+    /// Mean grey level of the garment pixels (added back to the residual image).
+    pub mean: f64,
+    /// Robust scale of the residual over the garment (1.4826 × median absolute residual), grey levels: the
+    /// noise a shading-based estimate is weighed against (an overestimate, since folds are part of it).
+    pub noise: f64,
+    /// Triangle and camera-facing smooth normal of the captured mesh at every pixel, `None` off the mesh.
+    pub surface: Vec<Option<(u32, V3)>>,
+}
+
+impl ViewShading {
+    /// The shading predicted for unit normal `n`.
+    pub fn shade(&self, n: V3) -> f64 {
+        dot(&sh_basis(n), &self.coef)
+    }
+
+    /// Gradient of [`Self::shade`] with respect to the normal (grey levels per radian of tilt along a unit
+    /// tangent direction, once projected onto it).
+    pub fn shade_gradient(&self, n: V3) -> V3 {
+        let [x, y, z] = n;
+        let c = &self.coef;
+        [
+            c[1] + c[4] * y + c[6] * z + 2.0 * c[7] * x,
+            c[2] + c[4] * x + c[5] * z - 2.0 * c[7] * y,
+            c[3] + c[5] * y + c[6] * x + 6.0 * c[8] * z,
+        ]
+    }
+}
+
+/// Fits the lighting of `photo` seen by `camera` to the captured mesh (module documentation). `None` when too
+/// few garment pixels see the mesh for a fit.
+pub fn fit_view(
+    photo: &Photo,
+    topo: &Topology,
+    positions: &[V3],
+    camera: &CalibratedCamera,
+) -> Option<ViewShading> {
+    if camera.width != photo.width || camera.height != photo.height {
+        return None;
+    }
+    let surface = surface_image(topo, positions, camera);
+    let samples: Vec<(V3, f32)> = surface
+        .iter()
+        .zip(&photo.gray)
+        .zip(&photo.mask)
+        .filter_map(|((s, &g), &m)| if m { s.map(|(_, n)| (n, g)) } else { None })
+        .collect();
+    let coef = fit_lighting(&samples)?;
+    let mean = samples.iter().map(|s| s.1 as f64).sum::<f64>() / samples.len() as f64;
+    let mut abs: Vec<f64> = samples
+        .iter()
+        .map(|&(n, g)| (g as f64 - dot(&sh_basis(n), &coef)).abs())
+        .collect();
+    let mid = abs.len() / 2;
+    let noise = 1.4826 * *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
+    Some(ViewShading {
+        coef,
+        mean,
+        noise,
+        surface,
+    })
+}
+
+/// `photo` with its grey image replaced by the residual of `shading` (module documentation), plus the mean
+/// level; colour and mask are kept.
+pub fn residual_of(photo: &Photo, shading: &ViewShading) -> Photo {
+    let gray = shading
+        .surface
+        .iter()
+        .zip(&photo.gray)
+        .zip(&photo.mask)
+        .map(|((s, &g), &m)| match s {
+            Some((_, n)) if m => {
+                (g as f64 - dot(&sh_basis(*n), &shading.coef) + shading.mean) as f32
+            }
+            _ => shading.mean as f32,
+        })
+        .collect();
+    Photo {
+        gray,
+        ..photo.clone()
+    }
+}
+
 /// `photo` with its grey image replaced by the residual of the lighting fitted to the captured mesh seen from
 /// `camera` (module documentation); colour and mask are kept. `None` when too few garment pixels see the mesh
 /// for a fit (the caller then keeps the raw image).
@@ -221,31 +322,8 @@ pub fn residual_photo(
     positions: &[V3],
     camera: &CalibratedCamera,
 ) -> Option<Photo> {
-    if camera.width != photo.width || camera.height != photo.height {
-        return None;
-    }
-    let normals = normal_image(topo, positions, camera);
-    let samples: Vec<(V3, f32)> = normals
-        .iter()
-        .zip(&photo.gray)
-        .zip(&photo.mask)
-        .filter_map(|((n, &g), &m)| if m { n.map(|n| (n, g)) } else { None })
-        .collect();
-    let c = fit_lighting(&samples)?;
-    let mean = samples.iter().map(|s| s.1 as f64).sum::<f64>() / samples.len() as f64;
-    let gray = normals
-        .iter()
-        .zip(&photo.gray)
-        .zip(&photo.mask)
-        .map(|((n, &g), &m)| match n {
-            Some(n) if m => (g as f64 - dot(&sh_basis(*n), &c) + mean) as f32,
-            _ => mean as f32,
-        })
-        .collect();
-    Some(Photo {
-        gray,
-        ..photo.clone()
-    })
+    let shading = fit_view(photo, topo, positions, camera)?;
+    Some(residual_of(photo, &shading))
 }
 
 #[cfg(test)]

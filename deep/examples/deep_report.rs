@@ -1577,9 +1577,16 @@ fn mapbound(data: &str, held: &str, resolutions: &[usize], step: usize) -> R<()>
 /// learning rate (`const`) or cosine decay (`cosine`); `std` standardises the inputs. Prints the final training
 /// loss in both units beside the linear map's, and the held-out vertex error.
 fn lstm_check(data: &str, out: &str, held_arg: &str, shape: &str, variants: &str) -> R<()> {
-    let n: Vec<usize> = shape.split('x').map(|x| x.parse()).collect::<Result<_, _>>()?;
+    let n: Vec<usize> = shape
+        .split('x')
+        .map(|x| x.parse())
+        .collect::<Result<_, _>>()?;
     let names = sequence_names(data)?;
-    let helds: Vec<String> = if held_arg == "all" { names.clone() } else { vec![held_arg.to_string()] };
+    let helds: Vec<String> = if held_arg == "all" {
+        names.clone()
+    } else {
+        vec![held_arg.to_string()]
+    };
     let mut notes = Vec::new();
     let mut table: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for held in &helds {
@@ -1588,26 +1595,39 @@ fn lstm_check(data: &str, out: &str, held_arg: &str, shape: &str, variants: &str
         let fitted = crease_deep::train::fit(&train, &params, &crease_core::progress::NoProgress)?;
         let sub = &fitted.subspace;
         let k = sub.k();
-        let mut seqs: Vec<(Vec<Frame>, Vec<Vec<f64>>)> =
-            train.iter().map(|s| (s.fine.clone(), s.poses.clone())).collect();
+        let mut seqs: Vec<(Vec<Frame>, Vec<Vec<f64>>)> = train
+            .iter()
+            .map(|s| (s.fine.clone(), s.poses.clone()))
+            .collect();
         if let Some(r) = &fitted.mirror {
             for s in &train {
                 seqs.push((
                     s.fine.iter().map(|f| r.reflect_frame(f)).collect(),
-                    s.poses.iter().map(|p| crease_deep::mirror::reflect_pose(p, r.axis)).collect(),
+                    s.poses
+                        .iter()
+                        .map(|p| crease_deep::mirror::reflect_pose(p, r.axis))
+                        .collect(),
                 ));
             }
         }
-        let per_seq: Vec<(Vec<Vec<f64>>, Vec<Vec<f64>>)> = seqs
+        type ControlsTargets = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+        let per_seq: Vec<ControlsTargets> = seqs
             .iter()
             .map(|(f, p)| -> R<_> {
-                Ok((fitted.control.controls(p)?, f.iter().map(|fr| sub.project(fr, k)).collect()))
+                Ok((
+                    fitted.control.controls(p)?,
+                    f.iter().map(|fr| sub.project(fr, k)).collect(),
+                ))
             })
             .collect::<R<_>>()?;
         let all_t: Vec<&Vec<f64>> = per_seq.iter().flat_map(|(_, t)| t).collect();
         let cnt = all_t.len() as f64;
         let coef: Vec<f64> = (0..k)
-            .map(|j| (all_t.iter().map(|t| t[j] * t[j]).sum::<f64>() / cnt).sqrt().max(1e-9))
+            .map(|j| {
+                (all_t.iter().map(|t| t[j] * t[j]).sum::<f64>() / cnt)
+                    .sqrt()
+                    .max(1e-9)
+            })
             .collect();
         let shared_v = (coef.iter().map(|c| c * c).sum::<f64>() / k as f64).sqrt();
         let shared = vec![shared_v; k];
@@ -1618,7 +1638,12 @@ fn lstm_check(data: &str, out: &str, held_arg: &str, shape: &str, variants: &str
             for (si, (_, t)) in per_seq.iter().enumerate() {
                 for (fi, tr) in t.iter().enumerate() {
                     let p = pred(si, fi);
-                    sum += p.iter().zip(tr).zip(scale).map(|((a, b), s)| ((a - b) / s).powi(2)).sum::<f64>();
+                    sum += p
+                        .iter()
+                        .zip(tr)
+                        .zip(scale)
+                        .map(|((a, b), s)| ((a - b) / s).powi(2))
+                        .sum::<f64>();
                     m += k;
                 }
             }
@@ -1645,10 +1670,17 @@ fn lstm_check(data: &str, out: &str, held_arg: &str, shape: &str, variants: &str
         let truth: Vec<Vec<f64>> = test.fine.iter().map(|fr| sub.project(fr, k)).collect();
         let test_c = fitted.control.controls(&test.poses)?;
         let lin_pred: Vec<Vec<f64>> = test_c.iter().map(|c| fitted.linear.predict(c)).collect();
-        let mut rows = vec![("linear".to_string(), scores(sub, &lin_pred, &truth, &test.fine))];
+        let mut rows = vec![(
+            "linear".to_string(),
+            scores(sub, &lin_pred, &truth, &test.fine),
+        )];
         for v in variants.split(';').filter(|v| !v.is_empty()) {
             let f: Vec<&str> = v.split(',').collect();
-            let scale = if f[0] == "shared" { shared.clone() } else { coef.clone() };
+            let scale = if f[0] == "shared" {
+                shared.clone()
+            } else {
+                coef.clone()
+            };
             let std = f.get(2) == Some(&"std");
             let norm = Standardizer::fit(per_seq.iter().flat_map(|(c, _)| c));
             let prep = |c: &[Vec<f64>]| if std { norm.apply_all(c) } else { c.to_vec() };
@@ -1693,7 +1725,10 @@ fn lstm_check(data: &str, out: &str, held_arg: &str, shape: &str, variants: &str
     }
     println!("| regressor | {} | mean (mm) |", helds.join(" | "));
     for (name, v) in &table {
-        let cells: Vec<String> = v.iter().map(|(m, p)| format!("{} / {}", mm(*m), mm(*p))).collect();
+        let cells: Vec<String> = v
+            .iter()
+            .map(|(m, p)| format!("{} / {}", mm(*m), mm(*p)))
+            .collect();
         println!(
             "| {name} | {} | {} |",
             cells.join(" | "),
@@ -1774,7 +1809,12 @@ fn register(data: &str, out: &str, frames: &str, params: RegisterParams) -> R<()
     let (mut sum_got, mut sum_before) = (0.0, 0.0);
     for t in list {
         if t >= seq.frames.len() {
-            return Err(format!("frame {} is past the sequence's {}", t + 1, seq.frames.len()).into());
+            return Err(format!(
+                "frame {} is past the sequence's {}",
+                t + 1,
+                seq.frames.len()
+            )
+            .into());
         }
         let scan = synth_scan(&topo, &seq.frames[t], 3.0, 0.2, 0.002, t as u64);
         let t0 = Instant::now();

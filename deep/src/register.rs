@@ -3,16 +3,18 @@
 //! Graph nodes are template vertices a few edges apart; each carries an affine map (A_j, t_j) and moves the
 //! vertices near it: v' = Σ_j w_j(v) (A_j (v − g_j) + g_j + t_j) (Sumner et al. 2007, the "grid deformation"
 //! the paper cites). Eq. 1 is minimised by Gauss–Newton:
-//! * E_data: deformed vertices to their nearest scan points (pairs farther than a shrinking threshold are
-//!   dropped, which is how holes stay holes instead of pulling the surface in);
+//! * E_data: deformed vertices to their nearest scan points, along the scan's normal there (point to plane)
+//!   plus a weak point-to-point part (pairs farther than a shrinking threshold are dropped, which is how holes
+//!   stay holes instead of pulling the surface in);
 //! * E_rigid: each A_j close to a rotation (orthonormal columns), weight ω_r = 500;
 //! * E_smooth: neighbouring nodes agree on where they move each other, ω_s = 500;
 //! * E_bound: template boundary vertices to scan boundary points chosen by the paper's Eq. 2 rule, ω_b = 10.
 //!   Distances are measured in template mean edge lengths so the paper's weights keep their balance whatever
-//!   the units. As in Li et al. 2009, ω_r and ω_s are halved whenever the energy falls by less than 5 %, down to a floor,
-//!   so the fit starts stiff and ends detailed. On noisy scans of small deformations a higher floor
-//!   (`min_weight`) keeps it from following the noise, and data targets averaged over several scan points
-//!   (`target_points`) average that noise down.
+//!   the units. As in Li et al. 2009, ω_r and ω_s are halved whenever the energy falls by less than 5 %, down to a
+//!   floor, so the fit starts stiff and ends detailed. The floor follows the scan's noise (`noise_floor` · σ²):
+//!   a noisy scan keeps the graph stiff enough not to follow the noise, a clean one lets it relax to follow a
+//!   large deformation. Data targets averaged over several scan points (`target_points`) and a pull toward
+//!   the previous frame's transforms (`w_temporal`) are available, off by default (they measured worse).
 
 use crate::kdtree::KdTree;
 use crate::point_normals::estimate_normals;
@@ -83,26 +85,25 @@ impl Default for RegisterParams {
             w_bound: 10.0,
             node_spacing: 2.5,
             k_nodes: 4,
-            // The point-to-plane term, normal rejection and extra Gauss–Newton steps are available but off:
-            // on the synthetic tube and the sleeve they measured worse than this schedule
-            // (docs/deepwrinkles.md, "Measured").
             iterations: 40,
             gn_steps: 1,
-            w_plane: 0.0,
-            w_point: 1.0,
+            // Point-to-plane data term with a weak point-to-point one, and the floor of ω_r, ω_s tied to the
+            // scan's noise (750 σ², σ² in squared edge lengths: ≈ 58 on the sleeve's scans, 2 mm noise on a
+            // 5.5 mm mesh; ≈ 8 on the bend test's). The nearest point pulls a vertex along the surface
+            // too, toward wherever a noisy point happens to be, and holds on to any slide the tracking made;
+            // along the normal alone, the regularisation (which measures deformation from the template) puts
+            // the vertices back where the template's own layout says. On sleeve-train seed_3 (gt frame 1
+            // tracked through scans of frames 11, 41, 81, 111) this measured 12.87 / 3.12 / 3.47 / 21.00 mm
+            // against the unregistered 26.30 / 4.05 / 3.12 / 41.41 and the previous defaults' 12.31 / 5.50 /
+            // 5.52 / 22.07; the bend test 11.99 mm (12.94 before) (docs/deepwrinkles.md, "Registration").
+            w_plane: 1.0,
+            w_point: 0.01,
             max_normal_angle: 90.0,
             max_pair_dist: 6.0,
-            // On the sleeve (gt frame 1 to the scan of frame 41, 20 % holes, 2 mm noise) relaxing ω_r and ω_s
-            // down to 1 lets the graph follow the noise (5.47 mm against the unregistered 3.54 mm); a floor
-            // of 100 with targets averaged over 12 scan points measured 3.10 mm. But that stiffer fit cannot
-            // follow the synthetic tube's large bend (deep/tests/registration.rs: 24.0 mm against 12.9 mm), so
-            // the defaults stay and the sleeve setting is `--target-points 12 --min-weight 100`
-            // (docs/deepwrinkles.md, "Registration"). Floor 20, the stiffest that passes the bend test
-            // (15.8 mm), beats the template at frame 41 (3.21 mm) but not at frame 81 (3.72 against 3.34 mm).
             min_weight: 1.0,
             target_points: 1,
             w_temporal: 0.0,
-            noise_floor: 0.0,
+            noise_floor: 750.0,
         }
     }
 }
@@ -247,8 +248,9 @@ impl Structure {
         let (symbolic, argsort) =
             faer::sparse::SymbolicSparseColMat::try_new_from_indices(n, n, &idx)
                 .map_err(|e| numeric(format!("{e:?}")))?;
-        let llt = faer::sparse::linalg::solvers::SymbolicLlt::try_new(symbolic.as_ref(), Side::Lower)
-            .map_err(|e| numeric(format!("Cholesky analysis: {e:?}")))?;
+        let llt =
+            faer::sparse::linalg::solvers::SymbolicLlt::try_new(symbolic.as_ref(), Side::Lower)
+                .map_err(|e| numeric(format!("Cholesky analysis: {e:?}")))?;
         Ok(Structure {
             blocks,
             symbolic,
@@ -703,10 +705,10 @@ impl NormalEq {
     fn solve(self, st: &Structure, damping: f64) -> Result<Vec<f64>> {
         // Values in the fixed pattern's order: every block the rows touched lies in it (data, boundary and
         // smoothness rows link nodes that share a vertex; rigidity and temporal rows are diagonal).
-        debug_assert!(self
+        debug_assert!(self.blocks.keys().all(|k| st
             .blocks
-            .keys()
-            .all(|k| st.blocks.binary_search(&(k.0.max(k.1), k.0.min(k.1))).is_ok()));
+            .binary_search(&(k.0.max(k.1), k.0.min(k.1)))
+            .is_ok()));
         let zero = [0.0; NV * NV];
         let mut vals = Vec::with_capacity(st.blocks.len() * NV * NV);
         for key in &st.blocks {
@@ -728,8 +730,9 @@ impl NormalEq {
             stage: "registration".into(),
             msg: e,
         };
-        let mat = SparseColMat::<usize, f64>::new_from_argsort(st.symbolic.clone(), &st.argsort, &vals)
-            .map_err(|e| numeric(format!("{e:?}")))?;
+        let mat =
+            SparseColMat::<usize, f64>::new_from_argsort(st.symbolic.clone(), &st.argsort, &vals)
+                .map_err(|e| numeric(format!("{e:?}")))?;
         let llt = faer::sparse::linalg::solvers::Llt::try_new_with_symbolic(
             st.llt.clone(),
             mat.as_ref(),

@@ -148,3 +148,29 @@ fn scans_round_trip_with_their_boundary_colour_and_bad_files_are_named() {
         .to_string();
     assert!(err.contains("bad.obj:2"), "{err}");
 }
+
+#[test]
+fn scan_noise_variance_is_measured_along_the_normal() {
+    use crease_deep::kdtree::KdTree;
+    use crease_deep::point_normals::noise_variance;
+    // A plane sampled on a jittered grid with Gaussian noise of σ = 0.05 along its normal only: the estimate is
+    // σ² (within sampling error), and zero noise gives (nearly) zero.
+    let mut rng = crease_deep::seed::Rng::new(9);
+    let mut gauss = || {
+        let (u1, u2) = (rng.uniform().max(1e-12), rng.uniform());
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    };
+    let mut noisy = Vec::new();
+    let mut clean = Vec::new();
+    for i in 0..60 {
+        for j in 0..60 {
+            let (x, y) = (i as f64 + 0.3 * gauss(), j as f64 + 0.3 * gauss());
+            clean.push([x, y, 0.0]);
+            noisy.push([x, y, 0.05 * gauss()]);
+        }
+    }
+    let v = noise_variance(&noisy, &KdTree::new(&noisy), 16, 3);
+    assert!((v - 0.0025).abs() < 0.0006, "{v}");
+    let v0 = noise_variance(&clean, &KdTree::new(&clean), 16, 3);
+    assert!(v0 < 1e-12, "{v0}");
+}

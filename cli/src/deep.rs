@@ -66,6 +66,19 @@ pub struct RegisterArgs {
     /// Floor of ω_r and ω_s, which are halved whenever the energy stalls.
     #[arg(long, default_value_t = RegisterParams::default().min_weight)]
     pub min_weight: f64,
+    /// Floor of ω_r and ω_s tied to each scan's noise: at least this times the scan's noise variance along its
+    /// normal in squared template edge lengths (0: only --min-weight).
+    #[arg(long, default_value_t = RegisterParams::default().noise_floor)]
+    pub noise_floor: f64,
+    /// Weight of the point-to-plane data term (distance along the scan's normal).
+    #[arg(long, default_value_t = RegisterParams::default().w_plane)]
+    pub w_plane: f64,
+    /// Weight of the point-to-point data term.
+    #[arg(long, default_value_t = RegisterParams::default().w_point)]
+    pub w_point: f64,
+    /// Weight of a pull of every graph node toward its previous frame's transform (0: off).
+    #[arg(long, default_value_t = RegisterParams::default().w_temporal)]
+    pub w_temporal: f64,
     /// No progress bar or summary lines (errors are still printed).
     #[arg(long)]
     pub quiet: bool,
@@ -250,6 +263,10 @@ fn register(a: RegisterArgs) -> Result<()> {
         iterations: a.iterations,
         target_points: a.target_points,
         min_weight: a.min_weight,
+        noise_floor: a.noise_floor,
+        w_plane: a.w_plane,
+        w_point: a.w_point,
+        w_temporal: a.w_temporal,
         ..Default::default()
     };
     let progress = CliProgress::new(a.quiet);

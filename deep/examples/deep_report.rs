@@ -111,7 +111,7 @@ fn main() -> R<()> {
         "register" => register(
             &arg(1).ok_or("DATA")?,
             &arg(2).ok_or("OUT")?,
-            arg(3).map_or(Ok(5), |s| s.parse())?,
+            &arg(3).unwrap_or("5".into()),
             RegisterParams {
                 target_points: arg(4)
                     .map_or(Ok(RegisterParams::default().target_points), |s| s.parse())?,
@@ -119,7 +119,7 @@ fn main() -> R<()> {
                     .map_or(Ok(RegisterParams::default().min_weight), |s| s.parse())?,
                 iterations: arg(6)
                     .map_or(Ok(RegisterParams::default().iterations), |s| s.parse())?,
-                ..Default::default()
+                ..register_env(RegisterParams::default())?
             },
         ),
         "detail" => detail(
@@ -140,6 +140,17 @@ fn main() -> R<()> {
             &arg(2).unwrap_or("1".into()),
             arg(3).map_or(Ok(RegisterParams::default().iterations), |s| s.parse())?,
         ),
+        "lstmcheck" => lstm_check(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            &arg(3).unwrap_or("all".into()),
+            &arg(4).unwrap_or("2x64x100".into()),
+            &arg(5).unwrap_or("coef,const;shared,const;shared,cosine;shared,cosine,std".into()),
+        ),
+        "params" => {
+            println!("{}", serde_json::to_string(&register_env(RegisterParams::default())?)?);
+            Ok(())
+        }
         "score" => score(
             &arg(1).ok_or("APPLY_OUT")?,
             &arg(2).ok_or("GT")?,
@@ -1559,44 +1570,288 @@ fn mapbound(data: &str, held: &str, resolutions: &[usize], step: usize) -> R<()>
     Ok(())
 }
 
-fn register(data: &str, out: &str, frames: usize, params: RegisterParams) -> R<()> {
+/// Why the LSTM under-fits: per held-out split, `crease deep train`'s fit (subspace, controls, mirror) and
+/// then LSTMs (LAYERSxHIDDENxEPOCHS) trained on the same windows by variants `scale,schedule[,std]`: outputs in
+/// units of each coefficient's standard deviation (`coef`, what the model did) or of one shared scale
+/// (`shared`: the RMS over all coefficients, so the loss is the vertex MSE up to a constant); a constant
+/// learning rate (`const`) or cosine decay (`cosine`); `std` standardises the inputs. Prints the final training
+/// loss in both units beside the linear map's, and the held-out vertex error.
+fn lstm_check(data: &str, out: &str, held_arg: &str, shape: &str, variants: &str) -> R<()> {
+    let n: Vec<usize> = shape
+        .split('x')
+        .map(|x| x.parse())
+        .collect::<Result<_, _>>()?;
+    let names = sequence_names(data)?;
+    let helds: Vec<String> = if held_arg == "all" {
+        names.clone()
+    } else {
+        vec![held_arg.to_string()]
+    };
+    let mut notes = Vec::new();
+    let mut table: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for held in &helds {
+        let (train, test) = split(data, held)?;
+        let params = TrainParams::default();
+        let fitted = crease_deep::train::fit(&train, &params, &crease_core::progress::NoProgress)?;
+        let sub = &fitted.subspace;
+        let k = sub.k();
+        let mut seqs: Vec<(Vec<Frame>, Vec<Vec<f64>>)> = train
+            .iter()
+            .map(|s| (s.fine.clone(), s.poses.clone()))
+            .collect();
+        if let Some(r) = &fitted.mirror {
+            for s in &train {
+                seqs.push((
+                    s.fine.iter().map(|f| r.reflect_frame(f)).collect(),
+                    s.poses
+                        .iter()
+                        .map(|p| crease_deep::mirror::reflect_pose(p, r.axis))
+                        .collect(),
+                ));
+            }
+        }
+        type ControlsTargets = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+        let per_seq: Vec<ControlsTargets> = seqs
+            .iter()
+            .map(|(f, p)| -> R<_> {
+                Ok((
+                    fitted.control.controls(p)?,
+                    f.iter().map(|fr| sub.project(fr, k)).collect(),
+                ))
+            })
+            .collect::<R<_>>()?;
+        let all_t: Vec<&Vec<f64>> = per_seq.iter().flat_map(|(_, t)| t).collect();
+        let cnt = all_t.len() as f64;
+        let coef: Vec<f64> = (0..k)
+            .map(|j| {
+                (all_t.iter().map(|t| t[j] * t[j]).sum::<f64>() / cnt)
+                    .sqrt()
+                    .max(1e-9)
+            })
+            .collect();
+        let shared_v = (coef.iter().map(|c| c * c).sum::<f64>() / k as f64).sqrt();
+        let shared = vec![shared_v; k];
+        // The linear map's training loss in both units.
+        let loss_in = |pred: &dyn Fn(usize, usize) -> Vec<f64>, scale: &[f64]| -> f64 {
+            let mut sum = 0.0;
+            let mut m = 0usize;
+            for (si, (_, t)) in per_seq.iter().enumerate() {
+                for (fi, tr) in t.iter().enumerate() {
+                    let p = pred(si, fi);
+                    sum += p
+                        .iter()
+                        .zip(tr)
+                        .zip(scale)
+                        .map(|((a, b), s)| ((a - b) / s).powi(2))
+                        .sum::<f64>();
+                    m += k;
+                }
+            }
+            sum / m as f64
+        };
+        let lin = |si: usize, fi: usize| fitted.linear.predict(&per_seq[si].0[fi]);
+        let lin_coef = loss_in(&lin, &coef);
+        let lin_shared = loss_in(&lin, &shared);
+        let ranges: Vec<f64> = {
+            let c: Vec<&Vec<f64>> = per_seq.iter().flat_map(|(c, _)| c).collect();
+            let d = c[0].len();
+            (0..d)
+                .map(|j| {
+                    let m = c.iter().map(|r| r[j]).sum::<f64>() / c.len() as f64;
+                    (c.iter().map(|r| (r[j] - m).powi(2)).sum::<f64>() / c.len() as f64).sqrt()
+                })
+                .collect()
+        };
+        eprintln!(
+            "{held}: linear training loss {lin_coef:.4} (per-coefficient units) {lin_shared:.4} (shared); control std min {:.3} max {:.3}",
+            ranges.iter().cloned().fold(f64::INFINITY, f64::min),
+            ranges.iter().cloned().fold(0.0, f64::max)
+        );
+        let truth: Vec<Vec<f64>> = test.fine.iter().map(|fr| sub.project(fr, k)).collect();
+        let test_c = fitted.control.controls(&test.poses)?;
+        let lin_pred: Vec<Vec<f64>> = test_c.iter().map(|c| fitted.linear.predict(c)).collect();
+        let mut rows = vec![(
+            "linear".to_string(),
+            scores(sub, &lin_pred, &truth, &test.fine),
+        )];
+        for v in variants.split(';').filter(|v| !v.is_empty()) {
+            let f: Vec<&str> = v.split(',').collect();
+            let scale = if f[0] == "shared" {
+                shared.clone()
+            } else {
+                coef.clone()
+            };
+            let std = f.get(2) == Some(&"std");
+            let norm = Standardizer::fit(per_seq.iter().flat_map(|(c, _)| c));
+            let prep = |c: &[Vec<f64>]| if std { norm.apply_all(c) } else { c.to_vec() };
+            let mut data_w = Vec::new();
+            for (c, a) in &per_seq {
+                data_w.extend(windows(&prep(c), a, 3));
+            }
+            let cfg = lstm_config(n[0], n[1], n[2]);
+            let mut net = LstmRegressor::new(cfg.clone(), test_c[0].len(), k, scale.clone())?;
+            let t0 = Instant::now();
+            let losses = if f.get(1) == Some(&"cosine") {
+                net.train_scheduled(&data_w, cosine(cfg.lr, cfg.epochs), log_every_25("lstm"))?
+            } else {
+                net.train(&data_w, log_every_25("lstm"))?
+            };
+            let secs = t0.elapsed().as_secs_f64();
+            let train_pred: Vec<Vec<Vec<f64>>> = per_seq
+                .iter()
+                .map(|(c, a)| net.predict(&windows(&prep(c), a, 3)))
+                .collect::<Result<_, _>>()?;
+            let tp = |si: usize, fi: usize| train_pred[si][fi].clone();
+            let (l_coef, l_shared) = (loss_in(&tp, &coef), loss_in(&tp, &shared));
+            let pred = net.predict(&windows(&prep(&test_c), &truth, 3))?;
+            let sc = scores(sub, &pred, &truth, &test.fine);
+            eprintln!(
+                "{held} {v}: held-out {} / {} mm; training loss {l_coef:.4} (coef) {l_shared:.4} (shared); {:.2} s/epoch",
+                mm(sc.mean),
+                mm(sc.p95),
+                secs / cfg.epochs.max(1) as f64
+            );
+            notes.push(serde_json::json!({"held_out": held, "variant": v, "mean_m": sc.mean, "p95_m": sc.p95,
+                "train_loss_coef": l_coef, "train_loss_shared": l_shared, "linear_train_loss_coef": lin_coef,
+                "linear_train_loss_shared": lin_shared, "losses": losses, "s_per_epoch": secs / cfg.epochs.max(1) as f64}));
+            rows.push((format!("LSTM {shape} {v}"), sc));
+        }
+        for (name, sc) in rows {
+            match table.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, r)) => r.push((sc.mean, sc.p95)),
+                None => table.push((name, vec![(sc.mean, sc.p95)])),
+            }
+        }
+    }
+    println!("| regressor | {} | mean (mm) |", helds.join(" | "));
+    for (name, v) in &table {
+        let cells: Vec<String> = v
+            .iter()
+            .map(|(m, p)| format!("{} / {}", mm(*m), mm(*p)))
+            .collect();
+        println!(
+            "| {name} | {} | {} |",
+            cells.join(" | "),
+            mm(v.iter().map(|x| x.0).sum::<f64>() / v.len() as f64)
+        );
+    }
+    write_json(out, "lstmcheck.json", &serde_json::json!({"rows": notes}))
+}
+
+/// Registration parameters overridden by environment variables (experiments without a rebuild):
+/// CREASE_REG_{W_TEMPORAL, NOISE_FLOOR, W_PLANE, W_POINT, MAX_NORMAL_ANGLE, GN_STEPS, MIN_WEIGHT,
+/// TARGET_POINTS, NODE_SPACING, ITERATIONS}.
+fn register_env(mut p: RegisterParams) -> R<RegisterParams> {
+    let get = |name: &str| std::env::var(format!("CREASE_REG_{name}")).ok();
+    macro_rules! set {
+        ($field:ident, $name:expr) => {
+            if let Some(v) = get($name) {
+                p.$field = v.parse()?;
+            }
+        };
+    }
+    set!(w_temporal, "W_TEMPORAL");
+    set!(noise_floor, "NOISE_FLOOR");
+    set!(w_plane, "W_PLANE");
+    set!(w_point, "W_POINT");
+    set!(max_normal_angle, "MAX_NORMAL_ANGLE");
+    set!(gn_steps, "GN_STEPS");
+    set!(min_weight, "MIN_WEIGHT");
+    set!(target_points, "TARGET_POINTS");
+    set!(node_spacing, "NODE_SPACING");
+    set!(iterations, "ITERATIONS");
+    Ok(p)
+}
+
+/// Mean normal and tangential parts (along and across `reference`'s vertex normals) of `got − reference`.
+fn error_parts(topo: &Topology, got: &[V3], reference: &[V3]) -> (f64, f64) {
+    let n = vertex_normals(topo, reference);
+    let (mut sn, mut st) = (0.0, 0.0);
+    for ((g, r), nv) in got.iter().zip(reference).zip(&n) {
+        let e = vec3::sub(*g, *r);
+        let nn = vec3::normalize(*nv);
+        let along = vec3::dot(e, nn);
+        sn += along.abs();
+        st += vec3::norm(vec3::sub(e, vec3::scale(nn, along)));
+    }
+    let c = got.len().max(1) as f64;
+    (sn / c, st / c)
+}
+
+/// The registration test on the sleeve: gt frame 1 of a sequence (CREASE_REG_SEQ, default seed_1) as
+/// the template, tracked through scans sampled from later gt frames (20 % holes, 2 mm noise). `frames` is a
+/// count (evenly spaced) or a list of 1-based frame numbers, e.g. 11,41,81,111.
+fn register(data: &str, out: &str, frames: &str, params: RegisterParams) -> R<()> {
+    let seq_name = std::env::var("CREASE_REG_SEQ").unwrap_or("seed_1".into());
     let seq = Sequence::load(
-        open_sequence(&Path::new(data).join("seed_1/gt"))?
+        open_sequence(&Path::new(data).join(&seq_name).join("gt"))?
             .source
             .as_ref(),
     )?;
     let topo: std::sync::Arc<Topology> = seq.topology.clone();
-    println!(
-        "target points {}, min weight {}, iterations {}",
-        params.target_points, params.min_weight, params.iterations
-    );
+    println!("{seq_name}; params {}", serde_json::to_string(&params)?);
     let mut reg = Registration::new(topo.clone(), &seq.frames[0], params.clone())?;
     println!("{} graph nodes; template = gt frame 1; scans sampled from later frames (20% holes, 2 mm noise)", reg.n_nodes());
     println!(
-        "| frame | mean (mm) | p95 (mm) | template-to-frame mean (mm) | s |\n|---|---|---|---|---|"
+        "| frame | mean (mm) | p95 (mm) | normal / tangential (mm) | template-to-frame mean (mm) | normal / tangential (mm) | noise σ² (edges²), floor | s |\n|---|---|---|---|---|---|---|---|"
     );
+    let list: Vec<usize> = if frames.contains(',') {
+        frames
+            .split(',')
+            .map(|f| f.trim().parse::<usize>().map(|f| f.saturating_sub(1)))
+            .collect::<Result<_, _>>()?
+    } else {
+        let n: usize = frames.parse()?;
+        let step = (seq.frames.len() / n.max(1)).max(1);
+        (step..seq.frames.len()).step_by(step).take(n).collect()
+    };
     let mut rows = Vec::new();
-    let step = (seq.frames.len() / frames.max(1)).max(1);
-    for t in (step..seq.frames.len()).step_by(step).take(frames) {
+    let (mut sum_got, mut sum_before) = (0.0, 0.0);
+    for t in list {
+        if t >= seq.frames.len() {
+            return Err(format!(
+                "frame {} is past the sequence's {}",
+                t + 1,
+                seq.frames.len()
+            )
+            .into());
+        }
         let scan = synth_scan(&topo, &seq.frames[t], 3.0, 0.2, 0.002, t as u64);
         let t0 = Instant::now();
         let got = reg.register(&scan)?;
         let secs = t0.elapsed().as_secs_f64();
         let (m, p) = vertex_error(&got, &seq.frames[t]);
         let (b, _) = vertex_error(&seq.frames[0], &seq.frames[t]);
+        let (gn, gt) = error_parts(&topo, &got, &seq.frames[t]);
+        let (bn, bt) = error_parts(&topo, &seq.frames[0], &seq.frames[t]);
+        let (noise, floor) = reg.last_noise();
+        sum_got += m;
+        sum_before += b;
         println!(
-            "| {} | {} | {} | {} | {secs:.1} |",
+            "| {} | {} | {} | {} / {} | {} | {} / {} | {} {floor:.1} | {secs:.1} |",
             t + 1,
             mm(m),
             mm(p),
-            mm(b)
+            mm(gn),
+            mm(gt),
+            mm(b),
+            mm(bn),
+            mm(bt),
+            noise.map_or("-".into(), |v| format!("{v:.4}")),
         );
-        rows.push(serde_json::json!({"frame": t + 1, "mean_m": m, "p95_m": p, "before_m": b, "seconds": secs}));
+        rows.push(serde_json::json!({"frame": t + 1, "mean_m": m, "p95_m": p, "before_m": b, "normal_m": gn, "tangential_m": gt,
+            "before_normal_m": bn, "before_tangential_m": bt, "noise_var_edges2": noise, "floor": floor, "seconds": secs}));
     }
+    let n = rows.len().max(1) as f64;
+    println!(
+        "mean over frames: registered {} mm, unregistered {} mm",
+        mm(sum_got / n),
+        mm(sum_before / n)
+    );
     write_json(
         out,
         "registration.json",
-        &serde_json::json!({"rows": rows, "nodes": reg.n_nodes(), "params": params}),
+        &serde_json::json!({"sequence": seq_name, "rows": rows, "nodes": reg.n_nodes(), "params": params}),
     )
 }
 
@@ -1820,7 +2075,7 @@ fn tube_register(targets: &str, floors: &str, iterations: usize) -> R<()> {
                 target_points: tp as usize,
                 min_weight: floor,
                 iterations,
-                ..Default::default()
+                ..register_env(RegisterParams::default())?
             };
             let t0 = Instant::now();
             let mut reg = Registration::new(topo.clone(), &rest, params)?;
@@ -1828,6 +2083,8 @@ fn tube_register(targets: &str, floors: &str, iterations: usize) -> R<()> {
             for (i, amount) in [0.25, 0.5, 0.75, 1.0].into_iter().enumerate() {
                 let scan = synth_scan(&topo, &deform(amount), 3.0, 0.2, 0.002, 11 + i as u64);
                 out = reg.register(&scan)?;
+                let (noise, f) = reg.last_noise();
+                eprintln!("step {i}: noise σ² {noise:?} edges², floor {f:.1}");
             }
             let (before, _) = vertex_error(&rest, &target);
             let (m, p) = vertex_error(&out, &target);

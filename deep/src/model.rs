@@ -105,7 +105,9 @@ pub struct Manifest {
     /// The mesh-space detail filter ([`crate::detail_filter`], weights in `detail.npy`); absent before version 6.
     #[serde(default)]
     pub detail: Option<DetailSpec>,
-    /// Training standard deviation of each coefficient (the LSTM's output units).
+    /// The LSTM's output unit per coefficient: one shared value (the RMS of all training coefficients,
+    /// [`crate::lstm::output_scale`]) since this session; each coefficient's own standard deviation in models
+    /// trained before, which load and run with their stored units unchanged.
     pub coeff_scale: Vec<f64>,
     /// Normal map resolution the model (and its cGAN) works at.
     pub resolution: usize,

@@ -37,6 +37,53 @@ pub fn estimate_normals(points: &[V3], tree: &KdTree, k: usize) -> Vec<V3> {
         .collect()
 }
 
+/// Noise variance of a scan along its surface normal (squared input units): the median over every `stride`-th
+/// point of the variance of its `k` nearest neighbours along their smallest principal axis, times k / (k − 3)
+/// (a plane fitted to k noisy points absorbs three of their degrees of freedom). Curvature within a
+/// neighbourhood adds to it, so it is an upper bound on a curved scan. Registration weighs its
+/// regularisation by it (`RegisterParams::noise_floor`): a MAP fit divides the data term by σ².
+pub fn noise_variance(points: &[V3], tree: &KdTree, k: usize, stride: usize) -> f64 {
+    use rayon::prelude::*;
+    let k = k.max(4);
+    let mut v: Vec<f64> = (0..points.len())
+        .step_by(stride.max(1))
+        .collect::<Vec<_>>()
+        .par_iter()
+        .filter_map(|&i| {
+            let nb = tree.k_nearest(points[i], k);
+            if nb.len() < 4 {
+                return None;
+            }
+            let mut c = [0.0; 3];
+            for &(j, _) in &nb {
+                c = vec3::add(c, points[j]);
+            }
+            c = vec3::scale(c, 1.0 / nb.len() as f64);
+            let mut cov = [[0.0; 3]; 3];
+            for &(j, _) in &nb {
+                let d = vec3::sub(points[j], c);
+                for (a, row) in cov.iter_mut().enumerate() {
+                    for (b, x) in row.iter_mut().enumerate() {
+                        *x += d[a] * d[b];
+                    }
+                }
+            }
+            let n = smallest_eigenvector(&cov);
+            if n == [0.0; 3] {
+                return None;
+            }
+            let along = vec3::dot(n, vec3::mat_vec(&cov, n));
+            Some(along / (nb.len() - 3) as f64)
+        })
+        .collect();
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mid = v.len() / 2;
+    v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    v[mid]
+}
+
 /// Smallest-eigenvalue eigenvector of a symmetric positive semi-definite 3 × 3 matrix: inverse power iteration
 /// on a shifted copy would need a solve; instead the largest eigenvector of (tr·I − C), whose top eigenvalue is
 /// C's smallest, by power iteration from the axis least covered by the data.

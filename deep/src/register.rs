@@ -3,16 +3,18 @@
 //! Graph nodes are template vertices a few edges apart; each carries an affine map (A_j, t_j) and moves the
 //! vertices near it: v' = Σ_j w_j(v) (A_j (v − g_j) + g_j + t_j) (Sumner et al. 2007, the "grid deformation"
 //! the paper cites). Eq. 1 is minimised by Gauss–Newton:
-//! * E_data: deformed vertices to their nearest scan points (pairs farther than a shrinking threshold are
-//!   dropped, which is how holes stay holes instead of pulling the surface in);
+//! * E_data: deformed vertices to their nearest scan points, along the scan's normal there (point to plane)
+//!   plus a weak point-to-point part (pairs farther than a shrinking threshold are dropped, which is how holes
+//!   stay holes instead of pulling the surface in);
 //! * E_rigid: each A_j close to a rotation (orthonormal columns), weight ω_r = 500;
 //! * E_smooth: neighbouring nodes agree on where they move each other, ω_s = 500;
 //! * E_bound: template boundary vertices to scan boundary points chosen by the paper's Eq. 2 rule, ω_b = 10.
 //!   Distances are measured in template mean edge lengths so the paper's weights keep their balance whatever
-//!   the units. As in Li et al. 2009, ω_r and ω_s are halved whenever the energy falls by less than 5 %, down to a floor,
-//!   so the fit starts stiff and ends detailed. On noisy scans of small deformations a higher floor
-//!   (`min_weight`) keeps it from following the noise, and data targets averaged over several scan points
-//!   (`target_points`) average that noise down.
+//!   the units. As in Li et al. 2009, ω_r and ω_s are halved whenever the energy falls by less than 5 %, down to a
+//!   floor, so the fit starts stiff and ends detailed. The floor follows the scan's noise (`noise_floor` · σ²):
+//!   a noisy scan keeps the graph stiff enough not to follow the noise, a clean one lets it relax to follow a
+//!   large deformation. Data targets averaged over several scan points (`target_points`) and a pull toward
+//!   the previous frame's transforms (`w_temporal`) are available, off by default (they measured worse).
 
 use crate::kdtree::KdTree;
 use crate::point_normals::estimate_normals;
@@ -21,7 +23,7 @@ use crease_core::mesh::{Topology, NONE};
 use crease_core::vec3::{self, V3};
 use crease_core::{Error, Result};
 use faer::linalg::solvers::Solve;
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::SparseColMat;
 use faer::{Mat, Side};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
@@ -57,6 +59,18 @@ pub struct RegisterParams {
     /// relaxed regularisation then follows; the centroid of k points carries 1/√k of it. 1: the nearest point.
     #[serde(default = "default_target_points")]
     pub target_points: usize,
+    /// Weight of a pull of every node's transform toward its value when the scan's registration began (the
+    /// previous frame's result, in tracking): ω_t Σ_j ‖A_j − A_j⁰‖² s² + ‖t_j − t_j⁰‖², s the node spacing,
+    /// so both parts are displacements in edge lengths. The data term does not see a vertex sliding along the
+    /// surface; this term makes every move pay, so only moves the scan asks for are made. 0: off.
+    #[serde(default)]
+    pub w_temporal: f64,
+    /// Floor of the relaxed ω_r, ω_s tied to the scan's noise: max(`min_weight`, `noise_floor` · σ²), σ² the
+    /// scan's noise variance along its normal in squared edge lengths ([`crate::point_normals::noise_variance`]).
+    /// A MAP fit weighs the data term by 1/σ², so regularisation relative to it scales with σ²: a clean scan
+    /// lets the graph relax to follow a large deformation, a noisy one keeps it stiff. 0: off.
+    #[serde(default)]
+    pub noise_floor: f64,
 }
 
 fn default_target_points() -> usize {
@@ -71,24 +85,25 @@ impl Default for RegisterParams {
             w_bound: 10.0,
             node_spacing: 2.5,
             k_nodes: 4,
-            // The point-to-plane term, normal rejection and extra Gauss–Newton steps are available but off:
-            // on the synthetic tube and the sleeve they measured worse than this schedule
-            // (docs/deepwrinkles.md, "Measured").
             iterations: 40,
             gn_steps: 1,
-            w_plane: 0.0,
-            w_point: 1.0,
+            // Point-to-plane data term with a weak point-to-point one, and the floor of ω_r, ω_s tied to the
+            // scan's noise (750 σ², σ² in squared edge lengths: ≈ 58 on the sleeve's scans, 2 mm noise on a
+            // 5.5 mm mesh; ≈ 8 on the bend test's). The nearest point pulls a vertex along the surface
+            // too, toward wherever a noisy point happens to be, and holds on to any slide the tracking made;
+            // along the normal alone, the regularisation (which measures deformation from the template) puts
+            // the vertices back where the template's own layout says. On sleeve-train seed_3 (gt frame 1
+            // tracked through scans of frames 11, 41, 81, 111) this measured 12.87 / 3.12 / 3.47 / 21.00 mm
+            // against the unregistered 26.30 / 4.05 / 3.12 / 41.41 and the previous defaults' 12.31 / 5.50 /
+            // 5.52 / 22.07; the bend test 11.99 mm (12.94 before) (docs/deepwrinkles.md, "Registration").
+            w_plane: 1.0,
+            w_point: 0.01,
             max_normal_angle: 90.0,
             max_pair_dist: 6.0,
-            // On the sleeve (gt frame 1 to the scan of frame 41, 20 % holes, 2 mm noise) relaxing ω_r and ω_s
-            // down to 1 lets the graph follow the noise (5.47 mm against the unregistered 3.54 mm); a floor
-            // of 100 with targets averaged over 12 scan points measured 3.10 mm. But that stiffer fit cannot
-            // follow the synthetic tube's large bend (deep/tests/registration.rs: 24.0 mm against 12.9 mm), so
-            // the defaults stay and the sleeve setting is `--target-points 12 --min-weight 100`
-            // (docs/deepwrinkles.md, "Registration"). Floor 20, the stiffest that passes the bend test
-            // (15.8 mm), beats the template at frame 41 (3.21 mm) but not at frame 81 (3.72 against 3.34 mm).
             min_weight: 1.0,
             target_points: 1,
+            w_temporal: 0.0,
+            noise_floor: 750.0,
         }
     }
 }
@@ -103,6 +118,8 @@ impl RegisterParams {
             ("w-plane", self.w_plane),
             ("w-point", self.w_point),
             ("max-normal-angle", self.max_normal_angle),
+            ("w-temporal", self.w_temporal),
+            ("noise-floor", self.noise_floor),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(Error::param(n, "must be a non-negative number"));
@@ -187,6 +204,60 @@ pub struct Registration {
     boundary_vertices: Vec<u32>,
     /// Current node transforms: A (row-major 9) then t (3), in scaled units.
     x: Vec<f64>,
+    /// The normal equations' fixed sparsity (every Gauss–Newton step of every scan has the same blocks), its
+    /// value order and symbolic Cholesky factor, computed once.
+    structure: Structure,
+    /// The last scan's noise variance along its normal (squared edge lengths), when it was estimated.
+    last_noise: Option<f64>,
+    /// The floor ω_r, ω_s relaxed to on the last scan.
+    last_floor: f64,
+}
+
+/// Lower-triangle block pattern of JᵀJ: the diagonal blocks and the blocks of node pairs that share a vertex
+/// (the same pairs the smoothness term links), as a faer symbolic matrix with its argsort and Cholesky
+/// analysis.
+struct Structure {
+    /// Lower blocks (row block ≥ column block), in the order their values are laid out.
+    blocks: Vec<(u32, u32)>,
+    symbolic: faer::sparse::SymbolicSparseColMat<usize>,
+    argsort: faer::sparse::Argsort<usize>,
+    llt: faer::sparse::linalg::solvers::SymbolicLlt<usize>,
+}
+
+impl Structure {
+    fn new(n_nodes: usize, edges: &[(u32, u32)]) -> Result<Self> {
+        let mut blocks: Vec<(u32, u32)> = (0..n_nodes as u32).map(|j| (j, j)).collect();
+        blocks.extend(edges.iter().copied().filter(|(a, b)| a > b));
+        blocks.sort_unstable();
+        let mut idx = Vec::new();
+        for &(bi, bj) in &blocks {
+            for a in 0..NV {
+                for b in 0..NV {
+                    let (i, j) = (bi as usize * NV + a, bj as usize * NV + b);
+                    if i >= j {
+                        idx.push(faer::sparse::Pair { row: i, col: j });
+                    }
+                }
+            }
+        }
+        let n = n_nodes * NV;
+        let numeric = |e: String| Error::Numeric {
+            stage: "registration".into(),
+            msg: e,
+        };
+        let (symbolic, argsort) =
+            faer::sparse::SymbolicSparseColMat::try_new_from_indices(n, n, &idx)
+                .map_err(|e| numeric(format!("{e:?}")))?;
+        let llt =
+            faer::sparse::linalg::solvers::SymbolicLlt::try_new(symbolic.as_ref(), Side::Lower)
+                .map_err(|e| numeric(format!("Cholesky analysis: {e:?}")))?;
+        Ok(Structure {
+            blocks,
+            symbolic,
+            argsort,
+            llt,
+        })
+    }
 }
 
 const NV: usize = 12;
@@ -250,21 +321,32 @@ impl Registration {
             x[j * NV + 4] = 1.0;
             x[j * NV + 8] = 1.0;
         }
+        let edges: Vec<(u32, u32)> = pair_set.into_iter().collect();
+        let structure = Structure::new(nodes.len(), &edges)?;
         Ok(Registration {
+            last_floor: params.min_weight,
             params,
             topo,
             rest,
             scale,
             nodes,
             influence,
-            edges: pair_set.into_iter().collect(),
+            edges,
             boundary_vertices,
             x,
+            structure,
+            last_noise: None,
         })
     }
 
     pub fn n_nodes(&self) -> usize {
         self.nodes.len()
+    }
+
+    /// The last scan's estimated noise variance along its normal (squared template edge lengths), when
+    /// `noise_floor` asked for it, and the floor ω_r, ω_s were relaxed to.
+    pub fn last_noise(&self) -> (Option<f64>, f64) {
+        (self.last_noise, self.last_floor)
     }
 
     /// Deformed template (scaled units).
@@ -321,6 +403,15 @@ impl Registration {
             .map(|(p, _)| *p)
             .collect();
         let cos_max = self.params.max_normal_angle.to_radians().cos();
+        let mut floor = self.params.min_weight;
+        self.last_noise = None;
+        if self.params.noise_floor > 0.0 {
+            let var = crate::point_normals::noise_variance(&pts, &tree, 16, 7);
+            floor = floor.max(self.params.noise_floor * var);
+            self.last_noise = Some(var);
+        }
+        self.last_floor = floor;
+        let x_start = self.x.clone();
         let (mut wr, mut ws) = (self.params.w_rigid, self.params.w_smooth);
         let mut prev_energy = f64::INFINITY;
         let iters = self.params.iterations;
@@ -358,7 +449,7 @@ impl Registration {
             let bound = boundary_pairs(&self.boundary_vertices, &cur, &bpts);
             let mut energy = 0.0;
             for step in 0..self.params.gn_steps {
-                let e = self.gauss_newton_step(&pairs, &bound, wr, ws)?;
+                let e = self.gauss_newton_step(&pairs, &bound, wr, ws, &x_start)?;
                 if step == 0 {
                     energy = e;
                 }
@@ -371,8 +462,8 @@ impl Registration {
                 );
             }
             if energy > prev_energy * (1.0 - 5e-2) {
-                wr = (wr * 0.5).max(self.params.min_weight);
-                ws = (ws * 0.5).max(self.params.min_weight);
+                wr = (wr * 0.5).max(floor);
+                ws = (ws * 0.5).max(floor);
             }
             prev_energy = energy;
         }
@@ -390,10 +481,22 @@ impl Registration {
         bound: &[(u32, V3)],
         wr: f64,
         ws: f64,
+        x_start: &[f64],
     ) -> Result<f64> {
         let n = self.nodes.len() * NV;
         let mut sys = NormalEq::new(n);
         let mut energy = 0.0;
+        // Temporal pull toward the transforms this scan started from.
+        if self.params.w_temporal > 0.0 {
+            let wt = self.params.w_temporal;
+            let s = self.params.node_spacing;
+            for (i, (x, x0)) in self.x.iter().zip(x_start).enumerate() {
+                let a = if i % NV < 9 { s } else { 1.0 };
+                let r = a * (x - x0);
+                energy += wt * r * r;
+                sys.add_row(&[(i, a)], r, wt);
+            }
+        }
         // Data and boundary. Per vertex coordinate c, v'_c = Σ_j w (Σ_d A_j[c][d] (v − g_j)_d + g_j[c] + t_j[c]):
         // the Jacobian rows of the three coordinates, and the current position.
         let coord_rows = |v: usize| -> ([Vec<(usize, f64)>; 3], V3) {
@@ -492,7 +595,7 @@ impl Registration {
                 sys.add_row(&row, r, ws);
             }
         }
-        let delta = sys.solve(1e-6)?;
+        let delta = sys.solve(&self.structure, 1e-6)?;
         for (x, d) in self.x.iter_mut().zip(&delta) {
             *x -= d;
         }
@@ -599,42 +702,43 @@ impl NormalEq {
         }
     }
 
-    fn solve(self, damping: f64) -> Result<Vec<f64>> {
-        let mut trip = Vec::with_capacity(self.blocks.len() * NV * NV);
-        let mut keys: Vec<_> = self.blocks.keys().copied().collect();
-        keys.sort_unstable();
-        for key in keys {
-            let blk = &self.blocks[&key];
+    fn solve(self, st: &Structure, damping: f64) -> Result<Vec<f64>> {
+        // Values in the fixed pattern's order: every block the rows touched lies in it (data, boundary and
+        // smoothness rows link nodes that share a vertex; rigidity and temporal rows are diagonal).
+        debug_assert!(self.blocks.keys().all(|k| st
+            .blocks
+            .binary_search(&(k.0.max(k.1), k.0.min(k.1)))
+            .is_ok()));
+        let zero = [0.0; NV * NV];
+        let mut vals = Vec::with_capacity(st.blocks.len() * NV * NV);
+        for key in &st.blocks {
+            let blk = self.blocks.get(key).unwrap_or(&zero);
             for a in 0..NV {
                 for b in 0..NV {
                     let (i, j) = (key.0 as usize * NV + a, key.1 as usize * NV + b);
-                    let mut v = blk[a * NV + b];
-                    if i == j {
-                        v += damping * (1.0 + v.abs());
-                    }
-                    if v != 0.0 || i == j {
-                        trip.push(Triplet::new(i, j, v));
+                    if i >= j {
+                        let mut v = blk[a * NV + b];
+                        if i == j {
+                            v += damping * (1.0 + v.abs());
+                        }
+                        vals.push(v);
                     }
                 }
             }
         }
-        for i in 0..self.n {
-            if !self
-                .blocks
-                .contains_key(&((i / NV) as u32, (i / NV) as u32))
-            {
-                trip.push(Triplet::new(i, i, 1.0));
-            }
-        }
-        let mat = SparseColMat::<usize, f64>::try_new_from_triplets(self.n, self.n, &trip)
-            .map_err(|e| Error::Numeric {
-                stage: "registration".into(),
-                msg: format!("{e:?}"),
-            })?;
-        let llt = mat.sp_cholesky(Side::Lower).map_err(|e| Error::Numeric {
+        let numeric = |e: String| Error::Numeric {
             stage: "registration".into(),
-            msg: format!("Cholesky: {e:?}"),
-        })?;
+            msg: e,
+        };
+        let mat =
+            SparseColMat::<usize, f64>::new_from_argsort(st.symbolic.clone(), &st.argsort, &vals)
+                .map_err(|e| numeric(format!("{e:?}")))?;
+        let llt = faer::sparse::linalg::solvers::Llt::try_new_with_symbolic(
+            st.llt.clone(),
+            mat.as_ref(),
+            Side::Lower,
+        )
+        .map_err(|e| numeric(format!("Cholesky: {e:?}")))?;
         let rhs = Mat::<f64>::from_fn(self.n, 1, |i, _| self.rhs[i]);
         let sol = llt.solve(&rhs);
         Ok((0..self.n).map(|i| sol[(i, 0)]).collect())

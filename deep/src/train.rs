@@ -332,14 +332,8 @@ pub fn fit(
         blend.weight, blend.method
     ));
     let autoregressive_s = t1.elapsed().as_secs_f64();
-    let n = targets.len() as f64;
-    let coeff_scale: Vec<f64> = (0..k)
-        .map(|j| {
-            (targets.iter().map(|t| t[j] * t[j]).sum::<f64>() / n)
-                .sqrt()
-                .max(1e-9)
-        })
-        .collect();
+    // One shared output unit (not one per coefficient): the network's loss is then the vertex MSE.
+    let coeff_scale = crate::lstm::output_scale(&targets);
     let (mut lstm, mut lstm_losses, mut lstm_s) = (None, Vec::new(), 0.0);
     if params.regressor == RegressorKind::Lstm {
         let t2 = Instant::now();
@@ -350,7 +344,8 @@ pub fn fit(
             .flat_map(|(c, t)| windows(c, t, params.lstm.seq_len))
             .collect();
         progress.begin("lstm", params.lstm.epochs as u64);
-        lstm_losses = net.train(&data, |epoch, loss| {
+        let lr = crate::lstm::cosine_lr(params.lstm.lr, params.lstm.epochs);
+        lstm_losses = net.train_scheduled(&data, lr, |epoch, loss| {
             progress.advance("lstm", 1);
             if (epoch + 1) % 25 == 0 || epoch == 0 {
                 progress.note(&format!("lstm epoch {}: loss {loss:.5}", epoch + 1));

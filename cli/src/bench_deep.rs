@@ -4,7 +4,8 @@
 //!
 //! The generator's weights are freshly initialised, not trained: a forward pass costs the same whatever the
 //! weights. The mesh is a training directory's captured frame (`--deep-data`), or by default a synthetic tube
-//! with the sleeve's size (80 × 92 = 7,360 vertices). Writing OBJ and PNG files is not included.
+//! with the sleeve's size (80 × 92 = 7,360 vertices). Separately, what `apply --coarse` does per frame with a
+//! default model (no cGAN): the detail filter's map and writing the frame's OBJ and PNG.
 
 use crate::bench::BenchArgs;
 use anyhow::{bail, Context, Result};
@@ -129,6 +130,34 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
             bail!("the generator returned a map of another size");
         }
     }
+    // What `crease deep apply --coarse` does per frame with a default model (no cGAN): the detail filter's
+    // fine shape (degree 40; its cost does not depend on the weights) drawn into the map, then the frame's OBJ
+    // and 16-bit PNG written (the output contract), into a scratch directory removed afterwards.
+    let op = crease_deep::detail_filter::Umbrella::new(&topo);
+    let degree = crease_deep::detail_filter::DEFAULT_DEGREE;
+    let filter = crease_deep::detail_filter::DetailFilter {
+        degree,
+        interior: (0..=degree).map(|j| 0.1 / (1.0 + j as f64)).collect(),
+        boundary: (0..=degree).map(|j| 0.05 / (1.0 + j as f64)).collect(),
+    };
+    let mut detail = Vec::new();
+    let mut dmap = map.clone();
+    for _ in 0..a.repeats {
+        let t = Instant::now();
+        dmap = crease_deep::apply::detail_map(&texels, &topo, &op, &filter, &coarse[0]);
+        detail.push(t.elapsed().as_secs_f64());
+    }
+    let scratch = std::env::temp_dir().join(format!("crease-bench-deep-{}", std::process::id()));
+    crease_deep::contract::prepare(&scratch)?;
+    let mut write = Vec::new();
+    for r in 0..a.repeats {
+        let t = Instant::now();
+        crease_deep::contract::write_frame(&scratch, r, &topo, &coarse[0], &layout, &dmap)?;
+        write.push(t.elapsed().as_secs_f64());
+    }
+    let _ = std::fs::remove_dir_all(&scratch);
+    let (detail_ms, write_ms) = (median_ms(detail), median_ms(write));
+    println!("  apply --coarse without a cGAN (the default model), per frame: detail filter + map {detail_ms:.1} ms + write OBJ and PNG {write_ms:.1} ms = {:.1} ms", detail_ms + write_ms);
     let (raster_ms, forward_ms) = (median_ms(raster), median_ms(forward));
     println!(
         "  texel map set-up (once per model): {texel_setup_ms:.1} ms; the surface covers {:.0}% of the texels",
@@ -173,6 +202,9 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
             "raster_ms": raster_ms,
             "forward_ms": forward_ms,
             "per_frame_ms": raster_ms + forward_ms,
+            "detail_map_ms": detail_ms,
+            "write_frame_ms": write_ms,
+            "apply_coarse_default_ms": detail_ms + write_ms,
             "train_step_ms": step_ms,
             "epoch_frames": epoch_frames,
             "epoch_s": epoch_s,

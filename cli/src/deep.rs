@@ -79,6 +79,10 @@ pub struct RegisterArgs {
     /// Weight of a pull of every graph node toward its previous frame's transform (0: off).
     #[arg(long, default_value_t = RegisterParams::default().w_temporal)]
     pub w_temporal: f64,
+    /// Also fit each scan from the unregistered template and keep, of the two fits, the previous result and
+    /// the template, the state of lowest Eq. 1 energy (twice the time per scan).
+    #[arg(long, default_value_t = RegisterParams::default().multi_start, action = clap::ArgAction::Set)]
+    pub multi_start: bool,
     /// No progress bar or summary lines (errors are still printed).
     #[arg(long)]
     pub quiet: bool,
@@ -148,6 +152,16 @@ pub struct TrainArgs {
     /// LSTM learning rate (Adam).
     #[arg(long, default_value_t = 1e-3)]
     pub lstm_lr: f64,
+    /// The regressor whose coefficients the LSTM corrects (linear, autoregressive or blend: it learns their
+    /// residual and starts as that regressor), or `none`: it predicts the coefficients itself (before).
+    #[arg(long, default_value = "blend", value_parser = parse_residual_of)]
+    pub lstm_residual: ResidualOf,
+    /// LSTM residual targets from the base regressor fitted on the other training sequences (cross-fitted).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub lstm_cross_fit: bool,
+    /// Hold the last training sequence out of the LSTM's training and keep the epoch that does best on it.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub lstm_early_stopping: bool,
     /// Seed of every random choice (weights, batches): the same seed gives the same model.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -267,6 +281,7 @@ fn register(a: RegisterArgs) -> Result<()> {
         w_plane: a.w_plane,
         w_point: a.w_point,
         w_temporal: a.w_temporal,
+        multi_start: a.multi_start,
         ..Default::default()
     };
     let progress = CliProgress::new(a.quiet);
@@ -295,6 +310,20 @@ fn register(a: RegisterArgs) -> Result<()> {
         t0.elapsed().as_secs_f64() / files.len() as f64
     ));
     Ok(())
+}
+
+/// `--lstm-residual`: the regressor the LSTM corrects, or none.
+#[derive(Debug, Clone, Copy)]
+pub struct ResidualOf(pub Option<RegressorKind>);
+
+fn parse_residual_of(s: &str) -> std::result::Result<ResidualOf, String> {
+    match s {
+        "none" => Ok(ResidualOf(None)),
+        "lstm" => {
+            Err("the LSTM cannot correct itself (linear, autoregressive, blend or none)".into())
+        }
+        _ => s.parse::<RegressorKind>().map(|k| ResidualOf(Some(k))),
+    }
 }
 
 fn train_cmd(a: TrainArgs) -> Result<()> {
@@ -328,6 +357,9 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
             batch: 32,
             lr: a.lstm_lr,
             seed: a.seed,
+            residual_of: a.lstm_residual.0,
+            cross_fit: a.lstm_cross_fit,
+            early_stopping: a.lstm_early_stopping,
         },
         resolution: a.resolution,
         uv: a.uv,

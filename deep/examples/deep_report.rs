@@ -4,7 +4,7 @@
 //! cargo run --release -p crease-deep --example deep_report -- subspace   DATA OUT [held-out]
 //! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT [held-out] [epochs] [layers] [hidden] [ridge] [AR states, e.g. 10,25,50]
 //! cargo run --release -p crease-deep --example deep_report -- regression DATA OUT all [epochs] [layers] [hidden] [ridge] [AR states] [rollout-fit iterations, e.g. 0,5,20,50] [history time constants, e.g. "none;3,10,30"] [all|blend: every row, or only the linear, AR and blend rows]
-//! cargo run --release -p crease-deep --example deep_report -- fitloso    DATA OUT "features,mirror,ridge[,lstm LAYERSxHIDDENxEPOCHS];…"
+//! cargo run --release -p crease-deep --example deep_report -- fitloso    DATA OUT "features,mirror,ridge[,lstm LAYERSxHIDDENxEPOCHS[,residual base|none[,cf|in[,es|all[,lr]]]]];…"
 //! cargo run --release -p crease-deep --example deep_report -- cgan       DATA OUT [held-out] [epochs] [res] [filters] [ridge] [AR state] [variants, e.g. captured,captured_notemp,subspace200,subspace50,regression] [batch] [minutes per variant] [learning rate]
 //! cargo run --release -p crease-deep --example deep_report -- register   DATA OUT [frames] [target points] [min weight] [iterations]
 //! cargo run --release -p crease-deep --example deep_report -- score      APPLY_OUT GT CAPTURED
@@ -707,10 +707,19 @@ fn fit_loso(data: &str, out: &str, variants: &str) -> R<()> {
             if let Some(l) = f.get(3).and_then(|l| l.strip_prefix("lstm ")) {
                 let n: Vec<usize> = l.split('x').map(|x| x.parse()).collect::<Result<_, _>>()?;
                 params.regressor = RegressorKind::Lstm;
+                // Optional: residual base (none|linear|autoregressive|blend), cross-fit (cf|in),
+                // early stopping (es|all), learning rate.
                 params.lstm = LstmConfig {
                     layers: n[0],
                     hidden: n[1],
                     epochs: n[2],
+                    residual_of: match f.get(4).copied().unwrap_or("none") {
+                        "none" => None,
+                        k => Some(k.parse()?),
+                    },
+                    cross_fit: f.get(5).copied() == Some("cf"),
+                    early_stopping: f.get(6).copied() == Some("es"),
+                    lr: f.get(7).map_or(Ok(2e-3), |r| r.parse())?,
                     ..lstm_config(n[0], n[1], n[2])
                 };
             }
@@ -757,7 +766,8 @@ fn fit_loso(data: &str, out: &str, variants: &str) -> R<()> {
             notes.push(serde_json::json!({"held_out": held, "variant": v, "k": k, "fit_s": fit_s,
                 "features": fitted.control.features, "mirror": fitted.mirror.as_ref().map(|r| (r.axis_name(), r.asymmetry)),
                 "ar_rollout_losses": [fitted.ar_rollout_losses.first(), fitted.ar_rollout_losses.last()],
-                "lstm_final_loss": fitted.lstm_losses.last(), "lstm_s_per_epoch": fitted.seconds.lstm_s_per_epoch}));
+                "lstm_final_loss": fitted.lstm_losses.last(), "lstm_s_per_epoch": fitted.seconds.lstm_s_per_epoch,
+                "lstm_best_epoch": fitted.lstm_best_epoch, "lstm_held_out": fitted.lstm_held_out}));
         }
     }
     print!("| variant: regressor |");
@@ -905,6 +915,9 @@ fn lstm_config(layers: usize, hidden: usize, epochs: usize) -> LstmConfig {
         batch: 16,
         lr: 2e-3,
         seed: 1,
+        residual_of: None,
+        cross_fit: false,
+        early_stopping: false,
     }
 }
 
@@ -1760,6 +1773,7 @@ fn register_env(mut p: RegisterParams) -> R<RegisterParams> {
     set!(target_points, "TARGET_POINTS");
     set!(node_spacing, "NODE_SPACING");
     set!(iterations, "ITERATIONS");
+    set!(multi_start, "MULTI_START");
     Ok(p)
 }
 

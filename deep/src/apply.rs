@@ -5,7 +5,6 @@
 
 use crate::contract;
 use crate::detail_filter::{DetailFilter, Umbrella};
-use crate::lstm::windows;
 use crate::model::{Model, RegressorKind};
 use crate::normal_map::{bake_coarse, convert_space, world_from_vertex_normals, NormalMap, Space};
 use crate::pose::read_pose_file;
@@ -110,8 +109,26 @@ pub fn shapes_from_poses(
                 .lstm
                 .as_ref()
                 .ok_or_else(|| model.missing_regressor(regressor))?;
-            let dummy = vec![vec![0.0; model.subspace.k()]; controls.len()];
-            net.predict(&windows(&controls, &dummy, net.config.seq_len))?
+            // A residual network (format 7 on) adds to its base regressor's coefficients.
+            let base = match net.config.residual_of {
+                Some(kind) => {
+                    let ar = model.autoregressive.as_ref();
+                    let (ar, weight) = match (kind, ar, &model.manifest.blend) {
+                        (RegressorKind::Linear, _, _) => (None, 0.0),
+                        (RegressorKind::Autoregressive, Some(ar), _) => (Some(ar), 1.0),
+                        (RegressorKind::Blend, Some(ar), Some(b)) => (Some(ar), b.weight),
+                        _ => return Err(model.missing_regressor(kind)),
+                    };
+                    let lin: Vec<Vec<f64>> =
+                        controls.iter().map(|c| model.linear.predict(c)).collect();
+                    Some(match ar {
+                        None => lin,
+                        Some(ar) => crate::blend::mix(&lin, &ar.rollout(&controls), weight),
+                    })
+                }
+                None => None,
+            };
+            net.predict_sequence(&controls, base.as_deref())?
         }
     };
     Ok(coeffs

@@ -6,6 +6,7 @@
 //! MSE is the vertex MSE up to a constant and the large components count as much as they move the surface.
 //! candle (CPU, f32); weights are seeded (see [`crate::seed`]).
 
+use crate::model::RegressorKind;
 use crate::seed::{init_vars, Rng};
 use candle_core::{DType, Device, Module, Tensor};
 use candle_nn::rnn::{LSTMConfig, LSTM, RNN};
@@ -23,6 +24,23 @@ pub struct LstmConfig {
     pub batch: usize,
     pub lr: f64,
     pub seed: u64,
+    /// The stored regressor whose prediction the network corrects: the network learns the residual
+    /// (truth − that regressor's coefficients) from the pose sequence, its output layer starts at zero, so an
+    /// untrained network is exactly that regressor and training only adds what the linear maps cannot
+    /// express. `None`: the network predicts the coefficients themselves, as every model before format 7
+    /// did (their manifests have no such field).
+    #[serde(default)]
+    pub residual_of: Option<RegressorKind>,
+    /// The residual targets of each training sequence come from the base regressor fitted on the *other*
+    /// sequences (cross-fitted, as in stacking), so the network learns the error the base makes on motion it
+    /// has not seen, not its smaller in-sample error. Training-only: it does not change how a model runs.
+    #[serde(default)]
+    pub cross_fit: bool,
+    /// Early stopping: the last training sequence (and its reflection) is held out of the network's training,
+    /// the held-out loss is measured before the first epoch and after each one, and the weights of the best
+    /// epoch are kept (before the first epoch, i.e. the base regressor alone, if no epoch improves on it).
+    #[serde(default)]
+    pub early_stopping: bool,
 }
 
 impl Default for LstmConfig {
@@ -35,6 +53,11 @@ impl Default for LstmConfig {
             batch: 32,
             lr: 1e-3,
             seed: 1,
+            // The residual of the blend, cross-fitted, with early stopping: over the three
+            // leave-one-sequence-out splits of sleeve-train (docs/deepwrinkles.md, "LSTM as a residual").
+            residual_of: Some(RegressorKind::Blend),
+            cross_fit: true,
+            early_stopping: true,
         }
     }
 }
@@ -53,6 +76,12 @@ impl LstmConfig {
         }
         if !(self.lr.is_finite() && self.lr > 0.0) {
             return Err(Error::param("lstm.lr", "must be a positive number"));
+        }
+        if self.residual_of == Some(RegressorKind::Lstm) {
+            return Err(Error::param(
+                "lstm.residual_of",
+                "the LSTM cannot correct itself (linear, autoregressive or blend)",
+            ));
         }
         Ok(())
     }
@@ -146,6 +175,18 @@ impl LstmRegressor {
         }
         let head = linear(config.hidden, out_dim, vb.pp("head")).map_err(ce)?;
         init_vars(&varmap, config.seed, &[]).map_err(ce)?;
+        if config.residual_of.is_some() {
+            // A residual network starts as the base regressor itself: zero output layer.
+            let data = varmap.data().lock().map_err(|_| Error::Numeric {
+                stage: "lstm".into(),
+                msg: "var map lock poisoned".into(),
+            })?;
+            for (name, var) in data.iter() {
+                if name.starts_with("head.") {
+                    var.set(&var.zeros_like().map_err(ce)?).map_err(ce)?;
+                }
+            }
+        }
         Ok(LstmRegressor {
             config,
             in_dim,
@@ -213,6 +254,15 @@ impl LstmRegressor {
         lr: impl Fn(usize) -> f64,
         mut on_epoch: impl FnMut(usize, f64),
     ) -> Result<Vec<f64>> {
+        self.train_scheduled_with(data, lr, |_, epoch, loss| on_epoch(epoch, loss))
+    }
+
+    fn train_scheduled_with(
+        &mut self,
+        data: &[Window],
+        lr: impl Fn(usize) -> f64,
+        mut on_epoch: impl FnMut(&Self, usize, f64),
+    ) -> Result<Vec<f64>> {
         if data.is_empty() {
             return Err(Error::param("lstm", "no training windows"));
         }
@@ -254,9 +304,81 @@ impl LstmRegressor {
                 });
             }
             losses.push(mean);
-            on_epoch(epoch, mean);
+            on_epoch(self, epoch, mean);
         }
         Ok(losses)
+    }
+
+    /// [`LstmRegressor::train_scheduled`] with early stopping on `validation`: its mean squared error of the
+    /// last frame's coefficients (m²) is measured before the first epoch and after every epoch, and the
+    /// weights of the best of those are restored at the end. Returns (training losses, held-out errors, best
+    /// epoch count: 0 when no epoch beat the untrained network).
+    pub fn train_early_stopping(
+        &mut self,
+        data: &[Window],
+        validation: &[Window],
+        lr: impl Fn(usize) -> f64,
+        mut on_epoch: impl FnMut(usize, f64, f64),
+    ) -> Result<(Vec<f64>, Vec<f64>, usize)> {
+        if validation.is_empty() {
+            return Err(Error::param("lstm", "no validation windows"));
+        }
+        let mut held = vec![self.held_out_mse(validation)?];
+        let mut best = (held[0], 0usize, self.snapshot()?);
+        let mut err = None;
+        let losses = self.train_scheduled_with(data, lr, |net, epoch, loss| {
+            let e = match net.held_out_mse(validation) {
+                Ok(e) => e,
+                Err(e) => {
+                    err.get_or_insert(e);
+                    f64::INFINITY
+                }
+            };
+            held.push(e);
+            if e < best.0 {
+                match net.snapshot() {
+                    Ok(s) => best = (e, epoch + 1, s),
+                    Err(e) => {
+                        err.get_or_insert(e);
+                    }
+                }
+            }
+            on_epoch(epoch, loss, e);
+        })?;
+        if let Some(e) = err {
+            return Err(e);
+        }
+        self.restore(&best.2)?;
+        Ok((losses, held, best.1))
+    }
+
+    /// Mean squared error (m², per coefficient) of the last frame of each window against its target.
+    pub fn held_out_mse(&self, ws: &[Window]) -> Result<f64> {
+        let pred = self.predict(ws)?;
+        let (mut sum, mut n) = (0.0, 0usize);
+        for (p, w) in pred.iter().zip(ws) {
+            let t = w.targets.last().map_or(&[][..], |t| t.as_slice());
+            for (a, b) in p.iter().zip(t) {
+                sum += (a - b).powi(2);
+                n += 1;
+            }
+        }
+        Ok(sum / n.max(1) as f64)
+    }
+
+    fn snapshot(&self) -> Result<Vec<Tensor>> {
+        self.varmap
+            .all_vars_sorted()
+            .iter()
+            .map(|v| v.as_tensor().copy().map_err(ce))
+            .collect()
+    }
+
+    fn restore(&self, saved: &[Tensor]) -> Result<()> {
+        for (v, t) in self.varmap.all_vars_sorted().iter().zip(saved) {
+            v.set(t).map_err(ce)?;
+        }
+        Ok(())
     }
 
     /// Coefficients of the last frame of each window.
@@ -276,6 +398,37 @@ impl LstmRegressor {
                         .map(|(&v, s)| v as f64 * s)
                         .collect(),
                 );
+            }
+        }
+        Ok(out)
+    }
+
+    /// The coefficients of every frame of a sequence from its control vectors: the network's prediction, plus
+    /// `base` (the base regressor's coefficients, required when the network is a residual one).
+    pub fn predict_sequence(
+        &self,
+        controls: &[Vec<f64>],
+        base: Option<&[Vec<f64>]>,
+    ) -> Result<Vec<Vec<f64>>> {
+        let dummy = vec![vec![0.0; self.out_dim]; controls.len()];
+        let mut out = self.predict(&windows(controls, &dummy, self.config.seq_len))?;
+        match (self.config.residual_of, base) {
+            (None, _) => {}
+            (Some(_), Some(base)) if base.len() == out.len() => {
+                for (o, b) in out.iter_mut().zip(base) {
+                    for (x, y) in o.iter_mut().zip(b) {
+                        *x += y;
+                    }
+                }
+            }
+            (Some(kind), _) => {
+                return Err(Error::param(
+                    "lstm",
+                    format!(
+                        "a residual LSTM needs the {} regressor's coefficients of every frame",
+                        kind.name()
+                    ),
+                ))
             }
         }
         Ok(out)

@@ -32,7 +32,10 @@ use std::sync::Arc;
 /// version 4 crease would have ignored the field and built raw control vectors of the wrong length.
 /// Version 6 added the mesh-space detail filter (`detail` in the manifest, `detail.npy`) that `apply --coarse`
 /// runs before drawing the map; a version 5 crease would have ignored it and written the plain coarse maps.
-pub const MODEL_VERSION: u32 = 6;
+/// Version 7 made the LSTM a residual one (`lstm.residual_of` in the manifest: the regressor whose
+/// coefficients `lstm.safetensors` corrects); a version 6 crease would have ignored the field and run the
+/// correction alone as if it were the shape. Older LSTMs have no such field and run as before.
+pub const MODEL_VERSION: u32 = 7;
 /// Oldest format this build still reads: a version 1 model differs only by lacking the autoregressive
 /// regressor, so it still runs with the linear or LSTM one; the generator of a version 1 or 2 model has no
 /// `residual` field and runs as the plain generator it was trained as; models before version 4 have no blend
@@ -569,7 +572,13 @@ impl Model {
         let has = match kind {
             RegressorKind::Linear => true,
             RegressorKind::Autoregressive => self.autoregressive.is_some(),
-            RegressorKind::Lstm => self.lstm.is_some(),
+            RegressorKind::Lstm => match self.lstm.as_ref().map(|n| n.config.residual_of) {
+                None => false,
+                Some(None) => true,
+                Some(Some(base)) => {
+                    base != RegressorKind::Lstm && self.check_regressor(base).is_ok()
+                }
+            },
             RegressorKind::Blend => self.autoregressive.is_some() && self.manifest.blend.is_some(),
         };
         if has {

@@ -71,6 +71,14 @@ pub struct RegisterParams {
     /// lets the graph relax to follow a large deformation, a noisy one keeps it stiff. 0: off.
     #[serde(default)]
     pub noise_floor: f64,
+    /// Multi-start with an acceptance test: besides the fit tracked from the previous result, the scan is
+    /// also fitted from the unregistered template, and of those two fits, the previous result and the
+    /// unregistered template, the state with the lowest Eq. 1 energy (truncated data term, all at the
+    /// relaxed floor's weights) is kept. Tracking carries every slide along the surface it made into the next
+    /// scan, and the data term cannot undo a slide; where the cloth is back near the template the fit from
+    /// the template starts without it. Doubles the time per scan. false: the tracked fit only.
+    #[serde(default)]
+    pub multi_start: bool,
 }
 
 fn default_target_points() -> usize {
@@ -104,6 +112,7 @@ impl Default for RegisterParams {
             target_points: 1,
             w_temporal: 0.0,
             noise_floor: 750.0,
+            multi_start: false,
         }
     }
 }
@@ -402,7 +411,6 @@ impl Registration {
             .filter(|(_, &b)| b)
             .map(|(p, _)| *p)
             .collect();
-        let cos_max = self.params.max_normal_angle.to_radians().cos();
         let mut floor = self.params.min_weight;
         self.last_noise = None;
         if self.params.noise_floor > 0.0 {
@@ -411,6 +419,105 @@ impl Registration {
             self.last_noise = Some(var);
         }
         self.last_floor = floor;
+        let scan = ScaledScan {
+            pts: &pts,
+            tree: &tree,
+            normals: &normals,
+            bpts: &bpts,
+            use_normals,
+        };
+        let x_prev = self.x.clone();
+        self.fit(&scan, floor)?;
+        if self.params.multi_start {
+            // The candidates' energies at the floor weights and the last pair distance, unpaired vertices
+            // counted at that distance, so a state cannot win by losing pairs.
+            let max_d = self.params.max_pair_dist / 3.0;
+            let tracked = self.x.clone();
+            let mut identity = vec![0.0; self.x.len()];
+            for j in 0..self.nodes.len() {
+                identity[j * NV] = 1.0;
+                identity[j * NV + 4] = 1.0;
+                identity[j * NV + 8] = 1.0;
+            }
+            self.x = identity.clone();
+            self.fit(&scan, floor)?;
+            let from_template = std::mem::replace(&mut self.x, tracked.clone());
+            let mut best: Option<(f64, Vec<f64>)> = None;
+            for cand in [tracked, from_template, x_prev.clone(), identity] {
+                self.x = cand;
+                let e = self.energy(&scan, floor, max_d, &x_prev)?;
+                if std::env::var_os("CREASE_DEEP_DEBUG").is_some() {
+                    eprintln!("multi-start candidate energy {e:.3}");
+                }
+                if best.as_ref().is_none_or(|b| e < b.0) {
+                    best = Some((e, std::mem::take(&mut self.x)));
+                }
+            }
+            if let Some((_, x)) = best {
+                self.x = x;
+            }
+        }
+        Ok(self
+            .deformed()
+            .iter()
+            .map(|p| vec3::scale(*p, 1.0 / self.scale))
+            .collect())
+    }
+
+    /// Data pairs of the current deformed template with `scan` within `max_d`, and the boundary pairs.
+    fn pairs(&self, scan: &ScaledScan<'_>, max_d: f64) -> (Vec<Option<Pair>>, Vec<(u32, V3)>) {
+        let cos_max = self.params.max_normal_angle.to_radians().cos();
+        let (pts, tree, normals, use_normals) =
+            (scan.pts, scan.tree, scan.normals, scan.use_normals);
+        let cur = self.deformed();
+        let cur_n = vertex_normals(&self.topo, &cur);
+        let pairs: Vec<Option<Pair>> = cur
+            .iter()
+            .zip(&cur_n)
+            .map(|(p, n)| {
+                let (i, d2) = tree.nearest(*p)?;
+                let m = normals[i];
+                let compatible = !use_normals || vec3::dot(vec3::normalize(*n), m).abs() >= cos_max;
+                if !(d2 <= max_d * max_d && compatible) {
+                    return None;
+                }
+                let target = if self.params.target_points > 1 {
+                    let near = tree.k_nearest(*p, self.params.target_points);
+                    let within: Vec<V3> = near
+                        .iter()
+                        .filter(|(_, d2)| *d2 <= max_d * max_d)
+                        .map(|&(j, _)| pts[j])
+                        .collect();
+                    let sum = within.iter().fold([0.0; 3], |a, q| vec3::add(a, *q));
+                    vec3::scale(sum, 1.0 / within.len() as f64)
+                } else {
+                    pts[i]
+                };
+                Some(Pair { target, normal: m })
+            })
+            .collect();
+        let bound = boundary_pairs(&self.boundary_vertices, &cur, scan.bpts);
+        (pairs, bound)
+    }
+
+    /// Eq. 1 at the current transforms with ω_r = ω_s = `floor`, pairs within `max_d`; every vertex without a
+    /// pair adds (w_plane + w_point) · max_d², what a pair at that distance would at most cost.
+    fn energy(
+        &mut self,
+        scan: &ScaledScan<'_>,
+        floor: f64,
+        max_d: f64,
+        x_start: &[f64],
+    ) -> Result<f64> {
+        let (pairs, bound) = self.pairs(scan, max_d);
+        let unpaired = pairs.iter().filter(|p| p.is_none()).count() as f64;
+        let e = self.gauss_newton_step(&pairs, &bound, floor, floor, x_start, false)?;
+        Ok(e + unpaired * (self.params.w_plane + self.params.w_point) * max_d * max_d)
+    }
+
+    /// The ICP loop of one scan from the current transforms: `iterations` correspondence updates, ω_r and
+    /// ω_s halved down to `floor` whenever the energy stalls.
+    fn fit(&mut self, scan: &ScaledScan<'_>, floor: f64) -> Result<()> {
         let x_start = self.x.clone();
         let (mut wr, mut ws) = (self.params.w_rigid, self.params.w_smooth);
         let mut prev_energy = f64::INFINITY;
@@ -418,38 +525,10 @@ impl Registration {
         for it in 0..iters {
             let frac = it as f64 / (iters.max(2) - 1) as f64;
             let max_d = self.params.max_pair_dist * (1.0 - 2.0 / 3.0 * frac);
-            let cur = self.deformed();
-            let cur_n = vertex_normals(&self.topo, &cur);
-            let pairs: Vec<Option<Pair>> = cur
-                .iter()
-                .zip(&cur_n)
-                .map(|(p, n)| {
-                    let (i, d2) = tree.nearest(*p)?;
-                    let m = normals[i];
-                    let compatible =
-                        !use_normals || vec3::dot(vec3::normalize(*n), m).abs() >= cos_max;
-                    if !(d2 <= max_d * max_d && compatible) {
-                        return None;
-                    }
-                    let target = if self.params.target_points > 1 {
-                        let near = tree.k_nearest(*p, self.params.target_points);
-                        let within: Vec<V3> = near
-                            .iter()
-                            .filter(|(_, d2)| *d2 <= max_d * max_d)
-                            .map(|&(j, _)| pts[j])
-                            .collect();
-                        let sum = within.iter().fold([0.0; 3], |a, q| vec3::add(a, *q));
-                        vec3::scale(sum, 1.0 / within.len() as f64)
-                    } else {
-                        pts[i]
-                    };
-                    Some(Pair { target, normal: m })
-                })
-                .collect();
-            let bound = boundary_pairs(&self.boundary_vertices, &cur, &bpts);
+            let (pairs, bound) = self.pairs(scan, max_d);
             let mut energy = 0.0;
             for step in 0..self.params.gn_steps {
-                let e = self.gauss_newton_step(&pairs, &bound, wr, ws, &x_start)?;
+                let e = self.gauss_newton_step(&pairs, &bound, wr, ws, &x_start, true)?;
                 if step == 0 {
                     energy = e;
                 }
@@ -467,14 +546,11 @@ impl Registration {
             }
             prev_energy = energy;
         }
-        Ok(self
-            .deformed()
-            .iter()
-            .map(|p| vec3::scale(*p, 1.0 / self.scale))
-            .collect())
+        Ok(())
     }
 
-    /// One Gauss–Newton step of Eq. 1 at the current transforms; returns the energy before the step.
+    /// One Gauss–Newton step of Eq. 1 at the current transforms (only its energy when `!step`); returns the
+    /// energy before the step.
     fn gauss_newton_step(
         &mut self,
         pairs: &[Option<Pair>],
@@ -482,6 +558,7 @@ impl Registration {
         wr: f64,
         ws: f64,
         x_start: &[f64],
+        step: bool,
     ) -> Result<f64> {
         let n = self.nodes.len() * NV;
         let mut sys = NormalEq::new(n);
@@ -595,12 +672,24 @@ impl Registration {
                 sys.add_row(&row, r, ws);
             }
         }
+        if !step {
+            return Ok(energy);
+        }
         let delta = sys.solve(&self.structure, 1e-6)?;
         for (x, d) in self.x.iter_mut().zip(&delta) {
             *x -= d;
         }
         Ok(energy)
     }
+}
+
+/// A scan in template edge lengths with its search tree, normals and boundary points.
+struct ScaledScan<'a> {
+    pts: &'a [V3],
+    tree: &'a KdTree,
+    normals: &'a [V3],
+    bpts: &'a [V3],
+    use_normals: bool,
 }
 
 /// A data pair: the scan point a vertex is pulled to and the scan's (unoriented) normal there.

@@ -215,6 +215,10 @@ pub struct Fitted {
     /// its rollout fit.
     pub ar_rollout_losses: Vec<f64>,
     pub lstm_losses: Vec<f64>,
+    /// With early stopping: the LSTM's held-out coefficient MSE (m²) before training and after each epoch,
+    /// and the epoch whose weights were kept (0: none beat the base regressor).
+    pub lstm_held_out: Vec<f64>,
+    pub lstm_best_epoch: Option<usize>,
     pub seconds: BTreeSummary,
     /// The reflection that augmented the training data, if any.
     pub mirror: Option<Reflection>,
@@ -332,25 +336,81 @@ pub fn fit(
         blend.weight, blend.method
     ));
     let autoregressive_s = t1.elapsed().as_secs_f64();
-    // One shared output unit (not one per coefficient): the network's loss is then the vertex MSE.
-    let coeff_scale = crate::lstm::output_scale(&targets);
+    let n_orig = data.len() / if mirror.is_some() { 2 } else { 1 };
     let (mut lstm, mut lstm_losses, mut lstm_s) = (None, Vec::new(), 0.0);
+    let (mut lstm_held_out, mut lstm_best_epoch) = (Vec::new(), None);
+    // One shared output unit (not one per coefficient): the network's loss is then the vertex MSE.
+    let mut coeff_scale = crate::lstm::output_scale(&targets);
     if params.regressor == RegressorKind::Lstm {
         let t2 = Instant::now();
-        let mut net =
-            LstmRegressor::new(params.lstm.clone(), control.len(), k, coeff_scale.clone())?;
-        let data: Vec<_> = per_seq
+        let cfg = &params.lstm;
+        // What the network learns per training sequence: the coefficients, or what the base regressor
+        // leaves of them (fitted on all sequences, or on the others: cross-fitted).
+        let lstm_targets: Vec<Vec<Vec<f64>>> = match cfg.residual_of {
+            None => per_seq.iter().map(|(_, t)| t.clone()).collect(),
+            Some(base) => {
+                let preds: Vec<Vec<Vec<f64>>> = if cfg.cross_fit && n_orig >= 2 {
+                    cross_fitted_predictions(&seqs, n_orig, base, &blend, params, k)?
+                } else {
+                    seqs.iter()
+                        .map(|(c, _)| {
+                            base_coefficients(base, &linear, &autoregressive, blend.weight, c)
+                        })
+                        .collect::<Result<_>>()?
+                };
+                per_seq
+                    .iter()
+                    .zip(&preds)
+                    .map(|((_, t), p)| {
+                        t.iter()
+                            .zip(p)
+                            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x - y).collect())
+                            .collect()
+                    })
+                    .collect()
+            }
+        };
+        // The held-out group of early stopping: the last training sequence and its reflection.
+        let held = |i: usize| cfg.early_stopping && n_orig >= 2 && i % n_orig == n_orig - 1;
+        let (mut train_w, mut val_w) = (Vec::new(), Vec::new());
+        for (i, ((c, _), t)) in per_seq.iter().zip(&lstm_targets).enumerate() {
+            let w = windows(c, t, cfg.seq_len);
+            if held(i) {
+                val_w.extend(w);
+            } else {
+                train_w.extend(w);
+            }
+        }
+        let train_targets: Vec<Vec<f64>> = lstm_targets
             .iter()
-            .flat_map(|(c, t)| windows(c, t, params.lstm.seq_len))
+            .enumerate()
+            .filter(|(i, _)| !held(*i))
+            .flat_map(|(_, t)| t.iter().cloned())
             .collect();
-        progress.begin("lstm", params.lstm.epochs as u64);
-        let lr = crate::lstm::cosine_lr(params.lstm.lr, params.lstm.epochs);
-        lstm_losses = net.train_scheduled(&data, lr, |epoch, loss| {
+        coeff_scale = crate::lstm::output_scale(&train_targets);
+        let mut net = LstmRegressor::new(cfg.clone(), control.len(), k, coeff_scale.clone())?;
+        progress.begin("lstm", cfg.epochs as u64);
+        let lr = crate::lstm::cosine_lr(cfg.lr, cfg.epochs);
+        let note = |epoch: usize, loss: f64, held: Option<f64>| {
             progress.advance("lstm", 1);
             if (epoch + 1) % 25 == 0 || epoch == 0 {
-                progress.note(&format!("lstm epoch {}: loss {loss:.5}", epoch + 1));
+                let h = held.map_or(String::new(), |h| format!(", held-out {h:.4e} m²"));
+                progress.note(&format!("lstm epoch {}: loss {loss:.5}{h}", epoch + 1));
             }
-        })?;
+        };
+        if val_w.is_empty() {
+            lstm_losses = net.train_scheduled(&train_w, lr, |e, l| note(e, l, None))?;
+        } else {
+            let (losses, held_out, best) =
+                net.train_early_stopping(&train_w, &val_w, lr, |e, l, h| note(e, l, Some(h)))?;
+            progress.note(&format!(
+                "lstm: kept epoch {best} of {} (held-out {:.4e} m², {:.4e} before training)",
+                cfg.epochs, held_out[best], held_out[0]
+            ));
+            lstm_losses = losses;
+            lstm_held_out = held_out;
+            lstm_best_epoch = Some(best);
+        }
         progress.end("lstm");
         lstm_s = t2.elapsed().as_secs_f64();
         lstm = Some(net);
@@ -365,6 +425,8 @@ pub fn fit(
         coeff_scale,
         ar_rollout_losses,
         lstm_losses,
+        lstm_held_out,
+        lstm_best_epoch,
         seconds: BTreeSummary {
             subspace_s,
             linear_s,
@@ -394,11 +456,75 @@ impl Fitted {
                 let net = self.lstm.as_ref().ok_or_else(|| {
                     Error::param("regressor", "no LSTM was trained (--regressor lstm)")
                 })?;
-                let dummy = vec![vec![0.0; self.subspace.k()]; controls.len()];
-                net.predict(&windows(&controls, &dummy, net.config.seq_len))?
+                let base = match net.config.residual_of {
+                    Some(b) => Some(base_coefficients(
+                        b,
+                        &self.linear,
+                        &self.autoregressive,
+                        self.blend.weight,
+                        &controls,
+                    )?),
+                    None => None,
+                };
+                net.predict_sequence(&controls, base.as_deref())?
             }
         })
     }
+}
+
+/// The coefficients of every frame by one of the linear regressors (not the LSTM), from the control vectors
+/// of a whole sequence: what a residual LSTM adds to.
+pub fn base_coefficients(
+    kind: RegressorKind,
+    linear: &LinearRegression,
+    autoregressive: &AutoregressiveLinear,
+    blend_weight: f64,
+    controls: &[Vec<f64>],
+) -> Result<Vec<Vec<f64>>> {
+    let lin = || controls.iter().map(|c| linear.predict(c)).collect();
+    Ok(match kind {
+        RegressorKind::Linear => lin(),
+        RegressorKind::Autoregressive => autoregressive.rollout(controls),
+        RegressorKind::Blend => {
+            crate::blend::mix(&lin(), &autoregressive.rollout(controls), blend_weight)
+        }
+        RegressorKind::Lstm => {
+            return Err(Error::param(
+                "lstm.residual_of",
+                "the LSTM cannot correct itself",
+            ))
+        }
+    })
+}
+
+/// The base regressor's predictions of every training sequence from a fit on the other original sequences
+/// (an original and its reflection, `i` and `i + n_orig`, are held out together: a reflection is no unseen
+/// motion), with the same parameters and blend weight.
+fn cross_fitted_predictions(
+    seqs: &[ControlsAndCoefficients<'_>],
+    n_orig: usize,
+    base: RegressorKind,
+    blend: &BlendSpec,
+    params: &TrainParams,
+    k: usize,
+) -> Result<Vec<Vec<Vec<f64>>>> {
+    let mut out = vec![Vec::new(); seqs.len()];
+    for g in 0..n_orig {
+        let others: Vec<ControlsAndCoefficients> = seqs
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| j % n_orig != g)
+            .map(|(_, s)| *s)
+            .collect();
+        let controls: Vec<Vec<f64>> = others.iter().flat_map(|s| s.0.iter().cloned()).collect();
+        let targets: Vec<Vec<f64>> = others.iter().flat_map(|s| s.1.iter().cloned()).collect();
+        let linear = LinearRegression::fit(&controls, &targets, params.ridge)?;
+        let (ar, _) = fit_autoregressive(&others, params, k)?;
+        for (j, s) in seqs.iter().enumerate().filter(|(j, _)| j % n_orig == g) {
+            out[j] = base_coefficients(base, &linear, &ar, blend.weight, s.0)?;
+        }
+    }
+    Ok(out)
 }
 
 /// The blend weight by an inner leave-one-out over the training sequences: each one is predicted by the linear
@@ -533,6 +659,8 @@ pub fn train(
             "frames": seqs.iter().map(|s| s.fine.len()).sum::<usize>(),
             "seconds": fitted.seconds,
             "lstm_final_loss": fitted.lstm_losses.last(),
+            "lstm_best_epoch": fitted.lstm_best_epoch,
+            "lstm_held_out_mse": [fitted.lstm_held_out.first(), fitted.lstm_best_epoch.and_then(|e| fitted.lstm_held_out.get(e))],
             "autoregressive_rollout_loss": [fitted.ar_rollout_losses.first(), fitted.ar_rollout_losses.last()],
             "mirror": fitted.mirror.as_ref().map(|r| serde_json::json!({"axis": r.axis_name(), "asymmetry_edges": r.asymmetry})),
             "cgan": cgan_summary,

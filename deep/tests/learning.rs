@@ -116,6 +116,9 @@ fn lstm_loss_falls_and_training_is_deterministic() {
         batch: 16,
         lr: 5e-3,
         seed: 7,
+        residual_of: None,
+        cross_fit: false,
+        early_stopping: false,
     };
     let data = windows(&controls, &coeffs, 3);
     let run = || {
@@ -180,6 +183,9 @@ fn lstm_shared_output_unit_learns_the_large_component() {
         batch: 16,
         lr: 5e-3,
         seed: 3,
+        residual_of: None,
+        cross_fit: false,
+        early_stopping: false,
     };
     let data = windows(&controls, &targets, 3);
     let big_rms = |scale: Vec<f64>| -> f64 {

@@ -142,6 +142,8 @@ impl DeepTrainParams {
                 batch: 32,
                 lr: self.lstm_lr,
                 seed: self.seed,
+                // Residual of the blend, cross-fitted, early stopping: as `crease deep train`.
+                ..LstmConfig::default()
             },
             resolution: self.resolution,
             uv,

@@ -1774,6 +1774,7 @@ fn register_env(mut p: RegisterParams) -> R<RegisterParams> {
     set!(node_spacing, "NODE_SPACING");
     set!(iterations, "ITERATIONS");
     set!(multi_start, "MULTI_START");
+    set!(restart_from_template, "RESTART");
     Ok(p)
 }
 

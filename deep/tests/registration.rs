@@ -94,6 +94,11 @@ fn registration_of_a_noisy_scan_of_a_small_deformation_follows_the_noise_less() 
         noise_floor: 0.0,
         ..Default::default()
     });
+    let (multi, _) = run(RegisterParams {
+        multi_start: true,
+        ..Default::default()
+    });
+    eprintln!("multi-start: {:.2} mm", multi * 1e3);
     eprintln!(
         "unregistered {:.2} mm, defaults {:.2} mm (noise σ² {noise:?} edges², floor {floor:.1}), previous schedule {:.2} mm",
         before * 1e3,

@@ -393,7 +393,7 @@ pub fn fit(
         let lr = crate::lstm::cosine_lr(cfg.lr, cfg.epochs);
         let note = |epoch: usize, loss: f64, held: Option<f64>| {
             progress.advance("lstm", 1);
-            if (epoch + 1) % 25 == 0 || epoch == 0 {
+            if (epoch + 1).is_multiple_of(25) || epoch == 0 {
                 let h = held.map_or(String::new(), |h| format!(", held-out {h:.4e} m²"));
                 progress.note(&format!("lstm epoch {}: loss {loss:.5}{h}", epoch + 1));
             }

@@ -68,7 +68,8 @@ fn registration_follows_a_bent_twisted_tube_through_holes_and_noise() {
 /// surface after them. The defaults (point-to-plane data term, floor of ω_r, ω_s tied to the scan's noise) must
 /// follow the noise much less than the previous schedule (nearest point, floor 1). Neither beats the
 /// template on this single untracked scan (measured: template 3.14 mm, defaults 5.42 mm, previous 7.61 mm);
-/// on the sleeve the defaults beat it at three of four tracked frames.
+/// on the sleeve the defaults beat it at three of four tracked frames. The acceptance test (`multi_start`)
+/// keeps the template here.
 #[test]
 fn registration_of_a_noisy_scan_of_a_small_deformation_follows_the_noise_less() {
     use std::f64::consts::PI;
@@ -98,7 +99,7 @@ fn registration_of_a_noisy_scan_of_a_small_deformation_follows_the_noise_less() 
         multi_start: true,
         ..Default::default()
     });
-    eprintln!("multi-start: {:.2} mm", multi * 1e3);
+    eprintln!("acceptance test (multi_start): {:.2} mm", multi * 1e3);
     eprintln!(
         "unregistered {:.2} mm, defaults {:.2} mm (noise σ² {noise:?} edges², floor {floor:.1}), previous schedule {:.2} mm",
         before * 1e3,
@@ -111,6 +112,14 @@ fn registration_of_a_noisy_scan_of_a_small_deformation_follows_the_noise_less() 
         "defaults {:.2} mm against the previous schedule's {:.2} mm",
         now * 1e3,
         old * 1e3
+    );
+    // The acceptance test (`multi_start`): the fit's Eq. 1 energy (measured 1135) is above the unregistered
+    // template's (1106) at the relaxed floor, so the template is kept instead of the worse fit.
+    assert!(
+        multi <= before + 1e-9,
+        "acceptance test {:.2} mm, template {:.2} mm",
+        multi * 1e3,
+        before * 1e3
     );
     assert!(
         now < 2.0 * before,

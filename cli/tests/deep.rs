@@ -561,7 +561,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
     }
     let m = std::fs::read_to_string(old.join("manifest.json"))
         .unwrap()
-        .replace("\"version\": 6", "\"version\": 99");
+        .replace("\"version\": 7", "\"version\": 99");
     std::fs::write(old.join("manifest.json"), m).unwrap();
     fails(
         &[
@@ -574,7 +574,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
             "--out",
             s(&tmp.path().join("o4")),
         ],
-        &["manifest.json", "version 99", "versions 1 to 6"],
+        &["manifest.json", "version 99", "versions 1 to 7"],
     );
 
     // A half-written model (no manifest) is not a model; a damaged file is caught by the manifest.

@@ -38,8 +38,8 @@ pub struct TaskRunArgs {
     /// `weights/w0001/slot0of4`).
     #[arg(long, conflicts_with_all = ["stage", "index"], required_unless_present = "stage")]
     task: Option<String>,
-    /// Stage of the task (fold-steps, fold-phases, fold-detect, fold-merge, fold-files, weights, reduce, position,
-    /// finalize), with --index.
+    /// Stage of the task (fold-steps, fold-phases, fold-detect, fold-settle, fold-merge, fold-files, fold-plot,
+    /// weights, reduce, position, finalize), with --index.
     #[arg(long, requires = "index")]
     stage: Option<String>,
     /// 0-based index of the task within --stage (how farms that number tasks name one).

@@ -69,13 +69,14 @@ pub fn job_summary(s: &pb::JobStatus) -> Value {
 }
 
 /// Stages of the task graph in the order they run; a kind not listed here sorts after them.
-const STAGES: [(&str, &str); 11] = [
+const STAGES: [(&str, &str); 12] = [
     ("fold-steps", "fold steps (stretch)"),
     ("fold-phases", "fold phases (stretch)"),
     ("fold-detect", "fold detection"),
     ("fold-settle", "fold temporal coherence"),
     ("fold-merge", "fold merge"),
     ("fold-files", "fold files"),
+    ("fold-plot", "fold plot (folds.png)"),
     ("weight-block", "weights (anchor blocks)"),
     ("weight-window", "weights (windows)"),
     ("reduce", "reduce"),

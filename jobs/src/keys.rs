@@ -28,6 +28,8 @@ pub const FOLD_MERGE_TASK: &str = "folds/merge";
 /// Writes the user-facing fold files (`anchors.json`, `folds/control_lines.obj`) from `anchors.bin`, beside
 /// the deformation tasks rather than before them.
 pub const FOLD_FILES_TASK: &str = "folds/files";
+/// Draws a stretch job's `folds.png` from the tracing chunks, beside the settle, merge and deformation tasks.
+pub const FOLD_PLOT_TASK: &str = "folds/plot";
 pub fn fold_steps_task(first_frame: usize) -> String {
     format!("folds/steps/f{first_frame:06}")
 }

@@ -63,7 +63,8 @@
 //! frame chunk, or one for the whole sequence, as [`FoldDetector::granularity`](crease_core::folds::FoldDetector)
 //! says) and a `fold-merge` task come first; `fold-merge` is marked `expands` and [`expand`] adds the rest once
 //! the anchor counts are known, with a `fold-files` task that writes the user-facing anchor files beside the
-//! weight tasks (finalize waits for it). Adding a detector is one match arm in [`detect::detector`].
+//! weight tasks (finalize waits for it); a stretch job's `folds.png` is drawn by a `fold-plot` task that waits
+//! only for the tracing chunks. Adding a detector is one match arm in [`detect::detector`].
 //!
 //! # Storage layout (all keys relative to the job's `output`)
 //!
@@ -71,6 +72,7 @@
 //! | --- | --- | --- |
 //! | `<input file names>` | position (OBJ/PLY frames), finalize (OBJ + PC2) | the output sequence in the input's layout |
 //! | `anchors.json`, `folds/control_lines.obj` | fold-files | detected anchors and their control lines (detection jobs only) |
+//! | `folds.png` | fold-plot | stretch jobs: the overlay frames' fold signal and anchors |
 //! | `preview.png`, `stretch.png` | finalize | before/after preview, stretch per frame and pass |
 //! | `export/<job name>.glb`, `.usda`, `.mdd`, `.pc2` | finalize | the `[export]` formats ([`export_spec`]) |
 //! | `report.json` | finalize, **last** | `"complete": true`, parameters, per-window stats, stretch, timings |

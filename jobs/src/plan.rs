@@ -6,6 +6,7 @@
 //!                                                                      │    settle: see `settle_tasks`)
 //!                                                                      ▼ expand
 //!   fold-files (anchors.json, control lines) ─────────────────────────────────────────────► finalize
+//!   fold-plot (stretch: folds.png, from the tracing chunks, planned with them) ────────────► finalize
 //!   weight-block (window, anchor block) ─► reduce (window) ─┐          (per-anchor mode)
 //!   weight-window (window) ─────────────────────────────────┤          (fused mode)
 //!                                                           ▼
@@ -119,19 +120,30 @@ pub fn expand(
         )));
     }
     let merge = [keys::FOLD_MERGE_TASK.to_string()];
-    // First in the list, so that a worker left free by the first weight tasks picks it up at once.
-    let mut tasks = vec![TaskDef {
-        key: keys::FOLD_FILES_TASK.to_string(),
-        spec: TaskSpec::FoldFiles { job: job.clone() },
-        deps: merge.to_vec(),
-        expands: false,
-    }];
-    tasks.extend(deformation_tasks(job, info.n_frames, &counts, &merge));
+    let mut tasks = deformation_tasks(job, info.n_frames, &counts, &merge);
+    // Second in the list (the coordinator dispatches ready tasks in list order): the first weight task, which
+    // starts the chain every positioning task waits on, goes to the first free worker, and `fold-files` to
+    // the next one at once rather than after all the weight tasks.
+    tasks.insert(
+        1.min(tasks.len()),
+        TaskDef {
+            key: keys::FOLD_FILES_TASK.to_string(),
+            spec: TaskSpec::FoldFiles { job: job.clone() },
+            deps: merge.to_vec(),
+            expands: false,
+        },
+    );
+    // A stretch job's `fold-plot` (planned with the detection tasks) is waited for by finalize only.
+    let plot = matches!(job.folds, crate::spec::FoldSpec::Stretch { .. })
+        && crate::stretch_tasks::draws_plot(job, info.n_frames);
     if let Some(finalize) = tasks
         .iter_mut()
         .find(|t| matches!(t.spec, TaskSpec::Finalize { .. }))
     {
         finalize.deps.push(keys::FOLD_FILES_TASK.to_string());
+        if plot {
+            finalize.deps.push(keys::FOLD_PLOT_TASK.to_string());
+        }
     }
     Ok(tasks)
 }
@@ -182,6 +194,12 @@ pub fn blocks_per_window(job: &JobSpec, counts: &[usize]) -> Vec<usize> {
 }
 
 /// Weights, reduce, positioning and finalize tasks, each also depending on `extra_deps`.
+///
+/// Listed window by window, each positioning chunk right after the last window it needs: the coordinator
+/// dispatches ready tasks in list order, so a chunk whose fields are done runs beside the next windows' weight
+/// tasks instead of waiting behind all of them, and the job does not end with every positioning chunk at once
+/// (a tail where a lone chunk leaves workers idle). The tasks and their dependencies are the same in any
+/// order, and so are the outputs.
 fn deformation_tasks(
     job: &JobSpec,
     n: usize,
@@ -190,14 +208,14 @@ fn deformation_tasks(
 ) -> Vec<TaskDef> {
     let params = job.params();
     let windows = job_windows(job, n);
-    let mut tasks = Vec::new();
-    // Key of the task that produces each window's field.
+    // Each window's weight tasks (its field task last) and the key of the task that produces its field.
+    let mut window_tasks: Vec<Vec<TaskDef>> = Vec::with_capacity(windows.len());
     let mut field_task = Vec::with_capacity(windows.len());
     match params.mode {
         WeightMode::Fused => {
             for k in 0..windows.len() {
                 let key = keys::weight_window_task(k);
-                tasks.push(TaskDef {
+                window_tasks.push(vec![TaskDef {
                     key: key.clone(),
                     spec: TaskSpec::WeightWindow {
                         job: job.clone(),
@@ -205,17 +223,16 @@ fn deformation_tasks(
                     },
                     deps: extra_deps.to_vec(),
                     expands: false,
-                });
+                }]);
                 field_task.push(key);
             }
         }
         WeightMode::PerAnchor => {
             for (k, &blocks) in blocks_per_window(job, counts).iter().enumerate() {
-                let mut block_keys = Vec::with_capacity(blocks);
+                let mut tasks = Vec::with_capacity(blocks + 1);
                 for b in 0..blocks {
-                    let key = keys::weight_block_task(k, b);
                     tasks.push(TaskDef {
-                        key: key.clone(),
+                        key: keys::weight_block_task(k, b),
                         spec: TaskSpec::WeightBlock {
                             job: job.clone(),
                             window: k,
@@ -224,11 +241,10 @@ fn deformation_tasks(
                         deps: extra_deps.to_vec(),
                         expands: false,
                     });
-                    block_keys.push(key);
                 }
                 let key = keys::reduce_task(k);
                 let mut deps = extra_deps.to_vec();
-                deps.extend(block_keys);
+                deps.extend(tasks.iter().map(|t| t.key.clone()));
                 tasks.push(TaskDef {
                     key: key.clone(),
                     spec: TaskSpec::Reduce {
@@ -238,20 +254,27 @@ fn deformation_tasks(
                     deps,
                     expands: false,
                 });
+                window_tasks.push(tasks);
                 field_task.push(key);
             }
         }
     }
+    // Positioning chunks, grouped by the last window they need (windows are in frame order, so the groups are
+    // too, and the chunks stay in frame order overall).
+    let mut after_window: Vec<Vec<TaskDef>> = vec![Vec::new(); windows.len()];
+    let mut unplaced = Vec::new();
     let mut position_keys = Vec::new();
     for r in chunk_ranges(n, job.partition.frames_per_chunk) {
         let key = keys::position_task(r.start);
         let mut deps = extra_deps.to_vec();
+        let mut last = None;
         for (k, w) in windows.iter().enumerate() {
             if w.start < r.end && r.start < w.end() {
                 deps.push(field_task[k].clone());
+                last = Some(k);
             }
         }
-        tasks.push(TaskDef {
+        let task = TaskDef {
             key: key.clone(),
             spec: TaskSpec::Position {
                 job: job.clone(),
@@ -259,9 +282,19 @@ fn deformation_tasks(
             },
             deps,
             expands: false,
-        });
+        };
+        match last {
+            Some(k) => after_window[k].push(task),
+            None => unplaced.push(task),
+        }
         position_keys.push(key);
     }
+    let mut tasks = Vec::new();
+    for (weights, positions) in window_tasks.into_iter().zip(after_window) {
+        tasks.extend(weights);
+        tasks.extend(positions);
+    }
+    tasks.extend(unplaced);
     let mut deps = extra_deps.to_vec();
     deps.extend(position_keys);
     tasks.push(TaskDef {

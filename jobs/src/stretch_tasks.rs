@@ -5,6 +5,7 @@
 //! ```text
 //!   fold-steps (4·k frames each) ─► fold-phases ─► fold-detect (tracing, k frames each)
 //!       ─► fold-settle (k frames each) ─► fold-merge
+//!       ─► fold-plot (folds.png; only finalize waits for it)
 //! ```
 //!
 //! Tracing dominates (it flattens a patch per seed), so the chunk size `k` is set from the triangle count for
@@ -99,10 +100,28 @@ pub fn tasks(job: &JobSpec, info: &InputInfo) -> Vec<TaskDef> {
         deps: trace.iter().chain(&settle).map(|t| t.key.clone()).collect(),
         expands: true,
     };
+    // `folds.png` needs only the tracing chunks (and the phase codes before them). Listed after the settle
+    // ranges and the merge, so that a free worker takes a settle range first (the coordinator dispatches ready
+    // tasks in list order): the settle ranges and the merge are on the chain every deformation task waits on,
+    // the drawing is not (only finalize waits for it).
+    let plot = draws_plot(job, n).then(|| TaskDef {
+        key: keys::FOLD_PLOT_TASK.to_string(),
+        spec: TaskSpec::FoldPlot { job: job.clone() },
+        deps: trace.iter().map(|t| t.key.clone()).collect(),
+        expands: false,
+    });
     tasks.extend(trace);
     tasks.extend(settle);
     tasks.push(merge);
+    tasks.extend(plot);
     tasks
+}
+
+/// Whether a stretch job over `n_frames` frames draws `folds.png` (and so has a `fold-plot` task): it has
+/// frames to show at a nonzero size (a valid job always has; the planner and the task ask the same question).
+pub fn draws_plot(job: &JobSpec, n_frames: usize) -> bool {
+    crate::detect::stretch_detector(job, n_frames)
+        .is_some_and(|d| d.overlay_size > 0 && !d.overlay_frames.is_empty())
 }
 
 /// Triangles of the mesh the detector traces: the input's (subdivision multiplies by 4 per level).

@@ -31,6 +31,10 @@ pub enum TaskSpec {
     /// task needs them, so they are written beside the weight tasks, off the job's critical path; finalize
     /// (and with it `report.json`) waits for them.
     FoldFiles { job: JobSpec },
+    /// Stretch detector: draw `folds.png` (the overlay frames' fold signal) from the tracing chunks and phase
+    /// codes. It needs neither the settled anchors nor `anchors.bin`, so it runs beside the settle, merge and
+    /// deformation tasks; only finalize waits for it.
+    FoldPlot { job: JobSpec },
     /// Per-anchor mode: the anchor columns of block `block` of window `window` → partial blend.
     WeightBlock {
         job: JobSpec,
@@ -63,6 +67,7 @@ impl TaskSpec {
             TaskSpec::FoldSettle { .. } => "fold-settle",
             TaskSpec::FoldMerge { .. } => "fold-merge",
             TaskSpec::FoldFiles { .. } => "fold-files",
+            TaskSpec::FoldPlot { .. } => "fold-plot",
             TaskSpec::WeightBlock { .. } => "weight-block",
             TaskSpec::WeightWindow { .. } => "weight-window",
             TaskSpec::Reduce { .. } => "reduce",
@@ -83,6 +88,7 @@ impl TaskSpec {
             | TaskSpec::FoldSettle { job, .. }
             | TaskSpec::FoldMerge { job }
             | TaskSpec::FoldFiles { job }
+            | TaskSpec::FoldPlot { job }
             | TaskSpec::WeightBlock { job, .. }
             | TaskSpec::WeightWindow { job, .. }
             | TaskSpec::Reduce { job, .. }

@@ -248,6 +248,10 @@ async fn cancellation_and_malformed_tasks() {
             },
             "no settle tasks",
         ),
+        (
+            TaskSpec::FoldPlot { job: spec.clone() },
+            "no stretch detection tasks",
+        ),
     ] {
         let err = execute(&task, &ctx).await.unwrap_err();
         assert!(!err.retryable() && err.reason.contains(needle), "{err:?}");

@@ -132,6 +132,7 @@ fn farm_graph_mirrors_the_planner_and_slots_cover_detected_blocks() {
             "fold-settle",
             "fold-merge",
             "fold-files",
+            "fold-plot",
             "weights",
             "reduce",
             "position",
@@ -168,9 +169,19 @@ fn farm_graph_mirrors_the_planner_and_slots_cover_detected_blocks() {
         g.stage(Stage::FoldFiles).unwrap().depends_on,
         [Stage::FoldMerge]
     );
+    // folds.png needs only the tracing chunks; only finalize waits for it.
+    assert_eq!(
+        g.stage(Stage::FoldPlot).unwrap().depends_on,
+        [Stage::FoldDetect]
+    );
     assert_eq!(
         g.stage(Stage::Finalize).unwrap().depends_on,
-        [Stage::FoldMerge, Stage::FoldFiles, Stage::Position]
+        [
+            Stage::FoldMerge,
+            Stage::FoldFiles,
+            Stage::FoldPlot,
+            Stage::Position
+        ]
     );
     let reduce1 = &g.stage(Stage::Reduce).unwrap().tasks[1];
     assert_eq!(reduce1.key, "reduce/w0001");

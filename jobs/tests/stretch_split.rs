@@ -161,6 +161,30 @@ async fn split_is_single(seed_memory: bool) {
                 assert_eq!(t.deps, [crease_jobs::keys::FOLD_MERGE_TASK]);
             }
         }
+        // `folds.png` is drawn by its own task from the tracing chunks alone (not the settled anchors, not
+        // the merge), and only finalize waits for it; the random task orders above run it before, between and
+        // after the settle ranges and the merge, and it is still the single detector's (checked below).
+        assert_eq!(count(|t| matches!(t, TaskSpec::FoldPlot { .. })), 1);
+        let tracing: Vec<&str> = run
+            .tasks
+            .iter()
+            .filter(|t| matches!(t.spec, TaskSpec::FoldDetect { .. }))
+            .map(|t| t.key.as_str())
+            .collect();
+        for t in &run.tasks {
+            let waits = t
+                .deps
+                .iter()
+                .any(|d| d == crease_jobs::keys::FOLD_PLOT_TASK);
+            let is_finalize = matches!(t.spec, TaskSpec::Finalize { .. });
+            assert_eq!(waits, is_finalize, "{partition}: {} and fold-plot", t.key);
+            if matches!(t.spec, TaskSpec::FoldPlot { .. }) {
+                assert_eq!(
+                    t.deps, tracing,
+                    "{partition}: fold-plot waits for tracing only"
+                );
+            }
+        }
         let out = root.join(format!("out{i}"));
         let t = tree(&out);
         assert!(

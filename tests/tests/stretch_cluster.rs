@@ -58,6 +58,7 @@ fn split_stretch_detection_on_two_workers_matches_crease_run() {
         "step chunks of at most half the sequence: {kinds:?}"
     );
     assert_eq!(kinds.get("fold-files"), Some(&1), "{kinds:?}");
+    assert_eq!(kinds.get("fold-plot"), Some(&1), "{kinds:?}");
     assert_eq!(kinds.get("fold-phases"), Some(&1), "{kinds:?}");
     assert_eq!(
         kinds.get("fold-detect"),

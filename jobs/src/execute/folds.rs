@@ -2,7 +2,8 @@
 //! a frame chunk (or the whole sequence), stores its anchors and writes the inspection files the detector drew
 //! for those frames (overlays); `merge` assembles the anchors into their binary form (`anchors.bin`, which the
 //! later tasks read and whose per-frame anchor counts let the planner size the weight blocks); `files` writes
-//! the user-facing `anchors.json` and `folds/control_lines.obj` from it (and a stretch job's `folds.png`).
+//! the user-facing `anchors.json` and `folds/control_lines.obj` from it (a stretch job's `folds.png` has its
+//! own `fold-plot` task, [`super::stretch::plot`], which needs only the tracing chunks).
 //! The temporal coherence between them runs in `fold-settle` tasks ([`crate::settle_tasks`]).
 //!
 //! Why two tasks: `merge` is on every detection job's critical path (all deformation tasks wait for it), and
@@ -184,14 +185,7 @@ pub fn files(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     env.put(keys::ANCHORS, anchors_json(&stored))?;
     // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
     env.put(keys::CONTROL_LINES, set.control_lines_obj())?;
-    let mut written = vec![keys::ANCHORS.to_string(), keys::CONTROL_LINES.to_string()];
-    drop(set);
-    if matches!(env.job.folds, FoldSpec::Stretch { .. }) {
-        for a in super::stretch::folds_png(env, &opened)? {
-            env.put(&a.key, a.bytes)?;
-            written.push(a.key);
-        }
-    }
+    let written = vec![keys::ANCHORS.to_string(), keys::CONTROL_LINES.to_string()];
     Ok((json!({ "anchors": total }), written))
 }
 

@@ -92,6 +92,7 @@ fn run_kind(
         TaskSpec::FoldSettle { frames, .. } => settle::settle(&env, frames.clone())?,
         TaskSpec::FoldMerge { .. } => folds::merge(&env)?,
         TaskSpec::FoldFiles { .. } => folds::files(&env)?,
+        TaskSpec::FoldPlot { .. } => stretch::plot(&env)?,
         TaskSpec::WeightWindow { window, .. } => weights::fused_window(&env, *window)?,
         TaskSpec::WeightBlock { window, block, .. } => {
             weights::anchor_block(&env, *window, *block)?

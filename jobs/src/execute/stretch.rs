@@ -267,8 +267,8 @@ fn reconciled(
 }
 
 /// What `fold-merge` needs of a stretch job: the settled frames, the per-frame report lines and how many frames
-/// the reconcile traced again. (`folds.png` is drawn by `fold-files`, off the job's critical path:
-/// [`folds_png`].)
+/// the reconcile traced again. (`folds.png` is drawn by its own `fold-plot` task, off the job's critical
+/// path: [`plot`].)
 pub struct Gathered {
     pub frames: Vec<FrameAnchors>,
     pub per_frame: Vec<Value>,
@@ -315,9 +315,21 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
     })
 }
 
+/// A `fold-plot` task: `folds.png` of a stretch job (see [`folds_png`]), stored under its final key.
+pub fn plot(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
+    let opened = env.open_input()?;
+    let mut written = Vec::new();
+    for a in folds_png(env, &opened)? {
+        env.put(&a.key, a.bytes)?;
+        written.push(a.key);
+    }
+    Ok((json!({ "images": written.len() }), written))
+}
+
 /// `folds.png` of a stretch job (empty when it draws none): the overlay frames' fold signal and anchors as the
-/// whole-sequence detector drew them. Written by `fold-files`: no task reads it, so it need not lengthen the
-/// chain every deformation task waits on, as it did in `fold-merge`.
+/// whole-sequence detector drew them. It needs only the tracing chunks (reconciled, as the merge reconciles
+/// them) and the phase codes, not the settled anchors: its own `fold-plot` task runs beside the settle ranges,
+/// the merge and the deformation, off the chain every deformation task waits on.
 pub fn folds_png(env: &TaskEnv, opened: &OpenedSequence) -> Result<Vec<Artifact>, TaskError> {
     let mut lap = Lap::start();
     let (n, nt) = traced_size(opened);
@@ -346,6 +358,6 @@ pub fn folds_png(env: &TaskEnv, opened: &OpenedSequence) -> Result<Vec<Artifact>
         Ok(det.finish(source, Vec::new(), &shown)?.1)
     });
     let artifacts = carry.finish(label, r)?;
-    lap.lap("fold-files: overlay frames' signals, folds.png");
+    lap.lap("fold-plot: overlay frames' signals, folds.png");
     Ok(artifacts)
 }

@@ -21,13 +21,14 @@ use serde_json::json;
 pub const DEFAULT_BLOCK_SLOTS: usize = 4;
 
 /// The stages, in graph order. Names are the farm's step names.
-pub const STAGES: [Stage; 10] = [
+pub const STAGES: [Stage; 11] = [
     Stage::FoldSteps,
     Stage::FoldPhases,
     Stage::FoldDetect,
     Stage::FoldSettle,
     Stage::FoldMerge,
     Stage::FoldFiles,
+    Stage::FoldPlot,
     Stage::Weights,
     Stage::Reduce,
     Stage::Position,
@@ -46,6 +47,8 @@ pub enum Stage {
     FoldMerge,
     /// The user-facing anchor files (one task, beside the weights; finalize waits for it).
     FoldFiles,
+    /// Stretch detector: `folds.png` from the tracing chunks (one task; only finalize waits for it).
+    FoldPlot,
     Weights,
     Reduce,
     Position,
@@ -62,6 +65,7 @@ impl Stage {
             Stage::FoldSettle => "fold-settle",
             Stage::FoldMerge => "fold-merge",
             Stage::FoldFiles => "fold-files",
+            Stage::FoldPlot => "fold-plot",
             Stage::Weights => "weights",
             Stage::Reduce => "reduce",
             Stage::Position => "position",
@@ -78,6 +82,7 @@ impl Stage {
             Stage::FoldSettle => "FoldSettle",
             Stage::FoldMerge => "FoldMerge",
             Stage::FoldFiles => "FoldFiles",
+            Stage::FoldPlot => "FoldPlot",
             Stage::Weights => "Weights",
             Stage::Reduce => "Reduce",
             Stage::Position => "Position",
@@ -99,6 +104,7 @@ impl Stage {
             TaskSpec::FoldSettle { .. } => Stage::FoldSettle,
             TaskSpec::FoldMerge { .. } => Stage::FoldMerge,
             TaskSpec::FoldFiles { .. } => Stage::FoldFiles,
+            TaskSpec::FoldPlot { .. } => Stage::FoldPlot,
             TaskSpec::WeightBlock { .. } | TaskSpec::WeightWindow { .. } => Stage::Weights,
             TaskSpec::Reduce { .. } => Stage::Reduce,
             TaskSpec::Position { .. } => Stage::Position,

@@ -9,43 +9,58 @@
 use super::trace::TracedFold;
 use crate::folds::Anchor;
 use crate::mesh::subdivide::Subdivision;
-use crate::vec3::{self, V3};
-use std::collections::BTreeMap;
+use crate::vec3;
 
 /// The anchors of `folds`, on the traced mesh (`sub` = `None`) or on its subdivision. A triangle crossed by
 /// several folds keeps the first fold's anchor (folds in tracing order, strongest first); several samples of one
 /// fold on one triangle are averaged, so the anchor does not depend on the order the lines were walked in.
 /// Sorted by triangle.
+///
+/// Per fold, its samples are sorted by (triangle, sample order) and summed triangle by triangle in sample
+/// order; which triangles earlier folds took is a flag per triangle. This runs once per frame on the sequential
+/// path after the seeds, so it avoids the ordered maps (one node per anchor) it was first written with; the
+/// sums are the same additions in the same order.
 pub fn anchors(folds: &[TracedFold], sub: Option<&Subdivision>) -> Vec<Anchor> {
-    let mut out: BTreeMap<u32, Anchor> = BTreeMap::new();
+    let mut out: Vec<Anchor> = Vec::new();
+    let mut taken: Vec<bool> = Vec::new();
+    // (triangle, index of the sample in its fold) of the fold at hand.
+    let mut mine: Vec<(u32, u32)> = Vec::new();
     for fold in folds {
-        let mut mine: BTreeMap<u32, (V3, f64, usize)> = BTreeMap::new();
-        for s in &fold.samples {
+        mine.clear();
+        for (k, s) in fold.samples.iter().enumerate() {
             let triangle = match sub {
                 None => s.triangle,
                 Some(sub) => sub.locate(s.triangle as usize, s.bary).0 as u32,
             };
-            if out.contains_key(&triangle) {
+            if taken.get(triangle as usize).copied().unwrap_or(false) {
                 continue;
             }
-            let e = mine.entry(triangle).or_insert(([0.0; 3], 0.0, 0));
-            e.0 = vec3::add(e.0, s.axis);
-            e.1 += s.angle;
-            e.2 += 1;
+            mine.push((triangle, k as u32));
         }
-        for (triangle, (axis, angle, n)) in mine {
+        mine.sort_unstable();
+        for group in mine.chunk_by(|a, b| a.0 == b.0) {
+            let triangle = group[0].0;
+            let (mut axis, mut angle) = ([0.0; 3], 0.0);
+            for &(_, k) in group {
+                let s = &fold.samples[k as usize];
+                axis = vec3::add(axis, s.axis);
+                angle += s.angle;
+            }
             let len = vec3::norm(axis);
             if len > 1e-12 {
-                out.insert(
+                if taken.len() <= triangle as usize {
+                    taken.resize(triangle as usize + 1, false);
+                }
+                taken[triangle as usize] = true;
+                out.push(Anchor {
                     triangle,
-                    Anchor {
-                        triangle,
-                        axis: vec3::scale(axis, 1.0 / len),
-                        angle: angle / n as f64,
-                    },
-                );
+                    axis: vec3::scale(axis, 1.0 / len),
+                    angle: angle / group.len() as f64,
+                });
             }
         }
     }
-    out.into_values().collect()
+    // Unique: a triangle is taken by one fold at most.
+    out.sort_unstable_by_key(|a| a.triangle);
+    out
 }

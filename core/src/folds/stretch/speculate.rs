@@ -18,7 +18,6 @@ use super::trace::{FrameField, SeedWork, TracedFold};
 use crate::mesh::Topology;
 use crate::vec3::{self, V3};
 use rayon::prelude::*;
-use std::cmp::Reverse;
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
 
@@ -26,8 +25,23 @@ use std::sync::{Arc, Mutex};
 /// patch, or an axis too short).
 pub(super) type Outcome = Option<(TracedFold, Vec<u32>)>;
 
-/// Queue entry: (seed of the previous frame, priority, triangle), largest first.
-pub(super) type Entry = (bool, u64, Reverse<u32>);
+/// Queue entry: (seed of the previous frame, priority, `Reverse(triangle)`) packed into one integer, so that
+/// the frame's queue sorts by plain integer comparisons (the tuple's three-way comparisons were a twentieth of
+/// tracing at 25K triangles): the flag in bit 96, the priority in bits 32..96 and `u32::MAX − triangle` below,
+/// which orders exactly as the tuple does. Largest first.
+pub(super) type Entry = u128;
+
+/// The queue entry of `triangle` (see [`Entry`]).
+#[inline]
+pub(super) fn entry(memory: bool, priority: u64, triangle: u32) -> Entry {
+    ((memory as u128) << 96) | ((priority as u128) << 32) | (u32::MAX - triangle) as u128
+}
+
+/// The triangle of a queue entry.
+#[inline]
+fn entry_triangle(e: Entry) -> u32 {
+    u32::MAX - e as u32
+}
 
 /// Queue entries looked at past the next seed when choosing seeds to trace ahead.
 const LOOKAHEAD: usize = 64;
@@ -128,7 +142,7 @@ impl SeedQueue {
         loop {
             let s = match self.ahead.pop_front() {
                 Some(s) => s,
-                None => self.order.next()?.2 .0,
+                None => entry_triangle(self.order.next()?),
             };
             if !consumed[s as usize] {
                 return Some(s as usize);
@@ -157,7 +171,7 @@ impl SeedQueue {
         if self.batch > 1 {
             while self.ahead.len() < LOOKAHEAD {
                 let Some(e) = self.order.next() else { break };
-                self.ahead.push_back(e.2 .0);
+                self.ahead.push_back(entry_triangle(e));
             }
             // A seed's fold stays within its patch; a candidate closer than that to a seed before it that may
             // still give a fold (passed over, or traced ahead already) is left for its turn.

@@ -25,7 +25,7 @@
 use super::lscm::lscm_with;
 use super::params::{Flattening, StretchParams};
 use super::smooth::FrameGeometry;
-use super::speculate::{Entry, Outcome, SeedPool, SeedQueue};
+use super::speculate::{entry, Entry, Outcome, SeedPool, SeedQueue};
 use super::symbolic::SymbolicCache;
 use super::tensor::shape;
 use super::unfold::{PatchRef, Unfolder};
@@ -225,13 +225,7 @@ impl FoldTracer {
             .with_min_len(4096)
             .enumerate()
             .filter(|(_, &s)| s >= seed_min && s.is_finite())
-            .map(|(t, &s)| {
-                (
-                    params.seed_memory && prev_seed[t],
-                    seed_priority(s),
-                    std::cmp::Reverse(t as u32),
-                )
-            })
+            .map(|(t, &s)| entry(params.seed_memory && prev_seed[t], seed_priority(s), t as u32))
             .collect();
         // Largest first: the order a max-heap pops them in (the entries are distinct, one per triangle), for
         // one sort instead of a heap operation per seed on the sequential path.
@@ -359,6 +353,7 @@ impl SeedWork {
                 .unfold(
                     &PatchRef {
                         topo,
+                        n_tris: tris.len(),
                         p: f.p,
                         tri_local: &self.tri_local,
                         vert_local: &self.vert_local,

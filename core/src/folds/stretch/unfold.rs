@@ -325,6 +325,159 @@ mod tests {
         assert!(worst > 0.0, "a curved patch cannot be exact");
     }
 
+    /// Unfolding as first written, deciding placeability from the corners' states every time (what the
+    /// placed-corner counters replace): [`Unfolder::unfold`] must give its layouts bit for bit.
+    fn unfold_by_states(patch: &PatchRef, seed: usize) -> Option<Vec<[f64; 2]>> {
+        let PatchRef {
+            topo,
+            p,
+            tri_local,
+            vert_local,
+            verts,
+            ..
+        } = *patch;
+        let local = |v: u32| vert_local[v as usize] as usize;
+        let mut uv = vec![[0.0f64; 2]; verts.len()];
+        let mut state = vec![0u8; verts.len()];
+        let mut front = BinaryHeap::new();
+        let tri = topo.triangles()[seed];
+        let mut sorted = tri;
+        sorted.sort_unstable();
+        let [a, b, c] = sorted;
+        let ab = vec3::norm(vec3::sub(p[b as usize], p[a as usize]));
+        if !(ab > 0.0 && ab.is_finite()) {
+            return None;
+        }
+        uv[local(b)] = [ab, 0.0];
+        state[local(a)] = PLACED;
+        state[local(b)] = PLACED;
+        uv[local(c)] = place_beside(p, |v| uv[local(v)], tri, c)?;
+        if uv[local(c)][1] == 0.0 {
+            return None;
+        }
+        state[local(c)] = PLACED;
+        let c0 = vec3::scale(
+            vec3::add(vec3::add(p[a as usize], p[b as usize]), p[c as usize]),
+            1.0 / 3.0,
+        );
+        let key = |v: u32| {
+            let d = vec3::sub(p[v as usize], c0);
+            vec3::dot(d, d).to_bits()
+        };
+        let enqueue = |state: &mut Vec<u8>, front: &mut BinaryHeap<_>, v: u32| {
+            for &t in topo.vertex_triangles(v as usize) {
+                if tri_local[t as usize] == NONE {
+                    continue;
+                }
+                let tri = topo.triangles()[t as usize];
+                let mut open = tri.iter().filter(|&&w| state[local(w)] != PLACED);
+                if let (Some(&r), None) = (open.next(), open.next()) {
+                    if state[local(r)] == 0 {
+                        state[local(r)] = QUEUED;
+                        front.push(Reverse((key(r), r)));
+                    }
+                }
+            }
+        };
+        for v in sorted {
+            enqueue(&mut state, &mut front, v);
+        }
+        while let Some(Reverse((_, r))) = front.pop() {
+            let lr = local(r);
+            let (mut sum, mut count) = ([0.0f64; 2], 0usize);
+            let mut fallback = None;
+            for &t in topo.vertex_triangles(r as usize) {
+                if tri_local[t as usize] == NONE {
+                    continue;
+                }
+                let tri = topo.triangles()[t as usize];
+                if tri.iter().any(|&v| v != r && state[local(v)] != PLACED) {
+                    continue;
+                }
+                match place_beside(p, |v| uv[local(v)], tri, r) {
+                    Some(q) => {
+                        sum = [sum[0] + q[0], sum[1] + q[1]];
+                        count += 1;
+                    }
+                    None => {
+                        let k = tri.iter().position(|&v| v == r).unwrap_or(0);
+                        let (i, j) = (uv[local(tri[(k + 1) % 3])], uv[local(tri[(k + 2) % 3])]);
+                        fallback.get_or_insert([0.5 * (i[0] + j[0]), 0.5 * (i[1] + j[1])]);
+                    }
+                }
+            }
+            uv[lr] = if count > 0 {
+                [sum[0] / count as f64, sum[1] / count as f64]
+            } else {
+                fallback?
+            };
+            state[lr] = PLACED;
+            enqueue(&mut state, &mut front, r);
+        }
+        state.iter().all(|&s| s == PLACED).then_some(uv)
+    }
+
+    /// Patches of a compressed tube (disc-shaped, as tracing cuts them, so their rims have triangles with one
+    /// corner outside) and the whole mesh: the counted unfolding gives the state-checking one's layout, bit for
+    /// bit, with one scratch reused from patch to patch.
+    #[test]
+    fn counted_corners_unfold_as_the_state_checks() {
+        let seq = crate::synth::compressed_tube(3000, 3, 0.3, -1.0).unwrap();
+        let topo = &seq.topology;
+        let p = &seq.frames[2];
+        let mut unfolder = Unfolder::default();
+        let h = crate::folds::stretch::mean_edge_length(topo, p);
+        let mut laid_out = 0;
+        for seed in (0..topo.n_triangles()).step_by(97) {
+            let centre = topo.triangles()[seed].map(|v| p[v as usize]);
+            let centre = vec3::scale(
+                vec3::add(vec3::add(centre[0], centre[1]), centre[2]),
+                1.0 / 3.0,
+            );
+            for radius in [2.5 * h, 8.0 * h, f64::INFINITY] {
+                // The triangles with a corner within `radius` of the seed's centroid (and the seed).
+                let mut tri_local = vec![NONE; topo.n_triangles()];
+                let mut vert_local = vec![NONE; topo.n_vertices()];
+                let (mut n_tris, mut verts) = (0u32, Vec::new());
+                for (t, tri) in topo.triangles().iter().enumerate() {
+                    let near = tri
+                        .iter()
+                        .any(|&v| vec3::norm(vec3::sub(p[v as usize], centre)) <= radius);
+                    if t != seed && !near {
+                        continue;
+                    }
+                    tri_local[t] = n_tris;
+                    n_tris += 1;
+                    for &v in tri {
+                        if vert_local[v as usize] == NONE {
+                            vert_local[v as usize] = verts.len() as u32;
+                            verts.push(v);
+                        }
+                    }
+                }
+                let patch = PatchRef {
+                    topo,
+                    n_tris: n_tris as usize,
+                    p,
+                    tri_local: &tri_local,
+                    vert_local: &vert_local,
+                    verts: &verts,
+                };
+                let want = unfold_by_states(&patch, seed);
+                let got = unfolder.unfold(&patch, seed);
+                assert_eq!(
+                    got.as_ref()
+                        .map(|uv| uv.iter().map(|q| q.map(f64::to_bits)).collect::<Vec<_>>()),
+                    want.as_ref()
+                        .map(|uv| uv.iter().map(|q| q.map(f64::to_bits)).collect::<Vec<_>>()),
+                    "seed {seed}, radius {radius}"
+                );
+                laid_out += got.is_some() as usize;
+            }
+        }
+        assert!(laid_out > 60, "{laid_out}");
+    }
+
     /// A degenerate seed triangle gives no layout (tracing then skips the seed, as for a failed LSCM).
     #[test]
     fn degenerate_seed_gives_nothing() {

@@ -18,7 +18,6 @@ use super::trace::{FrameField, SeedWork, TracedFold};
 use crate::mesh::Topology;
 use crate::vec3::{self, V3};
 use rayon::prelude::*;
-use std::cmp::Reverse;
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
 
@@ -26,11 +25,48 @@ use std::sync::{Arc, Mutex};
 /// patch, or an axis too short).
 pub(super) type Outcome = Option<(TracedFold, Vec<u32>)>;
 
-/// Queue entry: (seed of the previous frame, priority, triangle), largest first.
-pub(super) type Entry = (bool, u64, Reverse<u32>);
+/// Queue entry: (seed of the previous frame, priority, `Reverse(triangle)`) packed into one integer, so that
+/// the frame's queue sorts by plain integer comparisons (the tuple's three-way comparisons were a twentieth of
+/// tracing at 25K triangles): the flag in bit 96, the priority in bits 32..96 and `u32::MAX − triangle` below,
+/// which orders exactly as the tuple does. Largest first.
+pub(super) type Entry = u128;
 
-/// Queue entries looked at past the next seed when choosing seeds to trace ahead.
+/// The queue entry of `triangle` (see [`Entry`]).
+#[inline]
+pub(super) fn entry(memory: bool, priority: u64, triangle: u32) -> Entry {
+    ((memory as u128) << 96) | ((priority as u128) << 32) | (u32::MAX - triangle) as u128
+}
+
+/// The triangle of a queue entry.
+#[inline]
+fn entry_triangle(e: Entry) -> u32 {
+    u32::MAX - e as u32
+}
+
+/// Queue entries looked at past the next seed when choosing seeds to trace ahead, and seeds traced together
+/// per thread. They decide only how much is traced ahead (and so how busy the threads are), never the
+/// result. `CREASE_TRACE_LOOKAHEAD` and `CREASE_TRACE_BATCH` (per thread) override them, read once, for
+/// measuring other settings with the same binary (`crease bench --stretch-folds-only`).
 const LOOKAHEAD: usize = 64;
+const BATCH_PER_THREAD: usize = 2;
+
+/// The look-ahead and the seeds per thread and batch in use (see [`LOOKAHEAD`]).
+fn tuning() -> (usize, usize) {
+    static TUNING: std::sync::OnceLock<(usize, usize)> = std::sync::OnceLock::new();
+    *TUNING.get_or_init(|| {
+        let read = |name: &str, default: usize| {
+            std::env::var(name)
+                .ok()
+                .and_then(|v| v.trim().parse::<usize>().ok())
+                .filter(|&v| (1..=4096).contains(&v))
+                .unwrap_or(default)
+        };
+        (
+            read("CREASE_TRACE_LOOKAHEAD", LOOKAHEAD),
+            read("CREASE_TRACE_BATCH", BATCH_PER_THREAD),
+        )
+    })
+}
 
 /// Patch patterns whose symbolic factorisation is kept ([`SymbolicCache`]), per generation.
 const PATTERNS_PER_GENERATION: usize = 1024;
@@ -104,6 +140,8 @@ pub(super) struct SeedQueue {
     ready: HashMap<u32, Outcome>,
     /// Seeds traced together: 1 traces one seed at a time (no look-ahead).
     batch: usize,
+    /// Queue entries looked at when choosing seeds to trace ahead.
+    lookahead: usize,
     /// Seeds traced ahead of their turn, and those of them discarded because their seed was consumed first.
     pub traced_ahead: usize,
     pub wasted: usize,
@@ -117,7 +155,8 @@ impl SeedQueue {
             order: order.into_iter(),
             ahead: VecDeque::new(),
             ready: HashMap::new(),
-            batch: if threads > 1 { 2 * threads } else { 1 },
+            batch: if threads > 1 { tuning().1 * threads } else { 1 },
+            lookahead: tuning().0,
             traced_ahead: 0,
             wasted: 0,
         }
@@ -128,7 +167,7 @@ impl SeedQueue {
         loop {
             let s = match self.ahead.pop_front() {
                 Some(s) => s,
-                None => self.order.next()?.2 .0,
+                None => entry_triangle(self.order.next()?),
             };
             if !consumed[s as usize] {
                 return Some(s as usize);
@@ -155,9 +194,9 @@ impl SeedQueue {
         }
         let mut chosen = vec![s];
         if self.batch > 1 {
-            while self.ahead.len() < LOOKAHEAD {
+            while self.ahead.len() < self.lookahead {
                 let Some(e) = self.order.next() else { break };
-                self.ahead.push_back(e.2 .0);
+                self.ahead.push_back(entry_triangle(e));
             }
             // A seed's fold stays within its patch; a candidate closer than that to a seed before it that may
             // still give a fold (passed over, or traced ahead already) is left for its turn.
@@ -199,6 +238,50 @@ mod tests {
     use super::super::trace::FoldTracer;
     use super::super::{mean_edge_length, StretchParams};
     use super::*;
+
+    /// Packed entries sort exactly as the (memory flag, priority, `Reverse(triangle)`) tuples they stand for,
+    /// at the extremes of each field too, and give their triangle back.
+    #[test]
+    fn packed_entries_order_as_the_tuples() {
+        use std::cmp::Reverse;
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut tuples: Vec<(bool, u64, Reverse<u32>)> = Vec::new();
+        for k in 0..4000u32 {
+            let r = next();
+            let priority = match k % 4 {
+                0 => r % 50,
+                1 => u64::MAX - r % 3,
+                _ => r,
+            };
+            let triangle = match k % 5 {
+                0 => u32::MAX - (r % 2) as u32,
+                1 => (r % 2) as u32,
+                _ => (r >> 32) as u32,
+            };
+            tuples.push((r & 1 == 1, priority, Reverse(triangle)));
+        }
+        tuples.sort_unstable();
+        tuples.dedup();
+        let mut entries: Vec<Entry> = tuples
+            .iter()
+            .rev()
+            .map(|&(m, p, Reverse(t))| entry(m, p, t))
+            .collect();
+        entries.sort_unstable_by(|a, b| b.cmp(a));
+        let back: Vec<(bool, u64, Reverse<u32>)> = entries
+            .iter()
+            .map(|&e| (e >> 96 == 1, (e >> 32) as u64, Reverse(entry_triangle(e))))
+            .collect();
+        let want: Vec<_> = tuples.iter().rev().copied().collect();
+        assert_eq!(back, want);
+        assert!(back.iter().any(|e| e.1 == u64::MAX) && back.iter().any(|e| e.2 .0 == u32::MAX));
+    }
 
     /// Tracing seeds ahead on several threads gives the folds, anchors, seeds tried and seed memory of the
     /// one-at-a-time loop, frame after frame (the seed memory carries over).

@@ -25,7 +25,7 @@
 use super::lscm::lscm_with;
 use super::params::{Flattening, StretchParams};
 use super::smooth::FrameGeometry;
-use super::speculate::{Entry, Outcome, SeedPool, SeedQueue};
+use super::speculate::{entry, Entry, Outcome, SeedPool, SeedQueue};
 use super::symbolic::SymbolicCache;
 use super::tensor::shape;
 use super::unfold::{PatchRef, Unfolder};
@@ -113,6 +113,10 @@ pub(super) struct SeedWork {
 /// A flattened patch around a seed.
 struct Patch {
     tris: Vec<u32>,
+    /// The corners of `tris[k]` in the local vertex numbering (`verts`, `uv`), looked up once per patch: the
+    /// passes over the patch (overlap check, axis, control lines, region) read a triangle's layout through
+    /// these rather than through three global-to-local lookups each time.
+    corners: Vec<[u32; 3]>,
     verts: Vec<u32>,
     uv: Vec<[f64; 2]>,
 }
@@ -226,10 +230,10 @@ impl FoldTracer {
             .enumerate()
             .filter(|(_, &s)| s >= seed_min && s.is_finite())
             .map(|(t, &s)| {
-                (
+                entry(
                     params.seed_memory && prev_seed[t],
                     seed_priority(s),
-                    std::cmp::Reverse(t as u32),
+                    t as u32,
                 )
             })
             .collect();
@@ -327,20 +331,19 @@ impl SeedWork {
             }
         }
         let mut verts = Vec::new();
+        let mut corners = Vec::with_capacity(tris.len());
         for &t in &tris {
-            for v in topo.triangles()[t as usize] {
+            corners.push(topo.triangles()[t as usize].map(|v| {
                 if self.vert_local[v as usize] == NONE {
                     self.vert_local[v as usize] = verts.len() as u32;
                     verts.push(v);
                 }
-            }
+                self.vert_local[v as usize]
+            }));
         }
         // LSCM: the choice, or what a patch that does not unfold cleanly falls back to.
         let lscm = |vert_local: &[u32]| {
-            let local_tris: Vec<[u32; 3]> = tris
-                .iter()
-                .map(|&t| topo.triangles()[t as usize].map(|v| vert_local[v as usize]))
-                .collect();
+            let local_tris = &corners;
             let pos: Vec<V3> = verts.iter().map(|&v| f.p[v as usize]).collect();
             let seed_min = *topo.triangles()[s].iter().min().expect("three");
             let pin0 = vert_local[seed_min as usize] as usize;
@@ -351,7 +354,7 @@ impl SeedWork {
                     da.total_cmp(&db).then(verts[b].cmp(&verts[a]))
                 })
                 .unwrap_or(pin0);
-            lscm_with(&pos, &local_tris, (pin0, pin1), Some(&self.patterns))
+            lscm_with(&pos, local_tris, (pin0, pin1), Some(&self.patterns))
         };
         let patch_uv = match how {
             Flattening::Unfold => self
@@ -359,6 +362,7 @@ impl SeedWork {
                 .unfold(
                     &PatchRef {
                         topo,
+                        n_tris: tris.len(),
                         p: f.p,
                         tri_local: &self.tri_local,
                         vert_local: &self.vert_local,
@@ -366,12 +370,13 @@ impl SeedWork {
                     },
                     s,
                 )
-                .filter(|uv| unfolds_without_overlap(topo, &tris, &self.vert_local, uv))
+                .filter(|uv| unfolds_without_overlap(&corners, uv))
                 .or_else(|| lscm(&self.vert_local)),
             Flattening::Lscm => lscm(&self.vert_local),
         };
         let patch = Patch {
             tris,
+            corners,
             verts,
             uv: patch_uv.unwrap_or_default(),
         };
@@ -391,16 +396,13 @@ impl SeedWork {
         }
     }
 
-    fn uv_tri(&self, topo: &Topology, patch: &Patch, t: usize) -> [[f64; 2]; 3] {
-        topo.triangles()[t].map(|v| patch.uv[self.vert_local[v as usize] as usize])
+    /// The layout of patch triangle `t` (global index), corners in the triangle's order.
+    fn uv_tri(&self, _topo: &Topology, patch: &Patch, t: usize) -> [[f64; 2]; 3] {
+        patch.corners[self.tri_local[t] as usize].map(|k| patch.uv[k as usize])
     }
 
     fn uv_centroid(&self, topo: &Topology, patch: &Patch, t: usize) -> [f64; 2] {
-        let q = self.uv_tri(topo, patch, t);
-        [
-            (q[0][0] + q[1][0] + q[2][0]) / 3.0,
-            (q[0][1] + q[1][1] + q[2][1]) / 3.0,
-        ]
+        centroid_of(self.uv_tri(topo, patch, t))
     }
 
     /// The linear map of triangle `t` from its local 3D frame (e1, e2) to the plane, as a 2x2 matrix.
@@ -697,8 +699,8 @@ impl SeedWork {
         let segments = Segments::new(&axis_uv, margin);
         let bound = SqrtBound::new(reach);
         let mut region = Vec::new();
-        for &t in &patch.tris {
-            let c = self.uv_centroid(f.topo, patch, t as usize);
+        for (&t, corners) in patch.tris.iter().zip(&patch.corners) {
+            let c = centroid_of(corners.map(|k| patch.uv[k as usize]));
             let outside = c[0] < lo[0] - margin
                 || c[0] > hi[0] + margin
                 || c[1] < lo[1] - margin
@@ -716,6 +718,15 @@ impl SeedWork {
         }
         region
     }
+}
+
+/// The centroid of a triangle in the plane.
+#[inline]
+fn centroid_of(q: [[f64; 2]; 3]) -> [f64; 2] {
+    [
+        (q[0][0] + q[1][0] + q[2][0]) / 3.0,
+        (q[0][1] + q[1][1] + q[2][1]) / 3.0,
+    ]
 }
 
 /// The bounding box of plane points.
@@ -766,8 +777,18 @@ impl SqrtBound {
 }
 
 /// An axis polyline's segments as [`dist_to_segment`] uses them (start, direction, squared length), each with
-/// its bounding box widened by a margin beyond which nothing is within reach. `None` for a single point.
-struct Segments(Vec<Segment>);
+/// its bounding box widened by a margin beyond which nothing is within reach, and runs of [`SEGMENT_RUN`]
+/// consecutive segments with the union of their boxes: a point outside a run's box is outside each of its
+/// segments' boxes, so a run rules out its segments with four comparisons (a patch triangle near the axis
+/// used to test every segment's box, a fifth of a seed's own time). `None` for a single point.
+struct Segments {
+    segments: Vec<Segment>,
+    /// Per run of consecutive segments: the union of their widened boxes.
+    runs: Vec<([f64; 2], [f64; 2])>,
+}
+
+/// Consecutive segments per run in [`Segments`].
+const SEGMENT_RUN: usize = 8;
 
 struct Segment {
     a: [f64; 2],
@@ -780,58 +801,73 @@ struct Segment {
 impl Segments {
     fn new(line: &[[f64; 2]], margin: f64) -> Option<Self> {
         (line.len() >= 2).then(|| {
-            Segments(
-                line.windows(2)
-                    .map(|w| {
-                        let (a, b) = (w[0], w[1]);
-                        let ab = [b[0] - a[0], b[1] - a[1]];
-                        Segment {
-                            a,
-                            ab,
-                            l2: ab[0] * ab[0] + ab[1] * ab[1],
-                            lo: [a[0].min(b[0]) - margin, a[1].min(b[1]) - margin],
-                            hi: [a[0].max(b[0]) + margin, a[1].max(b[1]) + margin],
-                        }
-                    })
-                    .collect(),
-            )
+            let segments: Vec<Segment> = line
+                .windows(2)
+                .map(|w| {
+                    let (a, b) = (w[0], w[1]);
+                    let ab = [b[0] - a[0], b[1] - a[1]];
+                    Segment {
+                        a,
+                        ab,
+                        l2: ab[0] * ab[0] + ab[1] * ab[1],
+                        lo: [a[0].min(b[0]) - margin, a[1].min(b[1]) - margin],
+                        hi: [a[0].max(b[0]) + margin, a[1].max(b[1]) + margin],
+                    }
+                })
+                .collect();
+            let runs = segments
+                .chunks(SEGMENT_RUN)
+                .map(|run| {
+                    run.iter().fold(
+                        ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]),
+                        |(lo, hi), s| {
+                            (
+                                [lo[0].min(s.lo[0]), lo[1].min(s.lo[1])],
+                                [hi[0].max(s.hi[0]), hi[1].max(s.hi[1])],
+                            )
+                        },
+                    )
+                })
+                .collect();
+            Segments { segments, runs }
         })
     }
 
     /// `within_polyline(q, line, bound.r)`: the same arithmetic as [`dist_to_segment`] up to its square root.
     #[inline]
     fn within(&self, q: [f64; 2], bound: &SqrtBound) -> bool {
-        self.0.iter().any(|s| {
-            if !(q[0] >= s.lo[0] && q[0] <= s.hi[0] && q[1] >= s.lo[1] && q[1] <= s.hi[1]) {
-                return false;
-            }
-            let t = if s.l2 > 0.0 {
-                (((q[0] - s.a[0]) * s.ab[0] + (q[1] - s.a[1]) * s.ab[1]) / s.l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let d = [q[0] - s.a[0] - t * s.ab[0], q[1] - s.a[1] - t * s.ab[1]];
-            bound.holds(d[0] * d[0] + d[1] * d[1])
-        })
+        let inside = |lo: [f64; 2], hi: [f64; 2]| {
+            q[0] >= lo[0] && q[0] <= hi[0] && q[1] >= lo[1] && q[1] <= hi[1]
+        };
+        let near = self.segments.chunks(SEGMENT_RUN).zip(&self.runs);
+        near.filter(|(_, &(lo, hi))| inside(lo, hi))
+            .flat_map(|(run, _)| run)
+            .any(|s| {
+                if !inside(s.lo, s.hi) {
+                    return false;
+                }
+                let t = if s.l2 > 0.0 {
+                    (((q[0] - s.a[0]) * s.ab[0] + (q[1] - s.a[1]) * s.ab[1]) / s.l2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                let d = [q[0] - s.a[0] - t * s.ab[0], q[1] - s.a[1] - t * s.ab[1]];
+                bound.holds(d[0] * d[0] + d[1] * d[1])
+            })
     }
 }
 
-/// Whether every triangle of the unfolded patch `tris` keeps its winding in the layout `uv` (indexed through
-/// `vert_local`). Unfolding lays a consistently oriented patch out counter-clockwise, exactly where it is
+/// Whether every triangle of the unfolded patch (its `corners`, local vertex indices) keeps its winding in the
+/// layout `uv`. Unfolding lays a consistently oriented patch out counter-clockwise, exactly where it is
 /// developable; where the patch is too curved for that, the paths around a bump meet with a gap and the
 /// triangles closing it fold over. Such a patch is flattened by LSCM instead: on the sleeve sample a fifth of
 /// the patches fold over, and there the overlapping triangles' centroids land beside the axis and inflate the
 /// region of influence (8 % more triangles than LSCM's, axes 3.6 % shorter), while on the patches that
 /// unfold cleanly the two flattenings trace regions, axes and anchors within 0.3 % (docs/benchmarks.md,
 /// "issue14-trace"). The flipped mesh gives the mirrored layout, so the verdict does not depend on the winding.
-fn unfolds_without_overlap(
-    topo: &Topology,
-    tris: &[u32],
-    vert_local: &[u32],
-    uv: &[[f64; 2]],
-) -> bool {
-    tris.iter().all(|&t| {
-        let [a, b, c] = topo.triangles()[t as usize].map(|v| uv[vert_local[v as usize] as usize]);
+fn unfolds_without_overlap(corners: &[[u32; 3]], uv: &[[f64; 2]]) -> bool {
+    corners.iter().all(|k| {
+        let [a, b, c] = k.map(|k| uv[k as usize]);
         (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]) > 0.0
     })
 }

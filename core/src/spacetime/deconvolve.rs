@@ -109,7 +109,10 @@ impl CaptureStencil {
             })
             .collect();
         let mut acc: Vec<V3> = match series.first() {
-            Some(&s0) => cur.iter().map(|q| vec3::scale([q[3], q[4], q[5]], s0)).collect(),
+            Some(&s0) => cur
+                .iter()
+                .map(|q| vec3::scale([q[3], q[4], q[5]], s0))
+                .collect(),
             None => vec![[0.0; 3]; n],
         };
         let mut other: Vec<[f64; 6]> = vec![[0.0; 6]; n];
@@ -372,7 +375,13 @@ mod tests {
         assert!(stencil.filter.neighbors(0).is_empty());
         let d: Vec<V3> = p
             .iter()
-            .map(|q| [0.1 * (q[0] * 0.9).sin(), -0.05 * q[1].cos(), 0.02 * q[0] * q[1]])
+            .map(|q| {
+                [
+                    0.1 * (q[0] * 0.9).sin(),
+                    -0.05 * q[1].cos(),
+                    0.02 * q[0] * q[1],
+                ]
+            })
             .collect();
         let bits = |v: &[V3]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
         for steps in [0.5, 1.0, 8.0, 20.0] {

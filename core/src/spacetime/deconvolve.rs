@@ -117,7 +117,7 @@ impl CaptureStencil {
         };
         let mut other: Vec<[f64; 6]> = vec![[0.0; 6]; n];
         for j in 0..filter_steps.max(series_steps) {
-            let step = (j < filter_steps).then(|| if j % 2 == 0 { lambda } else { mu });
+            let step = (j < filter_steps).then_some(if j % 2 == 0 { lambda } else { mu });
             // Sweep j of the series makes T_{j+1} = A T_0 (j = 0) or 2 A T_j − T_{j−1}, weighted series[j + 1].
             let term = (j < series_steps).then(|| series[j + 1]);
             let src = &cur;

@@ -80,6 +80,11 @@ pub struct DeformArgs {
     /// projection). docs/fidelity.md, "The projection and the last stretch pass".
     #[arg(long, default_value = "last")]
     pub projection_order: crease_core::spacetime::shape_projection::ProjectionOrder,
+    /// Frames per positioning operator: 1 factorises every frame's own system (exact); k > 1 positions each
+    /// block of k frames with the first frame's factor (one factorisation per k frames; 7 keeps the public
+    /// cases within the quality targets, docs/benchmarks.md "issue14-fused (second stop)").
+    #[arg(long, default_value_t = 1)]
+    pub operator_block: usize,
 }
 
 fn parse_shape_cutoff(s: &str) -> Result<f64, String> {
@@ -124,6 +129,7 @@ impl DeformArgs {
             fold_restore: self.fold_restore,
             shape_projection: self.shape_projection,
             projection_order: self.projection_order,
+            operator_block: self.operator_block,
         }
     }
 }

@@ -97,7 +97,8 @@ pub fn deform(
         ..Default::default()
     };
     let t0 = Instant::now();
-    let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?;
+    let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?
+        .with_operator_block(params.operator_block);
     timings.symbolic = t0.elapsed().as_secs_f64();
 
     let windows = plan_windows(n, params.window, params.shift);

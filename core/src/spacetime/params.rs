@@ -86,6 +86,12 @@ pub struct DeformParams {
     /// Where the shape projection sits relative to the last stretch pass (see
     /// [`super::shape_projection::ProjectionOrder`]).
     pub projection_order: super::shape_projection::ProjectionOrder,
+    /// Frames per positioning operator (see [`super::position::PositionSystem::with_operator_block`]): 1
+    /// (default) factorises every frame's own stiffness matrix, the exact least-squares fit; k > 1 positions
+    /// each block of k frames (t − t mod k, …) with the factor of the block's first frame and the frame's own
+    /// right-hand side, one numeric factorisation per k frames instead of one per frame. 7 keeps the four
+    /// public cases within the quality targets (docs/benchmarks.md, "issue14-fused (second stop)").
+    pub operator_block: usize,
 }
 
 /// Most fold restoration steps accepted: the deconvolution then multiplies what the capture kept of a fold by
@@ -114,6 +120,7 @@ impl Default for DeformParams {
             fold_restore: DEFAULT_FOLD_RESTORE,
             shape_projection: super::shape_projection::DEFAULT_SHAPE_PROJECTION,
             projection_order: Default::default(),
+            operator_block: 1,
         }
     }
 }
@@ -144,6 +151,7 @@ struct DeformFields {
     fold_restore: Option<f64>,
     shape_projection: Option<f64>,
     projection_order: Option<super::shape_projection::ProjectionOrder>,
+    operator_block: Option<usize>,
 }
 
 #[derive(Deserialize, Default)]
@@ -188,6 +196,7 @@ impl TryFrom<DeformFields> for DeformParams {
             fold_restore: f.fold_restore.unwrap_or(d.fold_restore),
             shape_projection: f.shape_projection.unwrap_or(d.shape_projection),
             projection_order: f.projection_order.unwrap_or(d.projection_order),
+            operator_block: f.operator_block.unwrap_or(d.operator_block),
         })
     }
 }
@@ -215,6 +224,12 @@ impl DeformParams {
 
     /// Rejects values the solver cannot honour, naming the parameter.
     pub fn validate(&self) -> Result<()> {
+        if self.operator_block == 0 {
+            return Err(Error::param(
+                "operator_block",
+                "must be at least 1 frame (1: every frame its own operator)",
+            ));
+        }
         let c = &self.coefficients;
         let finite_nonneg = |name: &str, v: f64| {
             if !v.is_finite() || v < 0.0 {

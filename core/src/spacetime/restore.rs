@@ -89,12 +89,35 @@ impl Restoration {
         if out == rest {
             return out.to_vec();
         }
-        let projected =
-            super::shape_projection::project(mesh.stencil.filter(), rest, out, self.projection);
         if !self.restores() {
-            return projected;
+            return super::shape_projection::project(
+                mesh.stencil.filter(),
+                rest,
+                out,
+                self.projection,
+            );
         }
-        self.restore_onto(topo, mesh, rest, out, &projected)
+        if self.projection <= 0.0 {
+            let detail = mesh.stencil.detail(&mesh.series(self.steps), rest);
+            return self.restore_onto(topo, rest, out, out, &detail, mesh);
+        }
+        // Both: the projection's low-pass of the displacement and the restoration's detail of the captured
+        // surface in one set of sweeps (the same numbers as `shape_projection::project` and
+        // `CaptureStencil::detail` give separately, bit for bit).
+        let d: Vec<V3> = out
+            .iter()
+            .zip(rest)
+            .map(|(o, c)| vec3::sub(*o, *c))
+            .collect();
+        let (detail, low) = mesh
+            .stencil
+            .detail_and_low_pass(&mesh.series(self.steps), rest, &d);
+        let projected: Vec<V3> = out
+            .iter()
+            .zip(&low)
+            .map(|(o, l)| vec3::sub(*o, vec3::scale(*l, self.projection)))
+            .collect();
+        self.restore_onto(topo, rest, out, &projected, &detail, mesh)
     }
 
     /// The restored positions: `out` plus what the deconvolution adds to the captured surface, along its
@@ -121,24 +144,25 @@ impl Restoration {
         if !self.restores() || out == rest {
             return out.to_vec();
         }
-        self.restore_onto(topo, mesh, rest, out, out)
+        let detail = mesh.stencil.detail(&mesh.series(self.steps), rest);
+        self.restore_onto(topo, rest, out, out, &detail, mesh)
     }
 
     /// The restoration with its weight read off `tilted` (the deformed frame whose tilt says where folds
-    /// were put) and its heights added to `base`.
+    /// were put) and its heights added to `base`; `detail` is what the deconvolution of the capture filter
+    /// adds to `rest` (the folds the capture damped, as far as `steps` undoes them).
     fn restore_onto(
         &self,
         topo: &Topology,
-        mesh: &RestoreMesh,
         rest: &[V3],
         tilted: &[V3],
         base: &[V3],
+        detail: &[V3],
+        mesh: &RestoreMesh,
     ) -> Vec<V3> {
         let n = rest.len();
         let n_rest = geometry::vertex_normals(topo, rest);
         let n_out = geometry::vertex_normals(topo, tilted);
-        // The capture filter undone as far as `steps` allows: what it adds is the folds the capture damped.
-        let detail = mesh.stencil.detail(&mesh.series(self.steps), rest);
         let mut weight: Vec<f64> = (0..n)
             // atan2 of |sin| and cos: exactly 0 where the normal did not change (acos of a rounded dot is not).
             .map(|v| {

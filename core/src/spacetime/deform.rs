@@ -99,6 +99,8 @@ pub fn deform(
     let t0 = Instant::now();
     let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?;
     timings.symbolic = t0.elapsed().as_secs_f64();
+    // The strain limit's reference lengths need every captured frame: read once, before any frame is positioned.
+    let limiter = params.strain_limiter(source)?;
 
     let windows = plan_windows(n, params.window, params.shift);
     let mut fade = CrossFade::new(windows.clone(), topo.n_triangles());
@@ -130,6 +132,7 @@ pub fn deform(
                         params.stretch_passes,
                         params.stretch_rotation,
                         params.restoration(),
+                        limiter.as_ref(),
                     );
                     progress.advance("position", 1);
                     r

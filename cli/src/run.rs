@@ -82,9 +82,9 @@ pub struct DeformArgs {
     pub projection_order: crease_core::spacetime::shape_projection::ProjectionOrder,
     /// Strain limit: the positioning's last step shortens every edge longer than (1 + this) times its
     /// reference length back to it (Provot-style, Gauss–Seidel over the edges; compression, which folds are
-    /// made of, is free). A fraction (0.1 = 10%); `off` (or 0) turns it off. docs/fidelity.md, "Strain
-    /// limiting".
-    #[arg(long, default_value = "0.1", value_parser = parse_strain_limit)]
+    /// made of, is free against the sequence reference). A fraction (0.05 = 5%); `off` (or 0) turns it off.
+    /// docs/fidelity.md, "Strain limiting".
+    #[arg(long, default_value = "0.05", value_parser = parse_strain_limit)]
     pub strain_limit: f64,
     /// Gauss–Seidel sweeps of the strain limit (it stops once a sweep moves nothing).
     #[arg(long, default_value_t = crease_core::spacetime::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS)]
@@ -103,7 +103,7 @@ fn parse_strain_limit(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
         _ => Err(format!(
-            "`{s}` is not a strain limit (a fraction ≥ 0, 0.1 = 10%) or `off`"
+            "`{s}` is not a strain limit (a fraction ≥ 0, 0.05 = 5%) or `off`"
         )),
     }
 }

@@ -85,6 +85,33 @@ pub struct DeformArgs {
     /// cases within the quality targets, docs/benchmarks.md "issue14-fused (second stop)").
     #[arg(long, default_value_t = 1)]
     pub operator_block: usize,
+
+    /// Strain limit: the positioning's last step shortens every edge longer than (1 + this) times its
+    /// reference length back to it (Provot-style, Gauss–Seidel over the edges; compression, which folds are
+    /// made of, is free against the sequence reference). A fraction (0.05 = 5%); `off` (or 0) turns it off.
+    /// docs/fidelity.md, "Strain limiting".
+    #[arg(long, default_value = "0.05", value_parser = parse_strain_limit)]
+    pub strain_limit: f64,
+    /// Gauss–Seidel sweeps of the strain limit (it stops once a sweep moves nothing).
+    #[arg(long, default_value_t = crease_core::spacetime::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS)]
+    pub strain_limit_sweeps: usize,
+    /// The strain limit's reference lengths: `sequence` (per edge, its longest captured length over the
+    /// sequence; the default with --input) or `frame` (the frame's own captured lengths: an input that is its
+    /// own rest state; the default of the built-in demo).
+    #[arg(long)]
+    pub strain_reference: Option<crease_core::spacetime::strain_limit::StrainReference>,
+}
+
+fn parse_strain_limit(s: &str) -> Result<f64, String> {
+    if s == "off" {
+        return Ok(0.0);
+    }
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!(
+            "`{s}` is not a strain limit (a fraction ≥ 0, 0.05 = 5%) or `off`"
+        )),
+    }
 }
 
 fn parse_shape_cutoff(s: &str) -> Result<f64, String> {
@@ -130,6 +157,10 @@ impl DeformArgs {
             shape_projection: self.shape_projection,
             projection_order: self.projection_order,
             operator_block: self.operator_block,
+
+            strain_limit: self.strain_limit,
+            strain_limit_sweeps: self.strain_limit_sweeps,
+            strain_reference: self.strain_reference.unwrap_or_default(),
         }
     }
 }
@@ -271,6 +302,8 @@ fn write_demo_video(a: &DemoArgs) -> Result<()> {
         stretch_rotation: StretchRotation::Polar,
         // Nor is the fold restoration: it reads the captured surface, which the truth is made from.
         fold_restore: 0.0,
+        // Nor the strain limit, a step of the reconstruction.
+        strain_limit: 0.0,
         ..DeformParams::default()
     };
     deform(
@@ -315,7 +348,12 @@ fn write_demo_video(a: &DemoArgs) -> Result<()> {
 /// `crease run`: single-node mode. The job goes through an in-process coordinator and workers on 127.0.0.1
 /// (see [`crate::local`]), the same path a farm runs, so a laptop run and a cluster run write the same bytes.
 pub fn run(a: RunArgs) -> Result<()> {
-    let params = a.deform.params();
+    let mut params = a.deform.params();
+    if a.input.is_none() && a.deform.strain_reference.is_none() {
+        // The demo's input is its own rest state in every frame: its stretch is measured against the input
+        // frame's triangles, and so is its strain limit.
+        params.strain_reference = crease_core::spacetime::strain_limit::StrainReference::Frame;
+    }
     params.validate()?;
     let folds = a.folds.unwrap_or(Folds::Anchors);
     let stretch = folds == Folds::Stretch;

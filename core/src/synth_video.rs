@@ -126,6 +126,8 @@ pub fn folded_demo_image(triangles: usize, width: u32, height: u32) -> Result<Rg
         stretch_rotation: crate::spacetime::stretch::StretchRotation::Polar,
         // Nor crease's fold restoration, which reads the captured surface the truth is made from.
         fold_restore: 0.0,
+        // Nor its strain limit.
+        strain_limit: 0.0,
         ..DeformParams::default()
     };
     let mut sink = crate::mesh::MemorySink::default();

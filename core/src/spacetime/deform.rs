@@ -100,6 +100,13 @@ pub fn deform(
     let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?
         .with_operator_block(params.operator_block);
     timings.symbolic = t0.elapsed().as_secs_f64();
+    // The strain limit's reference lengths need every captured frame: read once (a few frames at a time) before
+    // any frame is positioned. Without anchors no frame moves and the limit never applies: no reading pass.
+    let limiter = if anchors.total() > 0 {
+        params.strain_limiter(source)?
+    } else {
+        None
+    };
 
     let windows = plan_windows(n, params.window, params.shift);
     let mut fade = CrossFade::new(windows.clone(), topo.n_triangles());
@@ -131,6 +138,7 @@ pub fn deform(
                         params.stretch_passes,
                         params.stretch_rotation,
                         params.restoration(),
+                        limiter.as_ref(),
                     );
                     progress.advance("position", 1);
                     r

@@ -92,6 +92,15 @@ pub struct DeformParams {
     /// right-hand side, one numeric factorisation per k frames instead of one per frame. 7 keeps the four
     /// public cases within the quality targets (docs/benchmarks.md, "issue14-fused (second stop)").
     pub operator_block: usize,
+
+    /// Strain limit (see [`super::strain_limit`]): the last step of the positioning shortens every edge
+    /// longer than (1 + this) times its reference length back to it; a fraction, 0 turns it off.
+    pub strain_limit: f64,
+    /// Gauss–Seidel sweeps of the strain limit (it stops early once a sweep moves nothing).
+    pub strain_limit_sweeps: usize,
+    /// The strain limit's reference lengths: the sequence's longest captured edge lengths (default) or each
+    /// frame's own ([`super::strain_limit::StrainReference`]).
+    pub strain_reference: super::strain_limit::StrainReference,
 }
 
 /// Most fold restoration steps accepted: the deconvolution then multiplies what the capture kept of a fold by
@@ -121,6 +130,10 @@ impl Default for DeformParams {
             shape_projection: super::shape_projection::DEFAULT_SHAPE_PROJECTION,
             projection_order: Default::default(),
             operator_block: 1,
+
+            strain_limit: super::strain_limit::DEFAULT_STRAIN_LIMIT,
+            strain_limit_sweeps: super::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS,
+            strain_reference: Default::default(),
         }
     }
 }
@@ -152,6 +165,10 @@ struct DeformFields {
     shape_projection: Option<f64>,
     projection_order: Option<super::shape_projection::ProjectionOrder>,
     operator_block: Option<usize>,
+
+    strain_limit: Option<f64>,
+    strain_limit_sweeps: Option<usize>,
+    strain_reference: Option<super::strain_limit::StrainReference>,
 }
 
 #[derive(Deserialize, Default)]
@@ -197,6 +214,10 @@ impl TryFrom<DeformFields> for DeformParams {
             shape_projection: f.shape_projection.unwrap_or(d.shape_projection),
             projection_order: f.projection_order.unwrap_or(d.projection_order),
             operator_block: f.operator_block.unwrap_or(d.operator_block),
+
+            strain_limit: f.strain_limit.unwrap_or(d.strain_limit),
+            strain_limit_sweeps: f.strain_limit_sweeps.unwrap_or(d.strain_limit_sweeps),
+            strain_reference: f.strain_reference.unwrap_or(d.strain_reference),
         })
     }
 }
@@ -220,6 +241,20 @@ impl DeformParams {
             },
             order: self.projection_order,
         }
+    }
+
+    /// The strain limiter of these settings for `source` (its rest lengths read from every frame for the
+    /// sequence reference), or `None` when `strain_limit` is 0.
+    pub fn strain_limiter(
+        &self,
+        source: &dyn crate::mesh::FrameSource,
+    ) -> Result<Option<super::strain_limit::StrainLimiter>> {
+        super::strain_limit::StrainLimiter::for_source(
+            source,
+            self.strain_limit,
+            self.strain_limit_sweeps,
+            self.strain_reference,
+        )
     }
 
     /// Rejects values the solver cannot honour, naming the parameter.
@@ -312,6 +347,7 @@ impl DeformParams {
                 ),
             ));
         }
+        super::strain_limit::validate(self.strain_limit, self.strain_limit_sweeps)?;
         if self.stretch_passes > 20 {
             return Err(Error::param(
                 "stretch_passes",

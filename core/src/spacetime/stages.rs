@@ -159,7 +159,9 @@ pub struct PositionedFrame {
 /// Positions frame `t` of `source` from its cross-faded rotation-vector field `phi` (Alexa blend, gradient-
 /// domain solve), then runs `passes` stretch-reduction passes reusing the frame's factorisation, measuring
 /// stretch after each step, and ends with `restore`: the shape projection ([`super::shape_projection`]) and the
-/// fold restoration ([`super::restore`]; the last stretch figures are then those of the finished frame).
+/// fold restoration ([`super::restore`]), then the strain limit (`limit`, [`super::strain_limit`]); the last
+/// stretch figures are those of the finished frame.
+#[allow(clippy::too_many_arguments)]
 pub fn position_frame(
     system: &PositionSystem,
     source: &dyn FrameSource,
@@ -168,6 +170,7 @@ pub fn position_frame(
     passes: usize,
     rotation: super::stretch::StretchRotation,
     restore: super::restore::Restoration,
+    limit: Option<&super::strain_limit::StrainLimiter>,
 ) -> Result<PositionedFrame> {
     let clock = Instant::now();
     let rest = source.read_frame(t)?;
@@ -208,8 +211,17 @@ pub fn position_frame(
     // no anchors must give the input back bit for bit.
     let moved = out != rest;
     let restoring = moved && restore.is_active();
+    // The finished frame's last step: edges stretched past the cap are shortened (never a frame left in place).
+    let limit_strain = |out: &mut Frame| {
+        if let Some(l) = limit.filter(|_| moved) {
+            l.apply(&rest, out);
+        }
+    };
     if restoring && passes == 0 {
         out = restore.finish(system.topology(), system.restore_mesh(), &rest, &out);
+    }
+    if passes == 0 {
+        limit_strain(&mut out);
     }
     stretch.push(measure(&out, &mut metrics));
     let mut pass_times = Vec::with_capacity(passes);
@@ -242,6 +254,9 @@ pub fn position_frame(
         }
         if restoring && last {
             out = restore.finish(system.topology(), system.restore_mesh(), &rest, &out);
+        }
+        if last {
+            limit_strain(&mut out);
         }
         pass_times.push(clock.elapsed().as_secs_f64());
         stretch.push(measure(&out, &mut metrics));

@@ -12,6 +12,7 @@ use crease_core::mesh::FrameSource;
 use crease_core::shape::{ShapeAccumulator, TaubinFilter};
 use crease_core::spacetime::position::{Pinning, PositionSystem};
 use crease_core::spacetime::stages::{self, PositionedFrame};
+use crease_core::spacetime::strain_limit::{StrainLimiter, StrainReference};
 use crease_core::spacetime::windows::Window;
 use crease_core::vec3::V3;
 use rayon::prelude::*;
@@ -53,6 +54,8 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     let n_tri = topo.n_triangles();
     let (system, symbolic) = position_system(env, &opened, &label)?;
     let system = system.as_ref();
+    let limiter = strain_limiter(env, &opened, &label)?;
+    let limiter = limiter.as_deref();
     let windows = env.windows(n);
     let passes = env.params.stretch_passes;
     let filter = TaubinFilter::captured(&topo);
@@ -94,6 +97,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                     passes,
                     env.params.stretch_rotation,
                     env.params.restoration(),
+                    limiter,
                 )
                 .map_err(|e| TaskError::from_core(&label, e))?;
                 // The frame's "shape kept" figures (DESIGN §9), here where the frame is, rather than in
@@ -215,6 +219,69 @@ fn position_system(
         systems.truncate(2);
     }
     Ok((sys, seconds))
+}
+
+/// A strain limiter this process built: (input, cap bits, sweeps, reference, limiter).
+type BuiltLimiter = (
+    Arc<OpenedSequence>,
+    u64,
+    usize,
+    StrainReference,
+    Arc<StrainLimiter>,
+);
+
+/// Strain limiters built by this process, most recent first.
+static LIMITERS: Mutex<Vec<BuiltLimiter>> = Mutex::new(Vec::new());
+
+/// The job's strain limiter (None when off). Its sequence reference, each edge's longest captured length,
+/// needs every input frame, which a positioning chunk does not otherwise read; a worker builds it once per
+/// opened input and settings and keeps the last two, like [`position_system`]. The lengths are a maximum, exact
+/// in any reading order, so every task (and `crease_core::spacetime::deform`) limits against the same bits.
+fn strain_limiter(
+    env: &TaskEnv,
+    opened: &Arc<OpenedSequence>,
+    label: &str,
+) -> Result<Option<Arc<StrainLimiter>>, TaskError> {
+    let p = &env.params;
+    if p.strain_limit == 0.0 {
+        return Ok(None);
+    }
+    let key = (
+        p.strain_limit.to_bits(),
+        p.strain_limit_sweeps,
+        p.strain_reference,
+    );
+    let found = |built: &[BuiltLimiter]| {
+        built
+            .iter()
+            .find(|(o, c, s, r, _)| Arc::ptr_eq(o, opened) && (*c, *s, *r) == key)
+            .map(|(.., l)| Arc::clone(l))
+    };
+    if let Some(l) = found(&LIMITERS.lock().unwrap_or_else(|p| p.into_inner())) {
+        return Ok(Some(l));
+    }
+    let Some(limiter) = p
+        .strain_limiter(opened.source.as_ref())
+        .map_err(|e| TaskError::from_core(&format!("{label}: strain limit"), e))?
+    else {
+        return Ok(None);
+    };
+    let limiter = Arc::new(limiter);
+    let mut built = LIMITERS.lock().unwrap_or_else(|p| p.into_inner());
+    if found(&built).is_none() {
+        built.insert(
+            0,
+            (
+                Arc::clone(opened),
+                key.0,
+                key.1,
+                key.2,
+                Arc::clone(&limiter),
+            ),
+        );
+        built.truncate(2);
+    }
+    Ok(Some(limiter))
 }
 
 /// The cross-faded rotation-vector field of frame `t`, from the stored fields of the windows covering it.

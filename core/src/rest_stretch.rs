@@ -22,7 +22,7 @@
 
 use crate::mesh::{FrameSource, Topology, NONE};
 use crate::vec3::{self, V3};
-use crate::Result;
+use crate::{Error, Result};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -82,24 +82,46 @@ impl RestLengths {
 
     /// The rest lengths of a whole captured sequence, its frames read in parallel chunks (memory: a few frames).
     pub fn of_sequence(source: &dyn FrameSource) -> Result<Self> {
+        Ok(Self::read(source, false)?.0)
+    }
+
+    /// Like [`Self::of_sequence`], but a frame whose contents are invalid (malformed file, non-finite or
+    /// degenerate geometry: errors every reader of that frame meets alike) is left out instead of failing, and
+    /// its number returned. Why: the strain limiter needs the whole sequence's lengths, yet a bad frame must fail
+    /// only the task that positions it (that task reads the frame and names the problem), not every positioning
+    /// task of the job — which therefore never completes on a reference missing a frame. I/O errors still fail:
+    /// a flaky read on one worker must never give that worker a different reference from the others.
+    pub fn of_valid_frames(source: &dyn FrameSource) -> Result<(Self, Vec<usize>)> {
+        Self::read(source, true)
+    }
+
+    fn read(source: &dyn FrameSource, skip_invalid: bool) -> Result<(Self, Vec<usize>)> {
         let topo = source.topology();
         let chunk = (2 * rayon::current_num_threads()).max(1);
         let mut all = RestLengths::new(topo);
+        let mut skipped = Vec::new();
         for start in (0..source.n_frames()).step_by(chunk) {
             let end = (start + chunk).min(source.n_frames());
-            let parts: Vec<RestLengths> = (start..end)
+            let parts: Vec<Option<RestLengths>> = (start..end)
                 .into_par_iter()
-                .map(|t| {
-                    let mut r = RestLengths::new(topo);
-                    r.add_frame(&source.read_frame(t)?);
-                    Ok(r)
+                .map(|t| match source.read_frame(t) {
+                    Ok(p) => {
+                        let mut r = RestLengths::new(topo);
+                        r.add_frame(&p);
+                        Ok(Some(r))
+                    }
+                    Err(Error::Mesh { .. } | Error::Format { .. }) if skip_invalid => Ok(None),
+                    Err(e) => Err(e),
                 })
                 .collect::<Result<_>>()?;
-            for p in &parts {
-                all.merge(p);
+            for (t, p) in (start..end).zip(&parts) {
+                match p {
+                    Some(p) => all.merge(p),
+                    None => skipped.push(t),
+                }
             }
         }
-        Ok(all)
+        Ok((all, skipped))
     }
 
     pub fn edges(&self) -> &[[u32; 2]] {
@@ -290,5 +312,68 @@ mod tests {
         a.merge(&b);
         assert_eq!(a, whole);
         assert!(a.tension(&half).iter().all(|s| *s == Some(0.0)));
+    }
+
+    /// A source whose frame 1 has invalid contents and frame 2 fails to read from disk.
+    struct Faulty {
+        topo: std::sync::Arc<Topology>,
+        frames: Vec<Vec<V3>>,
+        io_error_at: Option<usize>,
+    }
+
+    impl FrameSource for Faulty {
+        fn topology(&self) -> &std::sync::Arc<Topology> {
+            &self.topo
+        }
+        fn n_frames(&self) -> usize {
+            self.frames.len()
+        }
+        fn read_frame(&self, t: usize) -> Result<Vec<V3>> {
+            if t == 1 {
+                return Err(Error::Mesh {
+                    path: None,
+                    frame: Some(t),
+                    msg: "vertex 0 has a non-finite coordinate".into(),
+                });
+            }
+            if self.io_error_at == Some(t) {
+                return Err(Error::Io {
+                    path: "frame".into(),
+                    source: std::io::Error::other("flaky mount"),
+                });
+            }
+            Ok(self.frames[t].clone())
+        }
+        fn describe_frame(&self, t: usize) -> String {
+            format!("frame {t}")
+        }
+    }
+
+    /// The strain limiter's reading: an invalid frame is left out (and named), the others still count; the
+    /// strict reading fails on it; an I/O error fails both (a flaky read must not change a reference).
+    #[test]
+    fn invalid_frames_are_left_out_only_when_asked_and_io_errors_always_fail() {
+        let (topo, flat) = synth::sheet(5, 4, 0.1).unwrap();
+        let long: Vec<V3> = flat.iter().map(|q| [1.2 * q[0], q[1], q[2]]).collect();
+        let mut source = Faulty {
+            topo: topo.clone(),
+            frames: vec![flat.clone(), flat.clone(), long.clone(), flat.clone()],
+            io_error_at: None,
+        };
+        let (rest, skipped) = RestLengths::of_valid_frames(&source).unwrap();
+        assert_eq!(skipped, vec![1]);
+        let mut expected = RestLengths::new(&topo);
+        expected.add_frame(&flat);
+        expected.add_frame(&long);
+        assert_eq!(rest, expected);
+        assert!(matches!(
+            RestLengths::of_sequence(&source),
+            Err(Error::Mesh { frame: Some(1), .. })
+        ));
+        source.io_error_at = Some(2);
+        assert!(matches!(
+            RestLengths::of_valid_frames(&source),
+            Err(Error::Io { .. })
+        ));
     }
 }

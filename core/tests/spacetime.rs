@@ -686,6 +686,8 @@ fn a_shared_operator_is_the_same_wherever_frames_are_positioned() {
         phis.extend(fade.push(&field));
     }
     phis.sort_by_key(|f| f.0);
+    // The default strain limit runs in `deform` too: each worker limits against the same rest lengths.
+    let limiter = params.strain_limiter(&seq).unwrap();
     let worker = |frames: &[usize]| {
         let sys = PositionSystem::new(topo.clone(), params.pinning, params.screen())
             .unwrap()
@@ -701,6 +703,7 @@ fn a_shared_operator_is_the_same_wherever_frames_are_positioned() {
                     params.stretch_passes,
                     params.stretch_rotation,
                     params.restoration(),
+                    limiter.as_ref(),
                 )
                 .unwrap();
                 (t, f.out)

@@ -149,7 +149,8 @@ impl StrainLimiter {
     }
 
     /// The limiter a deformation with these settings uses on `source` (reading every frame once for the
-    /// sequence reference), or `None` when the cap is 0 (off).
+    /// sequence reference; a frame with invalid contents is left out of it, since the task positioning that
+    /// frame fails on it anyway: [`RestLengths::of_valid_frames`]), or `None` when the cap is 0 (off).
     pub fn for_source(
         source: &dyn FrameSource,
         cap: f64,
@@ -162,7 +163,7 @@ impl StrainLimiter {
         }
         Ok(Some(match reference {
             StrainReference::Sequence => {
-                Self::with_rest_lengths(&RestLengths::of_sequence(source)?, cap, sweeps)?
+                Self::with_rest_lengths(&RestLengths::of_valid_frames(source)?.0, cap, sweeps)?
             }
             StrainReference::Frame => Self::per_frame(source.topology(), cap, sweeps)?,
         }))

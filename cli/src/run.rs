@@ -89,9 +89,10 @@ pub struct DeformArgs {
     /// Strain limit: the positioning's last step shortens every edge longer than (1 + this) times its
     /// reference length back to it (Provot-style, Gauss–Seidel over the edges; compression, which folds are
     /// made of, is free against the sequence reference). A fraction (0.05 = 5%); `off` (or 0) turns it off.
-    /// docs/fidelity.md, "Strain limiting".
-    #[arg(long, default_value = "0.05", value_parser = parse_strain_limit)]
-    pub strain_limit: f64,
+    /// docs/fidelity.md, "Strain limiting". Default 0.05 against the sequence reference; the built-in demo,
+    /// whose input is its own rest state, uses 0.02.
+    #[arg(long, value_parser = parse_strain_limit)]
+    pub strain_limit: Option<f64>,
     /// Gauss–Seidel sweeps of the strain limit (it stops once a sweep moves nothing).
     #[arg(long, default_value_t = crease_core::spacetime::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS)]
     pub strain_limit_sweeps: usize,
@@ -158,7 +159,9 @@ impl DeformArgs {
             projection_order: self.projection_order,
             operator_block: self.operator_block,
 
-            strain_limit: self.strain_limit,
+            strain_limit: self
+                .strain_limit
+                .unwrap_or(crease_core::spacetime::strain_limit::DEFAULT_STRAIN_LIMIT),
             strain_limit_sweeps: self.strain_limit_sweeps,
             strain_reference: self.strain_reference.unwrap_or_default(),
         }
@@ -353,6 +356,9 @@ pub fn run(a: RunArgs) -> Result<()> {
         // The demo's input is its own rest state in every frame: its stretch is measured against the input
         // frame's triangles, and so is its strain limit.
         params.strain_reference = crease_core::spacetime::strain_limit::StrainReference::Frame;
+        if a.deform.strain_limit.is_none() {
+            params.strain_limit = crease_core::spacetime::strain_limit::REST_STATE_STRAIN_LIMIT;
+        }
     }
     params.validate()?;
     let folds = a.folds.unwrap_or(Folds::Anchors);

@@ -42,6 +42,13 @@ use serde::{Deserialize, Serialize};
 /// public cases the figures of the folds do not move (10% leaves the demo's triangles at 12.1%).
 pub const DEFAULT_STRAIN_LIMIT: f64 = 0.05;
 
+/// Cap against a true rest state (an input that is its own rest state in every frame, like the built-in demo):
+/// there the reference is exact, so the cap can be as tight as cloth is stiff (Popa et al. report 4% per
+/// triangle; 2% per edge gives the demo 4.1% per triangle, 5% leaves 8.4%). The sequence reference needs the
+/// looser [`DEFAULT_STRAIN_LIMIT`]: it is short wherever a region stays folded in every frame (the ground truth
+/// itself exceeds it by 7.8% at p99 on the public sleeve).
+pub const REST_STATE_STRAIN_LIMIT: f64 = 0.02;
+
 /// Default Gauss–Seidel sweeps (each touches only the edges still above the cap).
 pub const DEFAULT_STRAIN_LIMIT_SWEEPS: usize = 20;
 

@@ -510,16 +510,7 @@ fn cross_fitted_predictions(
 ) -> Result<Vec<Vec<Vec<f64>>>> {
     let mut out = vec![Vec::new(); seqs.len()];
     for g in 0..n_orig {
-        let others: Vec<ControlsAndCoefficients> = seqs
-            .iter()
-            .enumerate()
-            .filter(|(j, _)| j % n_orig != g)
-            .map(|(_, s)| *s)
-            .collect();
-        let controls: Vec<Vec<f64>> = others.iter().flat_map(|s| s.0.iter().cloned()).collect();
-        let targets: Vec<Vec<f64>> = others.iter().flat_map(|s| s.1.iter().cloned()).collect();
-        let linear = LinearRegression::fit(&controls, &targets, params.ridge)?;
-        let (ar, _) = fit_autoregressive(&others, params, k)?;
+        let (linear, ar) = fit_without(seqs, |j| j % n_orig == g, params, k)?;
         for (j, s) in seqs.iter().enumerate().filter(|(j, _)| j % n_orig == g) {
             out[j] = base_coefficients(base, &linear, &ar, blend.weight, s.0)?;
         }
@@ -545,16 +536,7 @@ pub fn inner_blend_weight(
     let mut total = WeightFit::default();
     let mut fold_weights = Vec::new();
     for (i, (c, a)) in seqs.iter().enumerate() {
-        let others: Vec<ControlsAndCoefficients> = seqs
-            .iter()
-            .enumerate()
-            .filter(|(j, _)| *j != i)
-            .map(|(_, s)| *s)
-            .collect();
-        let controls: Vec<Vec<f64>> = others.iter().flat_map(|s| s.0.iter().cloned()).collect();
-        let targets: Vec<Vec<f64>> = others.iter().flat_map(|s| s.1.iter().cloned()).collect();
-        let linear = LinearRegression::fit(&controls, &targets, params.ridge)?;
-        let (ar, _) = fit_autoregressive(&others, params, k)?;
+        let (linear, ar) = fit_without(seqs, |j| j == i, params, k)?;
         let lin: Vec<Vec<f64>> = c.iter().map(|x| linear.predict(x)).collect();
         let rolled = ar.rollout(c);
         let mut fold = WeightFit::default();
@@ -568,6 +550,27 @@ pub fn inner_blend_weight(
         method: "inner-leave-one-out".into(),
         fold_weights,
     })
+}
+
+/// The linear map and the autoregressive regressor fitted on the sequences `held_out` does not pick: the two
+/// parts of the blend as a held-out sequence would see them (cross-fitting and the inner leave-one-out).
+fn fit_without(
+    seqs: &[ControlsAndCoefficients<'_>],
+    held_out: impl Fn(usize) -> bool,
+    params: &TrainParams,
+    k: usize,
+) -> Result<(LinearRegression, AutoregressiveLinear)> {
+    let others: Vec<ControlsAndCoefficients> = seqs
+        .iter()
+        .enumerate()
+        .filter(|(j, _)| !held_out(*j))
+        .map(|(_, s)| *s)
+        .collect();
+    let controls: Vec<Vec<f64>> = others.iter().flat_map(|s| s.0.iter().cloned()).collect();
+    let targets: Vec<Vec<f64>> = others.iter().flat_map(|s| s.1.iter().cloned()).collect();
+    let linear = LinearRegression::fit(&controls, &targets, params.ridge)?;
+    let (ar, _) = fit_autoregressive(&others, params, k)?;
+    Ok((linear, ar))
 }
 
 /// The autoregressive regressor on each sequence's (control vectors, true coefficients): the ridge fit, then

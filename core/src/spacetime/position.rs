@@ -78,6 +78,8 @@ pub struct PositionSystem {
     /// For triangle corner pairs (0,0),(1,1),(2,2),(0,1),(1,2),(2,0): index into the values array, or NONE.
     scatter: Vec<[u32; 6]>,
     symbolic: SymbolicCholesky<usize>,
+    /// The three-column triangular solves' view of the factor structure (None: not supernodal; faer solves).
+    solve_plan: Option<super::factor_solve::SolvePlan>,
     /// The fold restoration's connectivity tables, built by the first frame that needs them.
     restore_mesh: OnceLock<RestoreMesh>,
     /// Frames per shared operator: 1 factorises every frame's own stiffness matrix (exact); k > 1 positions
@@ -173,6 +175,7 @@ impl PositionSystem {
             )
             .map_err(|e| Error::numeric("positioning: symbolic Cholesky", format!("{e:?}")))?
         };
+        let solve_plan = super::factor_solve::SolvePlan::new(&symbolic);
         Ok(PositionSystem {
             topo,
             pinning,
@@ -183,6 +186,7 @@ impl PositionSystem {
             row_idx,
             scatter,
             symbolic,
+            solve_plan,
             restore_mesh: OnceLock::new(),
             operator_block: 1,
             shared_factors: Mutex::new(Vec::new()),
@@ -505,12 +509,15 @@ impl FramePositioner<'_> {
         rhs
     }
 
-    /// Overwrites `rhs` with K⁻¹ rhs using the frame's factor (three columns in one sweep over the factor,
-    /// [`super::factor_solve`]; faer's general solve otherwise).
+    /// Overwrites `rhs` with K⁻¹ rhs using the frame's factor (three columns in one sweep over the factor, the
+    /// sequence's solve plan cutting it into subtrees solved in parallel, [`super::factor_solve`]; faer's
+    /// general solve otherwise).
     pub fn solve_in_place(&self, rhs: &mut Mat<f64>) {
         let sys = self.sys;
-        if super::factor_solve::solve3_supernodal(&sys.symbolic, &self.l_values, rhs) {
-            return;
+        if let Some(plan) = &sys.solve_plan {
+            if plan.solve3(&sys.symbolic, &self.l_values, rhs) {
+                return;
+            }
         }
         self.solve_in_place_faer(rhs);
     }

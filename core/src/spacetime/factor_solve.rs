@@ -110,7 +110,8 @@ impl SolvePlan {
             return None;
         }
         let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
-        let (val_ptr, row_ptr, rows) = (sn.col_ptr_for_val(), sn.col_ptr_for_row_idx(), sn.row_idx());
+        let (val_ptr, row_ptr, rows) =
+            (sn.col_ptr_for_val(), sn.col_ptr_for_row_idx(), sn.row_idx());
         let ns = sn.n_supernodes();
         let mut supers = Vec::with_capacity(ns);
         for s in 0..ns {
@@ -293,7 +294,8 @@ impl SolvePlan {
     /// L y = b in place (permuted, interleaved).
     fn forward(&self, l: &[f64], x: &mut [Row]) {
         let ns = self.supers.len();
-        let mut no_top = |_: u32, _: Row| unreachable!("a top supernode has no top rows outside its part");
+        let mut no_top =
+            |_: u32, _: Row| unreachable!("a top supernode has no top rows outside its part");
         if self.subtrees.is_empty() {
             for s in 0..ns {
                 self.forward_super(l, s, x, 0, &mut no_top);
@@ -415,7 +417,10 @@ fn cut_tree<'a>(
     if (0..ns).any(|s| s + 1 - first[s] != count[s]) {
         return none;
     }
-    let total: usize = (0..ns).filter(|&s| parent[s].is_none()).map(|s| weight[s]).sum();
+    let total: usize = (0..ns)
+        .filter(|&s| parent[s].is_none())
+        .map(|s| weight[s])
+        .sum();
     let own = |s: usize| supers[s].size * (supers[s].size + supers[s].m);
     let mut frontier: Vec<usize> = (0..ns).filter(|&s| parent[s].is_none()).collect();
     let mut top = vec![false; ns];

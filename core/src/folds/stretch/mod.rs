@@ -23,6 +23,7 @@ pub mod symbolic;
 pub mod tensor;
 pub mod trace;
 pub mod unfold;
+mod wide_sweep;
 
 pub use params::{Flattening, StretchParams};
 pub use trace::{FrameFolds, TracedFold};
@@ -97,6 +98,14 @@ fn decode_record(b: &[u8]) -> (f32, f32) {
         f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
         f32::from_le_bytes([b[4], b[5], b[6], b[7]]),
     )
+}
+
+/// Whether the forward pass steps frame t + 1 while frame t is traced (`CREASE_STRETCH_OVERLAP=1`; read once).
+/// Off by default: the output is the same either way (every stage reads only its own frames), and it is an
+/// experiment to be measured on a quiet machine, where the threads the tracing leaves idle are free.
+fn overlap_steps() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| std::env::var("CREASE_STRETCH_OVERLAP").is_ok_and(|v| v.trim() == "1"))
 }
 
 /// What [`StretchDetector::run_timed`] measured besides the folds.
@@ -197,25 +206,35 @@ impl StretchDetector {
         let h = mean_edge_length(&topo, &first);
         let mut tracker = PhaseTracker::new(&topo, &first);
         let mut tracer = trace::FoldTracer::new(&topo, levels);
-        let mut prev = first;
-        let mut buf = vec![0u8; record];
-        let mut timing = RunTiming::default();
-        for t in 0..n {
-            check()?;
+        // Frame t's positions, geometry and forward signal (the tracker's step from frame t − 1).
+        let forward = |t: usize,
+                       prev: &[V3],
+                       tracker: &mut PhaseTracker|
+         -> Result<(Vec<V3>, FrameGeometry, Signal)> {
             let cur = if t == 0 {
-                prev.clone()
+                prev.to_vec()
             } else {
                 source.read_frame(t)?
             };
             let geom = FrameGeometry::new(&topo, &cur);
-            let mut sig = if t == 0 {
+            let sig = if t == 0 {
                 Signal {
                     shrink: vec![1.0; nt],
                     dir: geom.e1.clone(),
                 }
             } else {
-                tracker.step(&topo, &prev, &cur, &geom, params)
+                tracker.step(&topo, prev, &cur, &geom, params)
             };
+            Ok((cur, geom, sig))
+        };
+        let overlap = overlap_steps();
+        let mut next = Some(forward(0, &first, &mut tracker)?);
+        drop(first);
+        let mut buf = vec![0u8; record];
+        let mut timing = RunTiming::default();
+        for t in 0..n {
+            check()?;
+            let (cur, geom, mut sig) = next.take().expect("frame t was stepped");
             if t + 1 < n {
                 spill
                     .seek(SeekFrom::Start((record * t) as u64))
@@ -239,11 +258,28 @@ impl StretchDetector {
                 dir: &sig.dir,
                 h,
             };
-            let started = std::time::Instant::now();
-            let folds = tracer.trace(&field, params);
-            timing.tracing += started.elapsed().as_secs_f64();
+            let mut trace_timed = || {
+                let started = std::time::Instant::now();
+                let folds = tracer.trace(&field, params);
+                (folds, started.elapsed().as_secs_f64())
+            };
+            // Tracing reads only frame t; the step to frame t + 1 only the two frames and the tracker: with
+            // `overlap`, the step runs beside the tracing on the threads its seeds leave idle.
+            let ((folds, seconds), stepped) = if overlap && t + 1 < n {
+                let (traced, stepped) =
+                    rayon::join(trace_timed, || forward(t + 1, &cur, &mut tracker));
+                (traced, Some(stepped))
+            } else {
+                (trace_timed(), None)
+            };
+            timing.tracing += seconds;
             each(t, &cur, &sig.shrink, folds)?;
-            prev = cur;
+            if t + 1 < n {
+                next = Some(match stepped {
+                    Some(stepped) => stepped?,
+                    None => forward(t + 1, &cur, &mut tracker)?,
+                });
+            }
             progress.advance(STAGE, 1);
         }
         (timing.traced_ahead, timing.wasted) = tracer.traced_ahead();

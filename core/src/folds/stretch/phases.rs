@@ -74,11 +74,7 @@ fn smoothed_field_in(
     params: &StretchParams,
     scratch: &mut SmoothScratch,
 ) -> Vec<Tensor> {
-    let SmoothScratch {
-        field,
-        shares,
-        next,
-    } = scratch;
+    let SmoothScratch { field, sweeps } = scratch;
     (0..topo.n_triangles())
         .into_par_iter()
         .with_min_len(2048)
@@ -90,7 +86,7 @@ fn smoothed_field_in(
         params.max_change,
         params.tail_fraction,
     );
-    smooth_in(topo, geom, field, params.smooth_iterations, shares, next)
+    smooth_in(topo, geom, field, params.smooth_iterations, sweeps)
 }
 
 /// What one non-isometric-or-isometric step decides for a triangle's phase reference.

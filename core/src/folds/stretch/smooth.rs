@@ -13,6 +13,7 @@
 //! no meaningful direction). Dropped outliers contribute nothing and are refilled from their neighbours.
 
 use super::tensor::{absolute_change, Tensor};
+use super::wide_sweep;
 use crate::mesh::{Topology, NONE};
 use crate::vec3::{self, V3};
 use rayon::prelude::*;
@@ -204,14 +205,23 @@ fn half_angle_direction(c2: f64, s2: f64, e1: V3, e2: V3) -> V3 {
 }
 
 /// Buffers of the field operations kept by a caller that smooths frame after frame (the phase tracker): the
-/// raw field and the two sweeps' shares, about 18 MB at 100K triangles, four times per frame. Fresh buffers of
+/// raw field and the sweeps' buffers, about 30 MB at 100K triangles, four times per frame. Fresh buffers of
 /// that size come from the kernel as new pages, zeroed and faulted in one by one (a twentieth of the
 /// detector's time); reused ones are written in place. Results do not depend on what a buffer held before.
 #[derive(Default)]
 pub struct SmoothScratch {
     pub(super) field: Vec<Option<Tensor>>,
-    pub(super) shares: Vec<Share>,
-    pub(super) next: Vec<Share>,
+    pub(super) sweeps: SweepBuffers,
+}
+
+/// The sweeps' buffers: the scalar sweeps' shares, or the AVX2 sweeps' rows and blocks ([`wide_sweep`]).
+#[derive(Default)]
+pub(super) struct SweepBuffers {
+    shares: Vec<Share>,
+    next: Vec<Share>,
+    blocks: wide_sweep::Blocks,
+    rows: Vec<wide_sweep::Row>,
+    next_rows: Vec<wide_sweep::Row>,
 }
 
 /// Smooths Γ, γ and the direction angle separately (see the module doc) for `iterations` Jacobi sweeps.
@@ -224,19 +234,84 @@ pub fn smooth(
     field: &[Option<Tensor>],
     iterations: usize,
 ) -> Vec<Tensor> {
-    let mut scratch = SmoothScratch::default();
-    smooth_in(
-        topo,
-        geom,
-        field,
-        iterations,
-        &mut scratch.shares,
-        &mut scratch.next,
-    )
+    smooth_in(topo, geom, field, iterations, &mut SweepBuffers::default())
 }
 
-/// [`smooth`] with its sweeps' shares in `shares` and `next` (any previous contents are overwritten).
+/// [`smooth`] in `bufs` (any previous contents are overwritten): four triangles at a time with AVX2 where the
+/// CPU has it ([`wide_sweep`], the same bits), otherwise one at a time.
 pub(super) fn smooth_in(
+    topo: &Topology,
+    geom: &FrameGeometry,
+    field: &[Option<Tensor>],
+    iterations: usize,
+    bufs: &mut SweepBuffers,
+) -> Vec<Tensor> {
+    if iterations > 0 && wide_sweep::available() {
+        smooth_wide(topo, geom, field, iterations, bufs)
+    } else {
+        smooth_scalar(
+            topo,
+            geom,
+            field,
+            iterations,
+            &mut bufs.shares,
+            &mut bufs.next,
+        )
+    }
+}
+
+/// [`smooth`] with the AVX2 sweeps (`iterations` ≥ 1; the caller checked [`wide_sweep::available`]).
+fn smooth_wide(
+    topo: &Topology,
+    geom: &FrameGeometry,
+    field: &[Option<Tensor>],
+    iterations: usize,
+    bufs: &mut SweepBuffers,
+) -> Vec<Tensor> {
+    use wide_sweep::{row_of, rows_for, Row, LANES};
+    /// Blocks per parallel task (1,024 triangles, as the scalar sweeps split them).
+    const CHUNK: usize = 256;
+    let n = field.len();
+    let SweepBuffers {
+        blocks,
+        rows,
+        next_rows,
+        ..
+    } = bufs;
+    blocks.build(topo.tri_adj(), &geom.e1, &geom.e2, &geom.areas);
+    for buf in [&mut *rows, &mut *next_rows] {
+        buf.resize(rows_for(n), Row::default());
+        // The rows past the last triangle are the missing neighbour's: empty.
+        buf[n..].fill(Row::default());
+    }
+    rows[..n]
+        .par_iter_mut()
+        .zip(field.par_iter())
+        .zip(geom.areas.par_iter())
+        .with_min_len(4096)
+        .for_each(|((r, &t), &a)| *r = row_of(t, a));
+    let nb = blocks.len();
+    let range = |c: usize| c * CHUNK..(c * CHUNK + CHUNK).min(nb);
+    // Every sweep but the last writes the rows the next one reads.
+    for _ in 1..iterations {
+        let (src, blocks) = (&*rows, &*blocks);
+        next_rows[..nb * LANES]
+            .par_chunks_mut(CHUNK * LANES)
+            .enumerate()
+            .for_each(|(c, out)| blocks.sweep(range(c), src, out));
+        std::mem::swap(rows, next_rows);
+    }
+    let mut out = vec![Tensor::IDENTITY; n];
+    let (src, blocks) = (&*rows, &*blocks);
+    out.par_chunks_mut(CHUNK * LANES)
+        .enumerate()
+        .for_each(|(c, out)| blocks.last(range(c), src, out));
+    out
+}
+
+/// [`smooth`] one triangle at a time, its sweeps' shares in `shares` and `next` (any previous contents are
+/// overwritten): the reference the AVX2 sweeps keep to, and the sweeps of CPUs without AVX2.
+fn smooth_scalar(
     topo: &Topology,
     geom: &FrameGeometry,
     field: &[Option<Tensor>],
@@ -363,6 +438,116 @@ mod tests {
         // Exactly along the normal (an exact frame, so the projections are exactly zero).
         let (x, y, z) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
         assert_eq!(doubled_angle(z, x, y), (1.0, 0.0));
+    }
+
+    /// The AVX2 sweeps give the scalar sweeps' tensors bit for bit: on the measured fields of a compressed tube
+    /// (a boundary at both ends, outliers dropped) and on a sheet whose field has every special case the scalar
+    /// code branches on — no data, zero-area triangles with data, zero and normal-aligned directions, γ = 0, and
+    /// an isotropic patch (no direction weight, so the own direction or e1 is kept) — for meshes whose triangle
+    /// count is and is not a multiple of four, and for 1, 2, 3 and 6 sweeps.
+    #[test]
+    fn wide_sweeps_are_the_scalar_sweeps() {
+        if !wide_sweep::available() {
+            eprintln!("no AVX2 on this CPU: only the scalar sweeps run here");
+            return;
+        }
+        let bits = |t: &[Tensor]| -> Vec<[u64; 5]> {
+            t.iter()
+                .map(|t| {
+                    let d = t.dir_big.map(f64::to_bits);
+                    [t.big.to_bits(), t.small.to_bits(), d[0], d[1], d[2]]
+                })
+                .collect()
+        };
+        let mut cases: Vec<(Topology, FrameGeometry, Vec<Option<Tensor>>)> = Vec::new();
+        // Measured: a step of a compressed tube, cleaned as the detector cleans it.
+        let seq = crate::synth::compressed_tube(3000, 3, 0.3, -1.0).unwrap();
+        let topo = &seq.topology;
+        let geom = FrameGeometry::new(topo, &seq.frames[2]);
+        let mut field: Vec<Option<Tensor>> = topo
+            .triangles()
+            .iter()
+            .map(|tri| {
+                jacobian(
+                    shape(tri.map(|v| seq.frames[1][v as usize])),
+                    tri.map(|v| seq.frames[2][v as usize]),
+                )
+            })
+            .collect();
+        remove_outliers(&mut field, &geom.normals, 2.0, 0.0005);
+        cases.push(((**topo).clone(), geom, field));
+        // Constructed: every branch of the scalar update.
+        for (cols, rows) in [(13, 9), (12, 10)] {
+            let (topo, p) = crate::synth::sheet(cols, rows, 0.1).unwrap();
+            let mut geom = FrameGeometry::new(&topo, &p);
+            let nt = topo.n_triangles();
+            let mut special = [0usize; 6];
+            let field: Vec<Option<Tensor>> = (0..nt)
+                .map(|i| {
+                    let q = topo.triangles()[i].map(|v| p[v as usize]);
+                    let wave = 0.85 + 0.1 * ((i * 37 % 11) as f64 / 11.0);
+                    let r = q.map(|x| [wave * x[0] + 0.05 * x[1], x[1], x[2] + 0.02 * x[0]]);
+                    let mut t = jacobian(shape(q), r)?;
+                    match i % 23 {
+                        0 => {
+                            special[0] += 1;
+                            return None;
+                        }
+                        5 => {
+                            special[1] += 1;
+                            geom.areas[i] = 0.0;
+                        }
+                        9 => {
+                            special[2] += 1;
+                            t.dir_big = [0.0; 3];
+                        }
+                        14 => {
+                            special[3] += 1;
+                            t.dir_big = geom.normals[i];
+                        }
+                        18 => {
+                            special[4] += 1;
+                            t.small = 0.0;
+                        }
+                        _ => {}
+                    }
+                    // An isotropic patch: no direction weight around its inner triangles.
+                    if (nt / 3..nt / 3 + 40).contains(&i) {
+                        special[5] += 1;
+                        t.small = t.big;
+                        if i % 7 == 0 {
+                            return None;
+                        }
+                    }
+                    Some(t)
+                })
+                .collect();
+            assert!(special.iter().all(|&k| k > 0), "{special:?}");
+            cases.push((topo.as_ref().clone(), geom, field));
+        }
+        assert!(
+            cases.iter().any(|c| c.2.len() % 4 == 0) && cases.iter().any(|c| c.2.len() % 4 != 0)
+        );
+        let mut reused = SweepBuffers::default();
+        for (topo, geom, field) in &cases {
+            for iterations in [1, 2, 3, 6] {
+                let scalar = smooth_scalar(
+                    topo,
+                    geom,
+                    field,
+                    iterations,
+                    &mut Vec::new(),
+                    &mut Vec::new(),
+                );
+                let wide = smooth_wide(topo, geom, field, iterations, &mut reused);
+                assert_eq!(wide.len(), field.len());
+                assert!(
+                    bits(&scalar) == bits(&wide),
+                    "{} triangles, {iterations} sweeps: the AVX2 sweeps differ",
+                    field.len()
+                );
+            }
+        }
     }
 
     #[test]

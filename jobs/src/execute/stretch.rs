@@ -59,6 +59,7 @@ impl Carry {
 }
 
 pub fn steps(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
+    let mut lap = Lap::start();
     let opened = env.open_input()?;
     let (n, nt) = traced_size(&opened);
     let label = format!("stretch steps, frames {}..{}", frames.start, frames.end);
@@ -75,12 +76,14 @@ pub fn steps(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
         env.progress(),
     )
     .map_err(|e| TaskError::from_core(&label, e))?;
+    lap.lap("fold-steps: step records (meshes parsed, tensors, smoothing)");
     let mut written = Vec::with_capacity(records.len());
     for (t, rec) in frames.zip(records) {
         let key = keys::fold_steps(t);
         env.put_npy(&key, &[nt, 4], rec.as_flattened())?;
         written.push(key);
     }
+    lap.lap("fold-steps: write step records");
     Ok((json!({}), written))
 }
 
@@ -162,6 +165,7 @@ fn read_codes(env: &TaskEnv, t: usize, n: usize, nt: usize) -> Result<Codes, Tas
 
 /// A tracing chunk (a `fold-detect` task of a stretch job).
 pub fn trace(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
+    let mut lap = Lap::start();
     let opened = env.open_input()?;
     let (n, nt) = traced_size(&opened);
     let label = format!("stretch tracing, frames {}..{}", frames.start, frames.end);
@@ -173,19 +177,31 @@ pub fn trace(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
     let det = detector(env, n)?;
     let clock = std::time::Instant::now();
     let carry = Carry::new();
+    let codes_seconds = std::cell::Cell::new(0.0);
     let r = ChunkTracer::new(&det, opened.source.as_ref()).and_then(|mut tracer| {
         split::trace_chunk(
             &mut tracer,
             frames.clone(),
             env.job.partition.stretch_warm_up,
-            |t| carry.wrap(read_codes(env, t, n, nt)),
+            |t| {
+                let c = std::time::Instant::now();
+                let codes = read_codes(env, t, n, nt);
+                codes_seconds.set(codes_seconds.get() + c.elapsed().as_secs_f64());
+                carry.wrap(codes)
+            },
             env.progress(),
         )
     });
     let chunk = carry.finish(&label, r)?;
     let seconds = clock.elapsed().as_secs_f64();
+    lap.lap("fold-detect: trace (meshes parsed, signals, tracing; codes read)");
+    super::phase_times::add(
+        "fold-detect: of which phase codes read",
+        codes_seconds.get(),
+    );
     let key = keys::fold_trace_chunk(frames.start);
     env.put(&key, chunk.to_binary())?;
+    lap.lap("fold-detect: write chunk");
     let timing = keys::fold_chunk_timing(frames.start);
     env.put_json(
         &timing,
@@ -339,6 +355,7 @@ pub fn folds_png(env: &TaskEnv, opened: &OpenedSequence) -> Result<Vec<Artifact>
     }
     let label = "stretch folds.png";
     let (frames, _) = reconciled(env, opened, &det, label, |_| Ok(()))?;
+    lap.lap("fold-plot: read and reconcile chunks");
     let source: &dyn FrameSource = opened.source.as_ref();
     let carry = Carry::new();
     let r = ChunkTracer::new(&det, source).and_then(|mut tracer| {

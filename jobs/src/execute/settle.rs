@@ -147,14 +147,40 @@ pub(super) fn settled(
             );
             continue;
         }
-        env.check_cancelled()?;
-        let key = keys::fold_settled(r.start);
-        let bytes = env.get(&key)?;
-        let frames = binary::frames_from_binary(&bytes, Path::new(&env.out.describe(&key)))
-            .map_err(|e| TaskError::fatal(e.to_string()))?;
-        check_frames(env, &key, &frames, &r)?;
-        out.extend(frames);
+        out.extend(read_settled(env, &r)?);
     }
+    covers(out, n, label)
+}
+
+/// The settled anchors of every frame, in order, as the job's `fold-settle` tasks stored them (for a job that
+/// has settle tasks and whose detected frames are all as its detection tasks stored them).
+pub(super) fn stored_settled(
+    env: &TaskEnv,
+    opened: &OpenedSequence,
+    n: usize,
+    label: &str,
+) -> Result<Vec<FrameAnchors>, TaskError> {
+    let (_, ranges) = plan(env, opened);
+    let mut out = Vec::with_capacity(n);
+    for r in ranges {
+        out.extend(read_settled(env, &r)?);
+    }
+    covers(out, n, label)
+}
+
+/// The settled range `r` as its `fold-settle` task stored it.
+fn read_settled(env: &TaskEnv, r: &Range<usize>) -> Result<Vec<FrameAnchors>, TaskError> {
+    env.check_cancelled()?;
+    let key = keys::fold_settled(r.start);
+    let bytes = env.get(&key)?;
+    let frames = binary::frames_from_binary(&bytes, Path::new(&env.out.describe(&key)))
+        .map_err(|e| TaskError::fatal(e.to_string()))?;
+    check_frames(env, &key, &frames, r)?;
+    Ok(frames)
+}
+
+/// `out` if it holds all `n` frames.
+fn covers(out: Vec<FrameAnchors>, n: usize, label: &str) -> Result<Vec<FrameAnchors>, TaskError> {
     if out.len() != n {
         return Err(TaskError::fatal(format!(
             "{label}: the settle ranges cover {} of {n} frames",

@@ -17,7 +17,7 @@ use crate::bench::BenchArgs;
 use crate::bench_jobs::{self, path_str};
 use anyhow::{bail, Context, Result};
 use crease_core::folds::stretch::StretchDetector;
-use crease_core::folds::{AnchorSet, FoldDetector};
+use crease_core::folds::{AnchorSet, FrameAnchors, FrameDetection};
 use crease_core::mesh::MemorySink;
 use crease_core::progress::NoProgress;
 use crease_core::spacetime::{deform, DeformParams};
@@ -39,6 +39,7 @@ const STAGES: &[(&str, &[&str])] = &[
             "fold-settle",
             "fold-merge",
             "fold-files",
+            "fold-plot",
         ],
     ),
     ("weights", &["weight-window", "weight-block", "reduce"]),
@@ -75,9 +76,29 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
     // 1. Reference: the same computation without the cluster.
     eprintln!("reference: stretch detection + deformation in process");
     let per_frame = |s: f64| s / frames as f64;
+    // What `StretchDetector::detect` does (no subdivision, no overlay frames), in its two timed parts: the two
+    // passes with the tracing, then the whole-sequence end (temporal coherence), so that the tasks' costs can be
+    // set against each part.
+    let det = StretchDetector::default();
     let t = Instant::now();
-    let detected = StretchDetector::default().detect(&seq, 0..frames, &NoProgress)?;
-    let ref_detect = t.elapsed().as_secs_f64();
+    let mut traced = Vec::with_capacity(frames);
+    let timing = det.run_timed(&seq, &NoProgress, |t, _, _, folds| {
+        traced.push(FrameAnchors {
+            frame: t,
+            anchors: folds.anchors,
+            detection: Some(FrameDetection {
+                folds: folds.folds.len(),
+                seeds_tried: Some(folds.seeds_tried),
+            }),
+            control_lines: folds.folds.into_iter().flat_map(|f| f.lines).collect(),
+        });
+        Ok(())
+    })?;
+    let ref_passes = t.elapsed().as_secs_f64() - timing.tracing;
+    let t = Instant::now();
+    let (detected, _) = det.finish(&seq, traced, &[])?;
+    let ref_settle = t.elapsed().as_secs_f64();
+    let ref_detect = ref_passes + timing.tracing + ref_settle;
     let anchors = AnchorSet::from_frame_anchors(detected, seq.topology.n_triangles(), None)?;
     let t = Instant::now();
     let mut sink = MemorySink::default();
@@ -194,9 +215,13 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
         );
     }
     println!(
-        "reference (same process, no cluster): stretch detection {:.3} s/frame, deformation {:.3} s/frame, \
-         total {:.3} s/frame; stretch job wall / reference = {:.2}x",
+        "reference (same process, no cluster): stretch detection {:.3} s/frame (passes {:.3}, tracing {:.3}, \
+         temporal settle {:.3}), deformation {:.3} s/frame, total {:.3} s/frame; stretch job wall / reference = \
+         {:.2}x",
         per_frame(ref_detect),
+        per_frame(ref_passes),
+        per_frame(timing.tracing),
+        per_frame(ref_settle),
         per_frame(ref_deform),
         per_frame(ref_total),
         rows[0].3 / per_frame(ref_total)
@@ -307,7 +332,11 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
     if let Some(path) = &a.json {
         let doc = json!({
             "triangles": triangles, "frames": frames, "workers": workers, "threads": threads,
-            "reference_seconds_per_frame": {"detect": per_frame(ref_detect), "deform": per_frame(ref_deform)},
+            "reference_seconds_per_frame": {
+                "detect": per_frame(ref_detect), "deform": per_frame(ref_deform),
+                "detect_passes": per_frame(ref_passes), "detect_tracing": per_frame(timing.tracing),
+                "detect_settle": per_frame(ref_settle),
+            },
             "jobs": rows.iter().map(|(label, stages, work, wall, peak, anchors)| json!({
                 "folds": label,
                 "stage_seconds_per_frame": stages.iter().cloned().collect::<BTreeMap<_, _>>(),

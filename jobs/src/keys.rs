@@ -74,6 +74,11 @@ pub fn fold_phases(pass: &str, frame: usize) -> String {
 pub fn fold_trace_chunk(first_frame: usize) -> String {
     format!("{WORK_DIR}/folds/trace/f{first_frame:06}.bin")
 }
+/// Stretch detector: what `folds.png` draws of overlay frame `frame` (positions, fold signal, anchors as traced),
+/// kept by the tracing task that traced it (`execute::stretch::overlay_to_npy`).
+pub fn fold_overlay(frame: usize) -> String {
+    format!("{WORK_DIR}/folds/overlay/f{frame:06}.npy")
+}
 /// Settled anchors of the frames starting at `first_frame` (`FrameAnchors` in the binary anchors form), as the
 /// whole-sequence settle gives them for those frames.
 pub fn fold_settled(first_frame: usize) -> String {

@@ -19,7 +19,8 @@ use super::{Anchor, FrameAnchors};
 use crate::error::{Error, Result};
 use crate::mesh::{FrameSource, Topology, NONE};
 use crate::vec3::{self, V3};
-use std::collections::{HashMap, VecDeque};
+use rayon::prelude::*;
+use std::collections::VecDeque;
 use std::ops::Range;
 
 /// Orthonormal frame (e1, e2, n) of every triangle of one frame.
@@ -29,7 +30,8 @@ type Frames = Vec<[V3; 3]>;
 /// frame to frame does not depend on the corner order (winding) of the triangle list.
 fn triangle_frames(topo: &Topology, p: &[V3]) -> Frames {
     topo.triangles()
-        .iter()
+        .par_iter()
+        .with_min_len(4096)
         .map(|t| {
             let q = t.map(|v| p[v as usize]);
             let n = vec3::normalize(vec3::cross(vec3::sub(q[1], q[0]), vec3::sub(q[2], q[0])));
@@ -129,21 +131,13 @@ pub fn settle_range(
         return Ok(frames[range.start - offset..range.end - offset].to_vec());
     }
     let topo = source.topology().clone();
-    // Anchors by triangle of the input frames `need`; `lookup[u - need.start]` is frame `u`.
-    let lookup: Vec<HashMap<u32, V3>> = frames[need.start - offset..need.end - offset]
-        .iter()
-        .map(|f| {
-            f.anchors
-                .iter()
-                .map(|a| (a.triangle, a.rotation_vector()))
-                .collect()
-        })
-        .collect();
+    let nt = topo.n_triangles();
     let anchors_of = |u: usize| &frames[u - offset];
-    // Frames t − radius ..= t + radius; `window[k]` is frame `first + k`.
+    // Frames t − radius ..= t + radius, their triangle frames and anchors by triangle; `window[k]` and
+    // `lookup[k]` are frame `first + k`.
     let mut window: VecDeque<Frames> = VecDeque::new();
+    let mut lookup: VecDeque<ByTriangle> = VecDeque::new();
     let mut first = need.start;
-    let mut rings: HashMap<u32, Vec<u32>> = HashMap::new();
     let mut out = Vec::with_capacity(range.len());
     for t in range {
         let fa = anchors_of(t);
@@ -151,19 +145,23 @@ pub fn settle_range(
         let hi = (t + radius).min(n - 1);
         while first < lo {
             window.pop_front();
+            lookup.pop_front();
             first += 1;
         }
         while first + window.len() <= hi {
-            let p = source.read_frame(first + window.len())?;
+            let u = first + window.len();
+            let p = source.read_frame(u)?;
             window.push_back(triangle_frames(&topo, &p));
+            lookup.push_back(ByTriangle::new(anchors_of(u), nt)?);
         }
+        let (window, lookup) = (&window, &lookup);
         let fr = |u: usize| &window[u - first];
-        // The best match in frame `u` of a rotation `c` (local coordinates of triangle `i`), in the local
-        // coordinates of `i` at `u`.
-        let mut find = |i: u32, c: V3, u: usize| -> Option<V3> {
-            let cand = rings.entry(i).or_insert_with(|| ring(&topo, i as usize));
+        // The best match in frame `u` of a rotation `c` (local coordinates of triangle `i`, whose vertex ring
+        // is `cand`), in the local coordinates of `i` at `u`.
+        let find = |cand: &[u32], i: u32, c: V3, u: usize| -> Option<V3> {
+            let at = &lookup[u - first];
             cand.iter()
-                .filter_map(|j| lookup[u - need.start].get(j))
+                .filter_map(|&j| at.get(j))
                 .map(|&phi| to_local(&fr(u)[i as usize], phi))
                 .filter(|m| vec3::dot(*m, c) > 0.0)
                 .min_by(|a, b| {
@@ -171,43 +169,62 @@ pub fn settle_range(
                 })
         };
         // Gaussian mean over the window of the matches of `c` (its value at `t`), missing ones counting as 0.
-        let smooth = |i: u32, c: V3, find: &mut dyn FnMut(u32, V3, usize) -> Option<V3>| {
+        let smooth = |cand: &[u32], i: u32, c: V3| {
             let (mut sum, mut wsum) = ([0.0; 3], 0.0);
             for u in lo..=hi {
                 let w = weight(u.abs_diff(t), radius);
                 wsum += w;
-                let m = if u == t { Some(c) } else { find(i, c, u) };
+                let m = if u == t { Some(c) } else { find(cand, i, c, u) };
                 if let Some(m) = m {
                     sum = vec3::add(sum, vec3::scale(m, w));
                 }
             }
             vec3::scale(sum, 1.0 / wsum)
         };
+        // Each anchor's settled rotation depends on read-only data only, so anchors are settled in parallel and
+        // kept in their order: the same values, pushed in the same order, as one after the other.
+        let kept: Vec<Option<(u32, V3)>> = fa
+            .anchors
+            .par_iter()
+            .with_min_len(PAR_MIN_ANCHORS)
+            .map(|a| {
+                let i = a.triangle;
+                let cand = ring(&topo, i as usize);
+                let c = to_local(&fr(t)[i as usize], a.rotation_vector());
+                let before = t > 0 && find(&cand, i, c, t - 1).is_some();
+                let after = t + 1 < n && find(&cand, i, c, t + 1).is_some();
+                if !before && !after {
+                    return None;
+                }
+                let s = smooth(&cand, i, c);
+                Some((i, to_world(&fr(t)[i as usize], s)))
+            })
+            .collect();
         let mut anchors: Vec<Anchor> = Vec::with_capacity(fa.anchors.len());
-        for a in &fa.anchors {
-            let i = a.triangle;
-            let c = to_local(&fr(t)[i as usize], a.rotation_vector());
-            let before = t > 0 && find(i, c, t - 1).is_some();
-            let after = t + 1 < n && find(i, c, t + 1).is_some();
-            if !before && !after {
-                continue;
-            }
-            let s = smooth(i, c, &mut find);
-            push(&mut anchors, i, to_world(&fr(t)[i as usize], s));
+        for (i, phi) in kept.into_iter().flatten() {
+            push(&mut anchors, i, phi);
         }
         // Single-frame gaps: a fold matched in the frames before and after, missing here.
         if t > 0 && t + 1 < n {
-            for a in &anchors_of(t - 1).anchors {
-                let i = a.triangle;
-                let c = to_local(&fr(t - 1)[i as usize], a.rotation_vector());
-                if find(i, c, t).is_some() {
-                    continue;
-                }
-                if let Some(next) = find(i, c, t + 1) {
+            let filled: Vec<Option<(u32, V3)>> = anchors_of(t - 1)
+                .anchors
+                .par_iter()
+                .with_min_len(PAR_MIN_ANCHORS)
+                .map(|a| {
+                    let i = a.triangle;
+                    let cand = ring(&topo, i as usize);
+                    let c = to_local(&fr(t - 1)[i as usize], a.rotation_vector());
+                    if find(&cand, i, c, t).is_some() {
+                        return None;
+                    }
+                    let next = find(&cand, i, c, t + 1)?;
                     let mid = vec3::scale(vec3::add(c, next), 0.5);
-                    let s = smooth(i, mid, &mut find);
-                    push(&mut anchors, i, to_world(&fr(t)[i as usize], s));
-                }
+                    let s = smooth(&cand, i, mid);
+                    Some((i, to_world(&fr(t)[i as usize], s)))
+                })
+                .collect();
+            for (i, phi) in filled.into_iter().flatten() {
+                push(&mut anchors, i, phi);
             }
         }
         anchors.sort_by_key(|a| a.triangle);
@@ -220,6 +237,51 @@ pub fn settle_range(
         });
     }
     Ok(out)
+}
+
+/// Anchors settled per parallel work item: below this a frame's anchors are not worth splitting.
+const PAR_MIN_ANCHORS: usize = 256;
+
+/// One frame's anchor rotations by triangle, for the settle's lookups: `slot[i]` indexes `rot` (`u32::MAX`:
+/// no anchor on `i`). Dense rather than hashed: the settle probes every triangle of a vertex ring about ten
+/// times per anchor, and hashing those probes was most of its time. A triangle listed twice keeps its last
+/// rotation, as collecting into a map did. Only the frames of the settle window are held.
+struct ByTriangle {
+    slot: Vec<u32>,
+    rot: Vec<V3>,
+}
+
+impl ByTriangle {
+    fn new(f: &FrameAnchors, nt: usize) -> Result<Self> {
+        let mut slot = vec![u32::MAX; nt];
+        let mut rot = Vec::with_capacity(f.anchors.len());
+        for a in &f.anchors {
+            let s = slot
+                .get_mut(a.triangle as usize)
+                .ok_or_else(|| Error::Anchors {
+                    path: None,
+                    msg: format!(
+                        "temporal settle: frame {} has an anchor on triangle {}, the mesh has {nt}",
+                        f.frame, a.triangle
+                    ),
+                })?;
+            if *s == u32::MAX {
+                *s = rot.len() as u32;
+                rot.push(a.rotation_vector());
+            } else {
+                rot[*s as usize] = a.rotation_vector();
+            }
+        }
+        Ok(ByTriangle { slot, rot })
+    }
+
+    #[inline]
+    fn get(&self, j: u32) -> Option<&V3> {
+        match self.slot[j as usize] {
+            u32::MAX => None,
+            s => Some(&self.rot[s as usize]),
+        }
+    }
 }
 
 fn push(anchors: &mut Vec<Anchor>, triangle: u32, phi: V3) {
@@ -303,6 +365,20 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn an_anchor_off_the_mesh_is_an_error_naming_its_frame() {
+        let (seq, mut frames) = case();
+        let nt = seq.topology.n_triangles();
+        frames[5].anchors.push(Anchor {
+            triangle: nt as u32 + 3,
+            axis: [0.0, 0.0, 1.0],
+            angle: 0.2,
+        });
+        let msg = settle(&seq, frames, 2).unwrap_err().to_string();
+        assert!(msg.contains("frame 5"), "{msg}");
+        assert!(msg.contains(&format!("triangle {}", nt + 3)), "{msg}");
     }
 
     #[test]

@@ -4,6 +4,7 @@
 //! is still rewriting.
 
 use super::env::{storage_err, TaskEnv};
+use super::phase_times::Lap;
 use super::position::FrameTimings;
 use super::weights::WindowRecord;
 use crate::error::{JobError, TaskError};
@@ -22,6 +23,7 @@ use serde_json::{json, Value};
 use std::time::Instant;
 
 pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
+    let mut lap = Lap::start();
     let job = env.job;
     let params = &env.params;
     env.delete(keys::REPORT)?;
@@ -34,7 +36,9 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let source: &dyn FrameSource = opened.source.as_ref();
     let topo = source.topology().clone();
     let n = source.n_frames();
+    lap.lap("finalize: open input, clear the output");
     let anchors = env.anchors(n, topo.n_triangles())?;
+    lap.lap("finalize: read the anchors");
     let core_err = |what: &str| {
         let what = what.to_string();
         move |e| TaskError::from_core(&format!("finalize: {what}"), e)
@@ -63,6 +67,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     // Stretch against the least-compressed captured edge lengths (crease_core::rest_stretch): the rest lengths
     // need every input frame, so they are measured here, where the whole sequence is, on every output frame.
     let rest_lengths = RestLengths::of_sequence(source).map_err(core_err("rest lengths"))?;
+    lap.lap("finalize: rest lengths (reads every input frame)");
     let mut vs_rest = RestStretchAccumulator::default();
     env.progress().begin("finalize", n as u64);
     for (t, stretch_of_t) in frame_stretch.iter_mut().enumerate() {
@@ -129,6 +134,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         }
         env.progress().advance("finalize", 1);
     }
+    lap.lap("finalize: frames (positions, stretch, previews' input frames)");
     let names: Vec<String> = match sink.as_mut() {
         Some(sink) => sink
             .finish()
@@ -160,6 +166,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         .collect::<Result<_, _>>()?;
     timings.weights = windows.iter().map(|w| w.seconds).sum();
 
+    lap.lap("finalize: output files checked, window stats");
     let t_preview = Instant::now();
     let focus = kept.first().and_then(|(_, rest, _)| {
         let anchored = kept
@@ -175,6 +182,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     )
     .map_err(core_err("stretch plot"))?;
     let preview_seconds = t_preview.elapsed().as_secs_f64();
+    lap.lap("finalize: previews");
 
     let mut written = names;
     written.push(keys::PREVIEW.into());
@@ -258,6 +266,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         .map_err(|e| TaskError::fatal(format!("finalize: report: {e}")))?;
     env.put(keys::REPORT, text)?;
     written.push(keys::REPORT.into());
+    lap.lap("finalize: exports, report");
     Ok((
         json!({ "frames": n, "stretch_final": last, "anchors": report.anchors }),
         written,

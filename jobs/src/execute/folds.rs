@@ -163,6 +163,7 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
 /// used to write itself. `anchors.json` holds the stored values as they are (they were validated, and their
 /// axes normalised, once, before `merge` stored them; validating again could move a normalised axis by an ulp).
 pub fn files(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
+    let mut lap = Lap::start();
     let opened = env.open_input()?;
     let n = opened.source.n_frames();
     let n_tri = opened.source.topology().n_triangles();
@@ -181,10 +182,17 @@ pub fn files(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let set = AnchorSet::from_binary(&bytes, path, n, n_tri).map_err(bad)?;
     let total = set.total();
     drop(bytes);
+    lap.lap("fold-files: read anchors.bin (twice: as stored, as the weight tasks read it)");
     env.check_cancelled()?;
-    env.put(keys::ANCHORS, anchors_json(&stored))?;
+    let json = anchors_json(&stored);
+    lap.lap("fold-files: format anchors.json");
+    env.put(keys::ANCHORS, json)?;
+    lap.lap("fold-files: write anchors.json");
     // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.
-    env.put(keys::CONTROL_LINES, set.control_lines_obj())?;
+    let obj = set.control_lines_obj();
+    lap.lap("fold-files: format control_lines.obj");
+    env.put(keys::CONTROL_LINES, obj)?;
+    lap.lap("fold-files: write control_lines.obj");
     let written = vec![keys::ANCHORS.to_string(), keys::CONTROL_LINES.to_string()];
     Ok((json!({ "anchors": total }), written))
 }

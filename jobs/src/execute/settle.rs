@@ -3,6 +3,7 @@
 //! form; and [`settled`], the merge's side: the settled ranges in frame order.
 
 use super::env::TaskEnv;
+use super::phase_times::Lap;
 use crate::error::TaskError;
 use crate::keys;
 use crate::settle_tasks::{inputs_of, job_settle_chunks, settle_radius};
@@ -71,6 +72,7 @@ fn check_frames(
 
 /// A `fold-settle` task: settles `frames` from the detection chunks its input window overlaps.
 pub fn settle(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
+    let mut lap = Lap::start();
     let opened = env.open_input()?;
     let n = opened.source.n_frames();
     let label = format!(
@@ -98,6 +100,7 @@ pub fn settle(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>
                 .filter(|f| need.contains(&f.frame)),
         );
     }
+    lap.lap("fold-settle: open input, read detected chunks");
     env.check_cancelled()?;
     let out = settle_range(
         opened.source.as_ref(),
@@ -108,8 +111,10 @@ pub fn settle(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>
         radius,
     )
     .map_err(|e| TaskError::from_core(&label, e))?;
+    lap.lap("fold-settle: settle_range (reads its window's meshes)");
     let key = keys::fold_settled(frames.start);
     env.put(&key, binary::frames_to_binary(&out))?;
+    lap.lap("fold-settle: write settled anchors");
     let counts: Vec<usize> = out.iter().map(|f| f.anchors.len()).collect();
     Ok((json!({ "anchors_per_frame": counts }), vec![key]))
 }
@@ -142,14 +147,40 @@ pub(super) fn settled(
             );
             continue;
         }
-        env.check_cancelled()?;
-        let key = keys::fold_settled(r.start);
-        let bytes = env.get(&key)?;
-        let frames = binary::frames_from_binary(&bytes, Path::new(&env.out.describe(&key)))
-            .map_err(|e| TaskError::fatal(e.to_string()))?;
-        check_frames(env, &key, &frames, &r)?;
-        out.extend(frames);
+        out.extend(read_settled(env, &r)?);
     }
+    covers(out, n, label)
+}
+
+/// The settled anchors of every frame, in order, as the job's `fold-settle` tasks stored them (for a job that
+/// has settle tasks and whose detected frames are all as its detection tasks stored them).
+pub(super) fn stored_settled(
+    env: &TaskEnv,
+    opened: &OpenedSequence,
+    n: usize,
+    label: &str,
+) -> Result<Vec<FrameAnchors>, TaskError> {
+    let (_, ranges) = plan(env, opened);
+    let mut out = Vec::with_capacity(n);
+    for r in ranges {
+        out.extend(read_settled(env, &r)?);
+    }
+    covers(out, n, label)
+}
+
+/// The settled range `r` as its `fold-settle` task stored it.
+fn read_settled(env: &TaskEnv, r: &Range<usize>) -> Result<Vec<FrameAnchors>, TaskError> {
+    env.check_cancelled()?;
+    let key = keys::fold_settled(r.start);
+    let bytes = env.get(&key)?;
+    let frames = binary::frames_from_binary(&bytes, Path::new(&env.out.describe(&key)))
+        .map_err(|e| TaskError::fatal(e.to_string()))?;
+    check_frames(env, &key, &frames, r)?;
+    Ok(frames)
+}
+
+/// `out` if it holds all `n` frames.
+fn covers(out: Vec<FrameAnchors>, n: usize, label: &str) -> Result<Vec<FrameAnchors>, TaskError> {
     if out.len() != n {
         return Err(TaskError::fatal(format!(
             "{label}: the settle ranges cover {} of {n} frames",

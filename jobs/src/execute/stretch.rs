@@ -7,11 +7,12 @@ use super::phase_times::Lap;
 use crate::error::TaskError;
 use crate::keys;
 use crate::stretch_tasks::{step_chunks, trace_chunks};
+use crease_core::folds::stretch::overlay::OverlayFrame;
 use crease_core::folds::stretch::split::{
     self, ChunkTracer, Pass, PhaseCode, Phases, StepRecord, TracedChunk,
 };
 use crease_core::folds::stretch::StretchDetector;
-use crease_core::folds::{Artifact, FrameAnchors};
+use crease_core::folds::{Anchor, Artifact, FrameAnchors};
 use crease_core::mesh::io::OpenedSequence;
 use crease_core::mesh::FrameSource;
 use serde_json::{json, Value};
@@ -59,6 +60,7 @@ impl Carry {
 }
 
 pub fn steps(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
+    let mut lap = Lap::start();
     let opened = env.open_input()?;
     let (n, nt) = traced_size(&opened);
     let label = format!("stretch steps, frames {}..{}", frames.start, frames.end);
@@ -75,12 +77,14 @@ pub fn steps(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
         env.progress(),
     )
     .map_err(|e| TaskError::from_core(&label, e))?;
+    lap.lap("fold-steps: step records (meshes parsed, tensors, smoothing)");
     let mut written = Vec::with_capacity(records.len());
     for (t, rec) in frames.zip(records) {
         let key = keys::fold_steps(t);
         env.put_npy(&key, &[nt, 4], rec.as_flattened())?;
         written.push(key);
     }
+    lap.lap("fold-steps: write step records");
     Ok((json!({}), written))
 }
 
@@ -162,6 +166,7 @@ fn read_codes(env: &TaskEnv, t: usize, n: usize, nt: usize) -> Result<Codes, Tas
 
 /// A tracing chunk (a `fold-detect` task of a stretch job).
 pub fn trace(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
+    let mut lap = Lap::start();
     let opened = env.open_input()?;
     let (n, nt) = traced_size(&opened);
     let label = format!("stretch tracing, frames {}..{}", frames.start, frames.end);
@@ -171,21 +176,81 @@ pub fn trace(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
         )));
     }
     let det = detector(env, n)?;
+    // The overlay frames of this chunk whose drawing data the task keeps for `fold-plot` (see `chunks_are_exact`).
+    let overlays: Vec<usize> = if chunks_are_exact(&det) {
+        frames
+            .clone()
+            .filter(|t| det.overlay_frames.contains(t))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let clock = std::time::Instant::now();
     let carry = Carry::new();
+    let codes_seconds = std::cell::Cell::new(0.0);
+    let codes = |t: usize| {
+        let c = std::time::Instant::now();
+        let codes = read_codes(env, t, n, nt);
+        codes_seconds.set(codes_seconds.get() + c.elapsed().as_secs_f64());
+        carry.wrap(codes)
+    };
+    let mut shown = Vec::with_capacity(overlays.len());
     let r = ChunkTracer::new(&det, opened.source.as_ref()).and_then(|mut tracer| {
-        split::trace_chunk(
-            &mut tracer,
-            frames.clone(),
-            env.job.partition.stretch_warm_up,
-            |t| carry.wrap(read_codes(env, t, n, nt)),
-            env.progress(),
-        )
+        // Traced in pieces that end at the overlay frames, so that each overlay frame's signal is taken right
+        // after its tracing, from the meshes its tracing holds. Without the seed memory (the only case with
+        // overlay frames here) a frame's tracing depends on that frame alone, so the pieces give the frames one
+        // piece gives.
+        let mut chunk: Option<TracedChunk> = None;
+        let mut start = frames.start;
+        for end in overlays.iter().map(|&t| t + 1).chain([frames.end]) {
+            if end <= start {
+                continue;
+            }
+            let piece = split::trace_chunk(
+                &mut tracer,
+                start..end,
+                env.job.partition.stretch_warm_up,
+                codes,
+                env.progress(),
+            )?;
+            match chunk.as_mut() {
+                None => chunk = Some(piece),
+                Some(c) => c.frames.extend(piece.frames),
+            }
+            if overlays.contains(&(end - 1)) {
+                let (f, b) = codes(end - 1)?;
+                let last = chunk
+                    .as_ref()
+                    .and_then(|c| c.frames.last())
+                    .expect("a piece traces at least one frame");
+                shown.extend(split::overlay_frame(
+                    &mut tracer,
+                    last,
+                    f.as_deref(),
+                    b.as_deref(),
+                )?);
+            }
+            start = end;
+        }
+        Ok(chunk.expect("a tracing chunk has frames"))
     });
     let chunk = carry.finish(&label, r)?;
     let seconds = clock.elapsed().as_secs_f64();
+    lap.lap("fold-detect: trace (meshes parsed, signals, tracing; codes read)");
+    super::phase_times::add(
+        "fold-detect: of which phase codes read",
+        codes_seconds.get(),
+    );
     let key = keys::fold_trace_chunk(frames.start);
     env.put(&key, chunk.to_binary())?;
+    let mut written = vec![key];
+    for o in &shown {
+        let (shape, data) = overlay_to_npy(o);
+        let key = keys::fold_overlay(o.frame);
+        env.put_npy(&key, &shape, &data)?;
+        written.push(key);
+    }
+    lap.lap("fold-detect: write chunk (and overlay frames)");
     let timing = keys::fold_chunk_timing(frames.start);
     env.put_json(
         &timing,
@@ -196,7 +261,80 @@ pub fn trace(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
         .iter()
         .map(|f| f.anchors.anchors.len())
         .collect();
-    Ok((json!({ "anchors_per_frame": counts }), vec![key, timing]))
+    written.push(timing);
+    Ok((json!({ "anchors_per_frame": counts }), written))
+}
+
+/// Whether the tracing chunks are exact as traced: without the seed memory a frame's folds depend on that frame
+/// alone, so the reconcile never traces a frame again ([`split::reconcile`]; the `stretch_split` tests check
+/// it). Then the tracing tasks keep the overlay frames' drawing data for `fold-plot`, and neither `fold-plot`
+/// nor `fold-merge` reads the chunks back (the settle tasks read them). With the seed memory both reconcile
+/// the chunks, and `fold-plot` computes the overlay frames' signals again.
+fn chunks_are_exact(det: &StretchDetector) -> bool {
+    !det.params.seed_memory
+}
+
+/// An overlay frame as one flat f64 array (every value exact: counts and triangle indices are far below 2^53):
+/// `[frame, vertices, triangles, anchors, folds]`, the positions (3 per vertex), the shrinkage (1 per triangle),
+/// then per anchor its triangle, axis and angle.
+fn overlay_to_npy(o: &OverlayFrame) -> ([usize; 1], Vec<f64>) {
+    let mut v =
+        Vec::with_capacity(5 + 3 * o.positions.len() + o.shrink.len() + 5 * o.anchors.len());
+    v.extend([
+        o.frame as f64,
+        o.positions.len() as f64,
+        o.shrink.len() as f64,
+        o.anchors.len() as f64,
+        o.n_folds as f64,
+    ]);
+    v.extend(o.positions.iter().flatten());
+    v.extend(&o.shrink);
+    for a in &o.anchors {
+        v.extend([a.triangle as f64, a.axis[0], a.axis[1], a.axis[2], a.angle]);
+    }
+    ([v.len()], v)
+}
+
+/// The overlay frame `t` a tracing task stored, checked against the traced mesh (`nv` vertices, `nt` triangles).
+fn read_overlay(env: &TaskEnv, t: usize, nv: usize, nt: usize) -> Result<OverlayFrame, TaskError> {
+    let key = keys::fold_overlay(t);
+    let (_, v) = env.get_npy::<f64>(&key)?;
+    let bad = |what: &str| {
+        TaskError::fatal(format!(
+            "{}: {what} (expected overlay frame {t} of a mesh of {nv} vertices and {nt} triangles)",
+            env.out.describe(&key)
+        ))
+    };
+    let head = v.get(..5).ok_or_else(|| bad("shorter than its header"))?;
+    let k = head[3] as usize;
+    if head[0] != t as f64 || head[1] != nv as f64 || head[2] != nt as f64 || head[3] != k as f64 {
+        return Err(bad(&format!("header {head:?}")));
+    }
+    if v.len() != 5 + 3 * nv + nt + 5 * k {
+        return Err(bad(&format!("{} values", v.len())));
+    }
+    let (p, rest) = v[5..].split_at(3 * nv);
+    let (shrink, anchors) = rest.split_at(nt);
+    let anchors = anchors
+        .chunks_exact(5)
+        .map(|a| {
+            if a[0] < 0.0 || a[0] >= nt as f64 || a[0].fract() != 0.0 {
+                return Err(bad(&format!("an anchor on triangle {}", a[0])));
+            }
+            Ok(Anchor {
+                triangle: a[0] as u32,
+                axis: [a[1], a[2], a[3]],
+                angle: a[4],
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    Ok(OverlayFrame {
+        frame: t,
+        positions: p.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        shrink: shrink.to_vec(),
+        anchors,
+        n_folds: head[4] as usize,
+    })
 }
 
 /// The tracing chunk `r` as its `fold-detect` task stored it, checked to hold exactly the frames `r`.
@@ -281,18 +419,32 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
     let det = detector(env, n)?;
     let label = "stretch fold merge";
     let mut per_frame_seconds: Vec<f64> = Vec::with_capacity(n);
-    let (frames, again) = reconciled(env, opened, &det, label, |r| {
+    let mut spread = |r: &Range<usize>| -> Result<(), TaskError> {
         let seconds = super::folds::chunk_seconds(env, r.start)?;
         per_frame_seconds.extend(std::iter::repeat_n(
             seconds / r.len().max(1) as f64,
             r.len(),
         ));
         Ok(())
-    })?;
-    lap.lap("fold-merge: read and reconcile chunks");
-    let frames: Vec<FrameAnchors> = frames.into_iter().map(|f| f.anchors).collect();
-    let frames = super::settle::settled(env, opened, frames, &again, label)?;
-    lap.lap("fold-merge: settled ranges (read, or settled again where traced again)");
+    };
+    let (frames, retraced) =
+        if chunks_are_exact(&det) && crate::settle_tasks::settle_radius(env.job, n).is_some() {
+            // The settled ranges are final as stored: no chunk to read back on the job's critical path (at 100K
+            // triangles they are some 4 MB per frame, read here once more after the settle tasks read them).
+            for r in &traced_chunks(env, opened).0 {
+                spread(r)?;
+            }
+            let frames = super::settle::stored_settled(env, opened, n, label)?;
+            lap.lap("fold-merge: settled ranges read (chunks exact, not read)");
+            (frames, 0)
+        } else {
+            let (frames, again) = reconciled(env, opened, &det, label, spread)?;
+            lap.lap("fold-merge: read and reconcile chunks");
+            let frames: Vec<FrameAnchors> = frames.into_iter().map(|f| f.anchors).collect();
+            let frames = super::settle::settled(env, opened, frames, &again, label)?;
+            lap.lap("fold-merge: settled ranges (read, or settled again where traced again)");
+            (frames, again.len())
+        };
     // As the single detection task reported them: settled anchors, the tracing time spread over its frames.
     let per_frame = frames
         .iter()
@@ -311,7 +463,7 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
     Ok(Gathered {
         frames,
         per_frame,
-        retraced: again.len(),
+        retraced,
     })
 }
 
@@ -338,8 +490,23 @@ pub fn folds_png(env: &TaskEnv, opened: &OpenedSequence) -> Result<Vec<Artifact>
         return Ok(Vec::new());
     }
     let label = "stretch folds.png";
-    let (frames, _) = reconciled(env, opened, &det, label, |_| Ok(()))?;
     let source: &dyn FrameSource = opened.source.as_ref();
+    if chunks_are_exact(&det) {
+        // Drawn from what the tracing tasks kept: the frames as traced are the final ones.
+        let traced = split::traced_source(source).0.topology();
+        let shown = (0..n)
+            .filter(|t| det.overlay_frames.contains(t))
+            .map(|t| read_overlay(env, t, traced.n_vertices(), nt))
+            .collect::<Result<Vec<_>, _>>()?;
+        lap.lap("fold-plot: read the overlay frames");
+        let (_, artifacts) = det
+            .finish(source, Vec::new(), &shown)
+            .map_err(|e| TaskError::from_core(label, e))?;
+        lap.lap("fold-plot: folds.png");
+        return Ok(artifacts);
+    }
+    let (frames, _) = reconciled(env, opened, &det, label, |_| Ok(()))?;
+    lap.lap("fold-plot: read and reconcile chunks");
     let carry = Carry::new();
     let r = ChunkTracer::new(&det, source).and_then(|mut tracer| {
         let mut shown = Vec::new();

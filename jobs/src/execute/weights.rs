@@ -156,8 +156,8 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
 ///
 /// Why: a block's solve is single-threaded, and a task runs on a blocking thread of its own. When several
 /// workers share a process (`crease run`'s local cluster, `crease bench --cluster`), a block beside a
-/// positioning task (which fills the whole pool) made one more busy thread than cores, and the time-slicing
-/// between their window-sized working sets made the block's solve ~14 % more CPU than the same block in
+/// positioning task (which fills the whole pool) made one more busy compute thread than cores; under `perf`
+/// the blocks' solve took ~13 % more CPU samples in the cluster run than the same blocks in
 /// `crease_core::spacetime::deform`. In the pool, the process never runs more compute threads than the pool
 /// has (`--threads`, default: the cores). The result does not depend on the thread it ran on.
 fn on_compute_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {

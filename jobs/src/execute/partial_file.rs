@@ -11,7 +11,9 @@
 //! node indices (u32), zero padding to a multiple of 8 bytes, and n × 3 values (f64). `seconds` is the block's
 //! solve time, the only bytes that differ between two runs of the same block.
 
+use crease_core::spacetime::fused::CgStats;
 use crease_core::spacetime::per_anchor::PartialBlend;
+use crease_core::vec3::V3;
 
 const MAGIC: &[u8; 8] = b"CREASEPB";
 const VERSION: u32 = 1;
@@ -60,9 +62,8 @@ pub fn encode(p: &PartialBlend, stats: &BlockStats) -> Vec<u8> {
     out
 }
 
-/// Reads a block's result back; `n_nodes` is the window's node count (every node index must be below it).
-/// Errors say what is wrong with the bytes (the caller names the object).
-pub fn decode(bytes: &[u8], n_nodes: usize) -> Result<(PartialBlend, BlockStats), String> {
+/// Checks a stored result's header and length; returns its node count and statistics.
+fn header(bytes: &[u8]) -> Result<(usize, BlockStats), String> {
     if bytes.len() < HEADER || &bytes[..8] != MAGIC {
         return Err("not an anchor block result (no CREASEPB header)".into());
     }
@@ -84,7 +85,22 @@ pub fn decode(bytes: &[u8], n_nodes: usize) -> Result<(PartialBlend, BlockStats)
             bytes.len()
         ));
     }
-    let n = n as usize;
+    let stats = BlockStats {
+        columns: word(0) as usize,
+        iterations: word(1) as usize,
+        max_relative_residual: f64::from_bits(word(2)),
+        node_updates: word(3),
+        seconds: f64::from_bits(word(4)),
+    };
+    Ok((n as usize, stats))
+}
+
+/// Reads a block's result back; `n_nodes` is the window's node count (every node index must be below it).
+/// Errors say what is wrong with the bytes (the caller names the object). The reduce uses [`add_into`]; this is
+/// the reference it is tested against.
+#[cfg(test)]
+pub fn decode(bytes: &[u8], n_nodes: usize) -> Result<(PartialBlend, BlockStats), String> {
+    let (n, stats) = header(bytes)?;
     let nodes: Vec<u32> = bytes[HEADER..HEADER + 4 * n]
         .chunks_exact(4)
         .map(|c| u32::from_le_bytes(c.try_into().expect("4 bytes")))
@@ -102,13 +118,6 @@ pub fn decode(bytes: &[u8], n_nodes: usize) -> Result<(PartialBlend, BlockStats)
             [f(0), f(1), f(2)]
         })
         .collect();
-    let stats = BlockStats {
-        columns: word(0) as usize,
-        iterations: word(1) as usize,
-        max_relative_residual: f64::from_bits(word(2)),
-        node_updates: word(3),
-        seconds: f64::from_bits(word(4)),
-    };
     Ok((
         PartialBlend {
             nodes,
@@ -119,6 +128,50 @@ pub fn decode(bytes: &[u8], n_nodes: usize) -> Result<(PartialBlend, BlockStats)
         },
         stats,
     ))
+}
+
+/// Adds a block's stored result straight into a window field and its statistics, as [`decode`] followed by
+/// [`stages::reduce_into`] would, bit for bit, but without building the block's node and value lists: the reduce
+/// sums tens of blocks of a few MB each, and decoding each into fresh vectors first was most of its time.
+/// Every node index is checked before anything is added, so a malformed result leaves `field` untouched.
+pub fn add_into(
+    bytes: &[u8],
+    field: &mut [V3],
+    cg: &mut CgStats,
+    updates: &mut u64,
+) -> Result<BlockStats, String> {
+    let (n, stats) = header(bytes)?;
+    let nodes = &bytes[HEADER..HEADER + 4 * n];
+    let node_at = |c: &[u8]| u32::from_le_bytes(c.try_into().expect("4 bytes")) as usize;
+    if let Some(g) = nodes
+        .chunks_exact(4)
+        .map(node_at)
+        .find(|&g| g >= field.len())
+    {
+        return Err(format!(
+            "node {g} is not one of the window's {} nodes",
+            field.len()
+        ));
+    }
+    let values = &bytes[HEADER + padded(n)..];
+    let f =
+        |c: &[u8], k: usize| f64::from_le_bytes(c[8 * k..8 * k + 8].try_into().expect("8 bytes"));
+    for (g, v) in nodes
+        .chunks_exact(4)
+        .map(node_at)
+        .zip(values.chunks_exact(24))
+    {
+        // The same additions, in the same order per node, as `per_anchor::accumulate`.
+        let x = &mut field[g];
+        x[0] += f(v, 0);
+        x[1] += f(v, 1);
+        x[2] += f(v, 2);
+    }
+    // As `per_anchor::merge_stats` and `stages::reduce_into`.
+    cg.iterations += stats.iterations;
+    cg.relative_residual = cg.relative_residual.max(stats.max_relative_residual);
+    *updates += stats.node_updates;
+    Ok(stats)
 }
 
 #[cfg(test)]
@@ -176,6 +229,47 @@ mod tests {
                 )
             );
         }
+    }
+
+    /// Adding a stored result in place gives the bits of decoding it and reducing it with the core's stage,
+    /// statistics included; a bad node index is refused before the field is touched.
+    #[test]
+    fn add_into_matches_decode_and_reduce() {
+        use crease_core::spacetime::stages;
+        let n_nodes = 7 * 1000 + 3;
+        let start: Vec<V3> = (0..n_nodes)
+            .map(|i| [i as f64 / 7.0, -1.0 / (i as f64 + 1.0), 1e-17 * i as f64])
+            .collect();
+        let (mut a, mut b) = (start.clone(), start.clone());
+        let (mut cg_a, mut cg_b) = (CgStats::default(), CgStats::default());
+        let (mut up_a, mut up_b) = (5u64, 5u64);
+        for n in [1000, 0, 3, 999] {
+            let (mut p, mut s) = sample(n);
+            // Nodes out of order and a residual that changes the maximum.
+            p.nodes.reverse();
+            p.max_relative_residual = 1e-3 / (n as f64 + 1.0);
+            s.max_relative_residual = p.max_relative_residual;
+            let bytes = encode(&p, &s);
+            let (q, _) = decode(&bytes, n_nodes).unwrap();
+            stages::reduce_into(&mut a, &mut cg_a, &mut up_a, &q);
+            let t = add_into(&bytes, &mut b, &mut cg_b, &mut up_b).unwrap();
+            assert_eq!(t, s);
+        }
+        let bits = |v: &[V3]| -> Vec<u64> { v.iter().flatten().map(|x| x.to_bits()).collect() };
+        assert_eq!(bits(&a), bits(&b));
+        assert_ne!(bits(&a), bits(&start), "the sums changed the field");
+        assert_eq!(cg_a.iterations, cg_b.iterations);
+        assert_eq!(
+            cg_a.relative_residual.to_bits(),
+            cg_b.relative_residual.to_bits()
+        );
+        assert_eq!(up_a, up_b);
+        let (p, s) = sample(5);
+        let mut small = vec![[1.0; 3]; 31];
+        let err = add_into(&encode(&p, &s), &mut small, &mut cg_b, &mut up_b).unwrap_err();
+        assert!(err.contains("node 31"), "{err}");
+        assert!(small.iter().all(|v| *v == [1.0; 3]), "field untouched");
+        assert!(add_into(&encode(&p, &s)[..40], &mut small, &mut cg_b, &mut up_b).is_err());
     }
 
     /// Truncated, padded, foreign or out-of-range data is refused with a reason, never read past its end.

@@ -4,6 +4,7 @@
 
 use super::env::TaskEnv;
 use super::exact;
+use super::phase_times::Lap;
 use crate::error::TaskError;
 use crate::inspect::{output_files, output_sink, writes_frames};
 use crate::keys;
@@ -41,6 +42,7 @@ pub(crate) struct FrameTimings {
 
 /// Positions `frames`.
 pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
+    let mut lap = Lap::start();
     let label = format!("position frames {}..{}", frames.start, frames.end);
     let opened = env.open_input()?;
     let source: &dyn FrameSource = opened.source.as_ref();
@@ -59,6 +61,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     let windows = env.windows(n);
     let passes = env.params.stretch_passes;
     let filter = TaubinFilter::captured(&topo);
+    lap.lap("position: input, system, strain limiter, filter");
     env.progress().begin("position", frames.len() as u64);
     let mut written = Vec::new();
     // Frame files go straight to the output through the layout's sink (the same writer `crease run` uses).
@@ -82,6 +85,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
             .iter()
             .map(|&t| load_faded(env, &windows, t, n_tri))
             .collect::<Result<_, _>>()?;
+        lap.lap("position: read and cross-fade fields");
         let done: Vec<Result<(PositionedFrame, ShapeAccumulator, f64), TaskError>> = chunk
             .par_iter()
             .zip(fields.par_iter())
@@ -110,6 +114,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                 Ok((p, shape, shape_seconds))
             })
             .collect();
+        lap.lap("position: frames (positioning, passes, shape)");
         for r in done {
             let (p, shape, shape_seconds) = r?;
             let t = p.t;
@@ -149,6 +154,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                 stretch_final.push(json!({"frame": t, "l2": st.l2, "max": st.max}));
             }
         }
+        lap.lap("position: write positions, stretch, frame files");
     }
     out_dir.upload(env)?;
     env.progress().end("position");

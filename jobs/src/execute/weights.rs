@@ -120,8 +120,9 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
     })?;
     let mut ws = entry.take_workspace();
     lap.lap("weight-block: window (cache hit, or build)");
-    let partial = stages::anchor_block(problem, range.clone(), &env.params, &mut ws)
-        .map_err(|e| TaskError::from_core(&format!("{} block {b}", label(k, &w)), e))?;
+    let partial =
+        on_compute_pool(|| stages::anchor_block(problem, range.clone(), &env.params, &mut ws))
+            .map_err(|e| TaskError::from_core(&format!("{} block {b}", label(k, &w)), e))?;
     entry.give_back(ws);
     let seconds = clock.elapsed().as_secs_f64();
     lap.lap("weight-block: solve");
@@ -148,6 +149,26 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
         "window_cache": if hit { "hit" } else { "miss" },
     });
     Ok((summary, vec![key]))
+}
+
+/// Runs `f` on one of the process's compute (rayon) threads, the caller waiting, unless
+/// `CREASE_BLOCKS_IN_POOL=0`.
+///
+/// Why: a block's solve is single-threaded, and a task runs on a blocking thread of its own. When several
+/// workers share a process (`crease run`'s local cluster, `crease bench --cluster`), a block beside a
+/// positioning task (which fills the whole pool) made one more busy compute thread than cores; under `perf`
+/// the blocks' solve took ~13 % more CPU samples in the cluster run than the same blocks in
+/// `crease_core::spacetime::deform`. In the pool, the process never runs more compute threads than the pool
+/// has (`--threads`, default: the cores). The result does not depend on the thread it ran on.
+fn on_compute_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    static IN_POOL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    let in_pool = *IN_POOL
+        .get_or_init(|| std::env::var("CREASE_BLOCKS_IN_POOL").map_or(true, |v| v.trim() != "0"));
+    if in_pool && rayon::current_thread_index().is_none() {
+        rayon::scope(|_| f())
+    } else {
+        f()
+    }
 }
 
 /// Per-anchor mode: window `k`'s field as the sum of its blocks' partial blends, in block order.
@@ -181,10 +202,9 @@ pub fn reduce(env: &TaskEnv, k: usize) -> Result<(Value, Vec<String>), TaskError
         let key = keys::block_partial(k, b);
         let bytes = env.get(&key)?;
         lap.lap("reduce: read partials");
-        let (partial, stats) = partial_file::decode(&bytes, n_nodes)
+        let stats = partial_file::add_into(&bytes, &mut field, &mut cg, &mut record.node_updates)
             .map_err(|e| TaskError::fatal(format!("{}: {e}", env.out.describe(&key))))?;
         drop(bytes);
-        stages::reduce_into(&mut field, &mut cg, &mut record.node_updates, &partial);
         record.seconds += stats.seconds;
         env.progress().advance("reduce", 1);
         lap.lap("reduce: decode and sum");
@@ -210,12 +230,12 @@ fn write_window(
     for lt in 0..w.len {
         env.check_cancelled()?;
         let key = keys::window_field(k, w.start + lt);
-        let flat: Vec<f64> = field[lt * n_tri..(lt + 1) * n_tri]
-            .iter()
-            .flatten()
-            .copied()
-            .collect();
-        env.put_npy(&key, &[n_tri, 3], &flat)?;
+        // The frame's rows as one flat slice, encoded once (no intermediate copy of 2.4 MB per frame).
+        env.put_npy(
+            &key,
+            &[n_tri, 3],
+            field[lt * n_tri..(lt + 1) * n_tri].as_flattened(),
+        )?;
         written.push(key);
     }
     let key = keys::window_stats(k);

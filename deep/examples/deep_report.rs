@@ -11,6 +11,8 @@
 //! cargo run --release -p crease-deep --example deep_report -- tube       [target points, e.g. 1,12] [min weights, e.g. 1,20,100] [iterations]
 //! cargo run --release -p crease-deep --example deep_report -- detail     DATA OUT [held-out|all] [degrees, e.g. 20,40] [ridges, e.g. 1e-8,1e-10] [map resolutions] [frame step]
 //! cargo run --release -p crease-deep --example deep_report -- posenorm   DATA OUT [held-out|all] [time σ, e.g. 2,4] [map frame step] [map resolution]
+//! cargo run --release -p crease-deep --example deep_report -- posenormals DATA OUT [held-out|all] [normal subspace sizes, e.g. 25,100,200] [map frame step] [map resolution]
+//! cargo run --release -p crease-deep --example deep_report -- posesmooth DATA OUT [held-out|all] [low-pass steps, e.g. 0,80,160] [leading coefficients, e.g. 0,10,50] [map frame step] [map resolution]
 //! ```
 //!
 //! DATA is `sleeve-train/` (seed_1, seed_2, seed_3); the held-out sequence defaults to seed_3. Every part
@@ -157,6 +159,23 @@ fn main() -> R<()> {
                 .split(',')
                 .map(|s| s.parse())
                 .collect::<Result<Vec<f64>, _>>()?,
+            arg(5).map_or(Ok(4), |s| s.parse())?,
+            arg(6).map_or(Ok(256), |s| s.parse())?,
+        ),
+        "posesmooth" => posesmooth(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            &arg(3).unwrap_or("seed_3".into()),
+            &list(arg(4), "0,80,160,320,640,1280")?,
+            &list(arg(5), "0,10,25,50,100")?,
+            arg(6).map_or(Ok(4), |s| s.parse())?,
+            arg(7).map_or(Ok(256), |s| s.parse())?,
+        ),
+        "posenormals" => posenormals(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            &arg(3).unwrap_or("seed_3".into()),
+            &list(arg(4), "25,100,200")?,
             arg(5).map_or(Ok(4), |s| s.parse())?,
             arg(6).map_or(Ok(256), |s| s.parse())?,
         ),
@@ -2337,4 +2356,238 @@ fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res:
         "posenorm.json",
         &serde_json::json!({"splits": helds, "rows": rows, "step": step, "resolution": res, "low_band_vs_captured_deg": low_band}),
     )
+}
+
+/// How smooth the pose-only shape should be for its normals: `crease deep train`'s fit (defaults) per held-out
+/// sequence, the blend (and linear) regressor's coefficients truncated to their leading `k'` (all: 0), the
+/// reconstruction low-passed by `s` steps of the capture filter's λ|μ (0: none), scored like `posenorm`.
+fn posesmooth(
+    data: &str,
+    out: &str,
+    held: &str,
+    steps: &[usize],
+    truncs: &[usize],
+    step: usize,
+    res: usize,
+) -> R<()> {
+    use crease_core::shape::TaubinFilter;
+    use crease_deep::model::RegressorKind;
+    use crease_deep::normal_map::world_from_vertex_normals;
+    let helds = if held == "all" {
+        sequence_names(data)?
+    } else {
+        vec![held.to_string()]
+    };
+    let mut table: Vec<(String, Vec<(f64, f64, f64)>)> = Vec::new();
+    for h in &helds {
+        let (train, test) = split(data, h)?;
+        let topo = test.topology.clone();
+        let fit = crease_deep::train::fit(
+            &train,
+            &TrainParams::default(),
+            &crease_core::progress::NoProgress,
+        )?;
+        let sub = &fit.subspace;
+        let mean_shape = crease_deep::subspace::unflatten(&sub.mean);
+        let layout = auto_atlas(&topo, &mean_shape, 0.01)?;
+        let texels = TexelMap::new(&layout, res, res);
+        let n = test.fine.len();
+        let idx: Vec<usize> = (0..n).step_by(step.max(1)).collect();
+        for kind in [RegressorKind::Blend, RegressorKind::Linear] {
+            let c = fit.coefficients(kind, &test.poses)?;
+            for &kt in truncs {
+                let frames: Vec<Frame> = c
+                    .iter()
+                    .map(|x| {
+                        let mut x = x.clone();
+                        if kt > 0 {
+                            x.iter_mut().skip(kt).for_each(|v| *v = 0.0);
+                        }
+                        sub.reconstruct(&x)
+                    })
+                    .collect();
+                for &s in steps {
+                    let f = TaubinFilter::new(&topo, 0.5, -0.53, s);
+                    let fr: Vec<Frame> = if s == 0 {
+                        frames.clone()
+                    } else {
+                        frames.iter().map(|x| f.apply(x)).collect()
+                    };
+                    let mesh = (0..n)
+                        .map(|t| mesh_normal_error(&topo, &fr[t], &test.fine[t]))
+                        .sum::<f64>()
+                        / n as f64;
+                    let map = idx
+                        .iter()
+                        .map(|&t| {
+                            let m = world_from_vertex_normals(
+                                &texels,
+                                &topo,
+                                &vertex_normals(&topo, &fr[t]),
+                            );
+                            map_normal_error(
+                                &sample_vertex_normals(&m, &topo, &layout),
+                                &topo,
+                                &test.fine[t],
+                            )
+                            .0
+                        })
+                        .sum::<f64>()
+                        / idx.len() as f64;
+                    let (vert, _) = mean_err(&fr, &test.fine);
+                    let name = format!("{}, k' {kt}, {s} steps", kind.name());
+                    eprintln!("{h} | {name} | {mesh:.2} | {map:.2} | {}", mm(vert));
+                    match table.iter_mut().find(|(n, _)| *n == name) {
+                        Some((_, r)) => r.push((mesh, map, vert)),
+                        None => table.push((name, vec![(mesh, map, vert)])),
+                    }
+                }
+            }
+        }
+    }
+    print!("| regressor, leading coefficients, low-pass steps |");
+    for h in &helds {
+        print!(" {h}: mesh / {res}² map (°), vertex (mm) |");
+    }
+    println!(" mean map (°) | mean vertex (mm) |");
+    println!("|---|{}---|---|", "---|".repeat(helds.len()));
+    let mut rows = Vec::new();
+    for (name, r) in &table {
+        print!("| {name} |");
+        for (a, b, c) in r {
+            print!(" {a:.2} / {b:.2}, {} |", mm(*c));
+        }
+        let k = r.len() as f64;
+        let map = r.iter().map(|x| x.1).sum::<f64>() / k;
+        let vert = r.iter().map(|x| x.2).sum::<f64>() / k;
+        println!(" {map:.2} | {} |", mm(vert));
+        rows.push(serde_json::json!({"variant": name, "per_split": r, "mean_map_deg": map, "mean_vertex_m": vert}));
+    }
+    write_json(
+        out,
+        "posesmooth.json",
+        &serde_json::json!({"splits": helds, "rows": rows, "step": step, "resolution": res}),
+    )
+}
+
+/// Normals regressed directly: a PCA of the training frames' vertex normal fields (gt's, or the captured
+/// meshes' smooth ones; with the mirrored frames when the fit mirrors), the control vectors of `crease deep
+/// train`'s fit mapped onto its coefficients by ridge regression, the prediction renormalised per vertex and
+/// scored like `posenorm`; beside the normal subspace's own bound (held-out gt normals projected).
+fn posenormals(data: &str, out: &str, held: &str, ks: &[usize], step: usize, res: usize) -> R<()> {
+    use crease_deep::normal_map::world_from_vertex_normals;
+    let helds = if held == "all" {
+        sequence_names(data)?
+    } else {
+        vec![held.to_string()]
+    };
+    let mut table: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for h in &helds {
+        let (train, test) = split(data, h)?;
+        let topo = test.topology.clone();
+        let fit = crease_deep::train::fit(
+            &train,
+            &TrainParams::default(),
+            &crease_core::progress::NoProgress,
+        )?;
+        let mean_shape = crease_deep::subspace::unflatten(&fit.subspace.mean);
+        let layout = auto_atlas(&topo, &mean_shape, 0.01)?;
+        let texels = TexelMap::new(&layout, res, res);
+        let n = test.fine.len();
+        let idx: Vec<usize> = (0..n).step_by(step.max(1)).collect();
+        let truth: Vec<Vec<V3>> = test.fine.iter().map(|f| vertex_normals(&topo, f)).collect();
+        let score = |pred: &[Vec<V3>]| -> (f64, f64) {
+            let mesh = (0..n)
+                .map(|t| {
+                    pred[t]
+                        .iter()
+                        .zip(&truth[t])
+                        .map(|(a, b)| vec3::dot(*a, *b).clamp(-1.0, 1.0).acos().to_degrees())
+                        .sum::<f64>()
+                        / a_len(&pred[t])
+                })
+                .sum::<f64>()
+                / n as f64;
+            let map = idx
+                .iter()
+                .map(|&t| {
+                    let m = world_from_vertex_normals(&texels, &topo, &pred[t]);
+                    map_normal_error(&sample_vertex_normals(&m, &topo, &layout), &topo, &test.fine[t]).0
+                })
+                .sum::<f64>()
+                / idx.len() as f64;
+            (mesh, map)
+        };
+        for source in ["gt", "captured"] {
+            let mut fields: Vec<Vec<V3>> = Vec::new();
+            let mut controls: Vec<Vec<f64>> = Vec::new();
+            for s in &train {
+                let frames = if source == "gt" { &s.fine } else { &s.coarse };
+                fields.extend(frames.iter().map(|f| vertex_normals(&topo, f)));
+                controls.extend(fit.control.controls(&s.poses)?);
+                if let Some(r) = &fit.mirror {
+                    fields.extend(frames.iter().map(|f| vertex_normals(&topo, &r.reflect_frame(f))));
+                    let rp: Vec<Vec<f64>> = s
+                        .poses
+                        .iter()
+                        .map(|p| crease_deep::mirror::reflect_pose(p, r.axis))
+                        .collect();
+                    controls.extend(fit.control.controls(&rp)?);
+                }
+            }
+            let refs: Vec<&[V3]> = fields.iter().map(|f| f.as_slice()).collect();
+            let test_controls = fit.control.controls(&test.poses)?;
+            for &k in ks {
+                let sub = Subspace::fit(&refs, k)?;
+                let kk = sub.k();
+                let targets: Vec<Vec<f64>> = fields.iter().map(|f| sub.project(f, kk)).collect();
+                let lin = LinearRegression::fit(&controls, &targets, 1e-3)?;
+                let norm = |v: Vec<V3>| -> Vec<V3> { v.into_iter().map(vec3::normalize).collect() };
+                let pred: Vec<Vec<V3>> = test_controls
+                    .iter()
+                    .map(|c| norm(sub.reconstruct(&lin.predict(c))))
+                    .collect();
+                let bound: Vec<Vec<V3>> = truth
+                    .iter()
+                    .map(|f| norm(sub.reconstruct(&sub.project(f, kk))))
+                    .collect();
+                for (name, p) in [
+                    (format!("{source} normals, k {k}: regressed (linear)"), pred),
+                    (format!("{source} normals, k {k}: held-out gt normals projected (bound)"), bound),
+                ] {
+                    let (mesh, map) = score(&p);
+                    eprintln!("{h} | {name} | {mesh:.2} | {map:.2}");
+                    match table.iter_mut().find(|(n, _)| *n == name) {
+                        Some((_, r)) => r.push((mesh, map)),
+                        None => table.push((name, vec![(mesh, map)])),
+                    }
+                }
+            }
+        }
+    }
+    print!("| normal field, subspace size: variant |");
+    for h in &helds {
+        print!(" {h}: mesh / {res}² map (°) |");
+    }
+    println!(" mean map (°) |");
+    println!("|---|{}---|", "---|".repeat(helds.len()));
+    let mut rows = Vec::new();
+    for (name, r) in &table {
+        print!("| {name} |");
+        for (a, b) in r {
+            print!(" {a:.2} / {b:.2} |");
+        }
+        let map = r.iter().map(|x| x.1).sum::<f64>() / r.len() as f64;
+        println!(" {map:.2} |");
+        rows.push(serde_json::json!({"variant": name, "per_split": r, "mean_map_deg": map}));
+    }
+    write_json(
+        out,
+        "posenormals.json",
+        &serde_json::json!({"splits": helds, "rows": rows, "step": step, "resolution": res}),
+    )
+}
+
+fn a_len(v: &[V3]) -> f64 {
+    v.len().max(1) as f64
 }

@@ -281,11 +281,16 @@ fn apply_rolls_out_the_autoregressive_regressor_and_blends_it_by_default() {
         "16",
         "--ar-state",
         "3",
+        // This test is about the regressors: their reconstruction as it is, not the smoothed shape
+        // `apply --pose` draws by default (the ripples below are what the smoothing removes).
+        "--pose-smoothing",
+        "0",
     ]);
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
     assert_eq!(manifest["regressor"], "blend", "the default");
+    assert_eq!(manifest["pose_smoothing"]["steps"], 0);
     assert_eq!(manifest["blend"]["weight"], 0.5);
     // k is capped at the data's rank (2), and the fed-back state at k.
     assert_eq!(manifest["autoregressive"]["k_state"], 2);

@@ -2246,7 +2246,10 @@ fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res:
         let lpp = map_all(&lp, &p);
         let mut v: Vec<(String, Vec<Frame>)> = vec![
             ("captured (= L(gt))".into(), test.coarse.clone()),
-            ("D(captured) (apply --coarse)".into(), map_all(&d, &test.coarse)),
+            (
+                "D(captured) (apply --coarse)".into(),
+                map_all(&d, &test.coarse),
+            ),
             ("P (apply --pose now)".into(), p.clone()),
             ("L(P)".into(), lpp.clone()),
             (
@@ -2272,7 +2275,10 @@ fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res:
                     .collect(),
             ),
             ("L_40 steps(P)".into(), map_all(&|x| low_half.apply(x), &p)),
-            ("L_160 steps(P)".into(), map_all(&|x| low_double.apply(x), &p)),
+            (
+                "L_160 steps(P)".into(),
+                map_all(&|x| low_double.apply(x), &p),
+            ),
             ("D(P)".into(), map_all(&d, &p)),
             ("D(L(P))".into(), map_all(&d, &lpp)),
             ("D_0.5(L(P))".into(), map_all(&|x| d_alpha(x, 0.5), &lpp)),
@@ -2295,7 +2301,10 @@ fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res:
             v.push((format!("P~{s}"), ps.clone()));
             v.push((format!("L(P~{s})"), map_all(&lp, &ps)));
             v.push((format!("D(L(P~{s}))"), map_all(&|x| d(&lp(x)), &ps)));
-            v.push((format!("D_0.5(L(P~{s}))"), map_all(&|x| d_alpha(&lp(x), 0.5), &ps)));
+            v.push((
+                format!("D_0.5(L(P~{s}))"),
+                map_all(&|x| d_alpha(&lp(x), 0.5), &ps),
+            ));
             v.push((format!("Q~{s}"), qs.clone()));
             v.push((format!("D(Q~{s})"), map_all(&d, &qs)));
             v.push((format!("D_0.5(Q~{s})"), map_all(&|x| d_alpha(x, 0.5), &qs)));
@@ -2318,8 +2327,17 @@ fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res:
             let map = idx
                 .iter()
                 .map(|&t| {
-                    let m = world_from_vertex_normals(&texels, &topo, &vertex_normals(&topo, &frames[t]));
-                    map_normal_error(&sample_vertex_normals(&m, &topo, &layout), &topo, &test.fine[t]).0
+                    let m = world_from_vertex_normals(
+                        &texels,
+                        &topo,
+                        &vertex_normals(&topo, &frames[t]),
+                    );
+                    map_normal_error(
+                        &sample_vertex_normals(&m, &topo, &layout),
+                        &topo,
+                        &test.fine[t],
+                    )
+                    .0
                 })
                 .sum::<f64>()
                 / idx.len() as f64;
@@ -2512,7 +2530,12 @@ fn posenormals(data: &str, out: &str, held: &str, ks: &[usize], step: usize, res
                 .iter()
                 .map(|&t| {
                     let m = world_from_vertex_normals(&texels, &topo, &pred[t]);
-                    map_normal_error(&sample_vertex_normals(&m, &topo, &layout), &topo, &test.fine[t]).0
+                    map_normal_error(
+                        &sample_vertex_normals(&m, &topo, &layout),
+                        &topo,
+                        &test.fine[t],
+                    )
+                    .0
                 })
                 .sum::<f64>()
                 / idx.len() as f64;
@@ -2526,7 +2549,11 @@ fn posenormals(data: &str, out: &str, held: &str, ks: &[usize], step: usize, res
                 fields.extend(frames.iter().map(|f| vertex_normals(&topo, f)));
                 controls.extend(fit.control.controls(&s.poses)?);
                 if let Some(r) = &fit.mirror {
-                    fields.extend(frames.iter().map(|f| vertex_normals(&topo, &r.reflect_frame(f))));
+                    fields.extend(
+                        frames
+                            .iter()
+                            .map(|f| vertex_normals(&topo, &r.reflect_frame(f))),
+                    );
                     let rp: Vec<Vec<f64>> = s
                         .poses
                         .iter()
@@ -2553,7 +2580,10 @@ fn posenormals(data: &str, out: &str, held: &str, ks: &[usize], step: usize, res
                     .collect();
                 for (name, p) in [
                     (format!("{source} normals, k {k}: regressed (linear)"), pred),
-                    (format!("{source} normals, k {k}: held-out gt normals projected (bound)"), bound),
+                    (
+                        format!("{source} normals, k {k}: held-out gt normals projected (bound)"),
+                        bound,
+                    ),
                 ] {
                     let (mesh, map) = score(&p);
                     eprintln!("{h} | {name} | {mesh:.2} | {map:.2}");

@@ -556,9 +556,9 @@ impl Model {
             None => {}
         }
         match &manifest.pose_smoothing {
-            Some(ps) => ps.check().map_err(|e| {
-                Error::format(&mpath, None, format!("`pose_smoothing`: {e}"))
-            })?,
+            Some(ps) => ps
+                .check()
+                .map_err(|e| Error::format(&mpath, None, format!("`pose_smoothing`: {e}")))?,
             None if manifest.version >= 8 => {
                 return Err(Error::format(
                     &mpath,

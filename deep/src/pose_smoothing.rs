@@ -62,10 +62,7 @@ impl PoseSmoothing {
             ));
         }
         if self.steps > MAX_STEPS {
-            return Err(format!(
-                "{} steps is more than {MAX_STEPS}",
-                self.steps
-            ));
+            return Err(format!("{} steps is more than {MAX_STEPS}", self.steps));
         }
         Ok(())
     }
@@ -109,7 +106,10 @@ mod tests {
     fn truncation_keeps_the_leading_coefficients_and_zero_steps_is_no_filter() {
         let s = PoseSmoothing::new(2, 0);
         assert_eq!(s.truncate(&[1.0, 2.0, 3.0, 4.0]), vec![1.0, 2.0, 0.0, 0.0]);
-        assert_eq!(PoseSmoothing::new(0, 0).truncate(&[1.0, 2.0]), vec![1.0, 2.0]);
+        assert_eq!(
+            PoseSmoothing::new(0, 0).truncate(&[1.0, 2.0]),
+            vec![1.0, 2.0]
+        );
         let topo = Topology::new(3, vec![[0, 1, 2]]).unwrap();
         assert!(s.filter(&topo).is_none());
         // One component of a 3-vertex "subspace": the shape is mean + c0 · b0, the second coefficient dropped.

@@ -194,7 +194,7 @@ fn older_models_are_read_and_refuse_the_blend_by_name() {
     });
     let e = Model::load(&broken).err().expect("refused").to_string();
     assert!(
-        e.contains("manifest.json") && e.contains("version 7") && e.contains("`blend`"),
+        e.contains("manifest.json") && e.contains("version 8") && e.contains("`blend`"),
         "{e}"
     );
 

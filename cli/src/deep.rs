@@ -162,6 +162,13 @@ pub struct TrainArgs {
     /// Hold the last training sequence out of the LSTM's training and keep the epoch that does best on it.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub lstm_early_stopping: bool,
+    /// Leading subspace coefficients of the shape `apply --pose` draws (0: all): the small components carry
+    /// other frames' folds.
+    #[arg(long, default_value_t = crease_deep::pose_smoothing::DEFAULT_COMPONENTS)]
+    pub pose_components: usize,
+    /// λ|μ low-pass steps on the shape `apply --pose` draws (0: none; the data's capture filter is 80).
+    #[arg(long, default_value_t = crease_deep::pose_smoothing::DEFAULT_STEPS)]
+    pub pose_smoothing: usize,
     /// Seed of every random choice (weights, batches): the same seed gives the same model.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -361,6 +368,8 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
             cross_fit: a.lstm_cross_fit,
             early_stopping: a.lstm_early_stopping,
         },
+        pose_components: a.pose_components,
+        pose_smoothing: a.pose_smoothing,
         resolution: a.resolution,
         uv: a.uv,
         cgan: (a.cgan_epochs > 0).then(|| CganConfig {

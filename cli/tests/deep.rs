@@ -164,7 +164,7 @@ fn train_apply_writes_the_output_contract_deterministically() {
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
-    assert_eq!(manifest["version"], 7);
+    assert_eq!(manifest["version"], 8);
     // The synthetic shapes are affine in the two pose numbers that move (a, b): the subspace keeps only
     // components with non-negligible variance, so k is capped at that rank.
     assert_eq!(manifest["k"], 2);
@@ -281,11 +281,16 @@ fn apply_rolls_out_the_autoregressive_regressor_and_blends_it_by_default() {
         "16",
         "--ar-state",
         "3",
+        // This test is about the regressors: their reconstruction as it is, not the smoothed shape
+        // `apply --pose` draws by default (the ripples below are what the smoothing removes).
+        "--pose-smoothing",
+        "0",
     ]);
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
     assert_eq!(manifest["regressor"], "blend", "the default");
+    assert_eq!(manifest["pose_smoothing"]["steps"], 0);
     assert_eq!(manifest["blend"]["weight"], 0.5);
     // k is capped at the data's rank (2), and the fed-back state at k.
     assert_eq!(manifest["autoregressive"]["k_state"], 2);
@@ -561,7 +566,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
     }
     let m = std::fs::read_to_string(old.join("manifest.json"))
         .unwrap()
-        .replace("\"version\": 7", "\"version\": 99");
+        .replace("\"version\": 8", "\"version\": 99");
     std::fs::write(old.join("manifest.json"), m).unwrap();
     fails(
         &[
@@ -574,7 +579,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
             "--out",
             s(&tmp.path().join("o4")),
         ],
-        &["manifest.json", "version 99", "versions 1 to 7"],
+        &["manifest.json", "version 99", "versions 1 to 8"],
     );
 
     // A half-written model (no manifest) is not a model; a damaged file is caught by the manifest.

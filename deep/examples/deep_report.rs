@@ -10,6 +10,9 @@
 //! cargo run --release -p crease-deep --example deep_report -- score      APPLY_OUT GT CAPTURED
 //! cargo run --release -p crease-deep --example deep_report -- tube       [target points, e.g. 1,12] [min weights, e.g. 1,20,100] [iterations]
 //! cargo run --release -p crease-deep --example deep_report -- detail     DATA OUT [held-out|all] [degrees, e.g. 20,40] [ridges, e.g. 1e-8,1e-10] [map resolutions] [frame step]
+//! cargo run --release -p crease-deep --example deep_report -- posenorm   DATA OUT [held-out|all] [time σ, e.g. 2,4] [map frame step] [map resolution]
+//! cargo run --release -p crease-deep --example deep_report -- posenormals DATA OUT [held-out|all] [normal subspace sizes, e.g. 25,100,200] [map frame step] [map resolution]
+//! cargo run --release -p crease-deep --example deep_report -- posesmooth DATA OUT [held-out|all] [low-pass steps, e.g. 0,80,160] [leading coefficients, e.g. 0,10,50] [map frame step] [map resolution]
 //! ```
 //!
 //! DATA is `sleeve-train/` (seed_1, seed_2, seed_3); the held-out sequence defaults to seed_3. Every part
@@ -146,6 +149,35 @@ fn main() -> R<()> {
             &arg(3).unwrap_or("all".into()),
             &arg(4).unwrap_or("2x64x100".into()),
             &arg(5).unwrap_or("coef,const;shared,const;shared,cosine;shared,cosine,std".into()),
+        ),
+        "posenorm" => posenorm(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            &arg(3).unwrap_or("seed_3".into()),
+            &arg(4)
+                .unwrap_or("2,4".into())
+                .split(',')
+                .map(|s| s.parse())
+                .collect::<Result<Vec<f64>, _>>()?,
+            arg(5).map_or(Ok(4), |s| s.parse())?,
+            arg(6).map_or(Ok(256), |s| s.parse())?,
+        ),
+        "posesmooth" => posesmooth(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            &arg(3).unwrap_or("seed_3".into()),
+            &list(arg(4), "0,80,160,320,640,1280")?,
+            &list(arg(5), "0,10,25,50,100")?,
+            arg(6).map_or(Ok(4), |s| s.parse())?,
+            arg(7).map_or(Ok(256), |s| s.parse())?,
+        ),
+        "posenormals" => posenormals(
+            &arg(1).ok_or("DATA")?,
+            &arg(2).ok_or("OUT")?,
+            &arg(3).unwrap_or("seed_3".into()),
+            &list(arg(4), "25,100,200")?,
+            arg(5).map_or(Ok(4), |s| s.parse())?,
+            arg(6).map_or(Ok(256), |s| s.parse())?,
         ),
         "params" => {
             println!("{}", serde_json::to_string(&register_env(RegisterParams::default())?)?);
@@ -2113,4 +2145,479 @@ fn tube_register(targets: &str, floors: &str, iterations: usize) -> R<()> {
         }
     }
     Ok(())
+}
+
+/// Gaussian smoothing of a coefficient sequence over time (centred, σ in frames, the kernel cut at 3σ and
+/// renormalised at the sequence's ends); σ = 0 returns the input.
+fn smooth_in_time(c: &[Vec<f64>], sigma: f64) -> Vec<Vec<f64>> {
+    if sigma <= 0.0 {
+        return c.to_vec();
+    }
+    let r = (3.0 * sigma).ceil() as isize;
+    (0..c.len() as isize)
+        .map(|t| {
+            let mut acc = vec![0.0; c[0].len()];
+            let mut wsum = 0.0;
+            for s in (t - r).max(0)..=(t + r).min(c.len() as isize - 1) {
+                let w = (-((s - t) as f64).powi(2) / (2.0 * sigma * sigma)).exp();
+                wsum += w;
+                for (a, x) in acc.iter_mut().zip(&c[s as usize]) {
+                    *a += w * x;
+                }
+            }
+            acc.iter().map(|a| a / wsum).collect()
+        })
+        .collect()
+}
+
+/// Issue 12's pose-only normal error, taken apart and the coarse-then-detail variants measured, per held-out
+/// sequence: `crease deep train`'s own fit (defaults) on the other sequences, the pose file of the held-out one
+/// rolled out, and every variant scored by the DESIGN §9 normal error against gt at the mesh (vertex normals,
+/// every frame) and through a `res`² map sampled back at the vertices (every `step`-th frame), beside its
+/// vertex error. L is the capture filter (Taubin λ|μ, 80 steps: what made `captured/`), D the model's detail
+/// filter (fitted on captured → gt pairs), P the blend regressor's reconstruction (gt subspace), Q the same fit
+/// on the captured meshes (a smooth subspace and regressors), "~σ" a Gaussian over time on the coefficients.
+fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res: usize) -> R<()> {
+    use crease_core::shape::TaubinFilter;
+    use crease_deep::detail_filter::Umbrella;
+    use crease_deep::model::RegressorKind;
+    use crease_deep::normal_map::world_from_vertex_normals;
+    let helds = if held == "all" {
+        sequence_names(data)?
+    } else {
+        vec![held.to_string()]
+    };
+    // (variant, per split: (mesh °, map °, vertex error m))
+    let mut table: Vec<(String, Vec<(f64, f64, f64)>)> = Vec::new();
+    let mut low_band = Vec::new();
+    for h in &helds {
+        let (train, test) = split(data, h)?;
+        let topo = test.topology.clone();
+        let op = Umbrella::new(&topo);
+        let low = TaubinFilter::capture(&topo);
+        let low_half = TaubinFilter::new(&topo, 0.5, -0.53, 40);
+        let low_double = TaubinFilter::new(&topo, 0.5, -0.53, 160);
+        let t0 = Instant::now();
+        let params = TrainParams::default();
+        let fit_gt = crease_deep::train::fit(&train, &params, &crease_core::progress::NoProgress)?;
+        let (detail, _) = crease_deep::train::fit_detail(&train, &topo)?;
+        let smooth_train: Vec<TrainingSequence> = train
+            .iter()
+            .map(|s| TrainingSequence {
+                dir: s.dir.clone(),
+                topology: s.topology.clone(),
+                fine: s.coarse.clone(),
+                coarse: s.coarse.clone(),
+                poses: s.poses.clone(),
+                pose_names: s.pose_names.clone(),
+            })
+            .collect();
+        let fit_cap =
+            crease_deep::train::fit(&smooth_train, &params, &crease_core::progress::NoProgress)?;
+        eprintln!("{h}: fits in {:.1} s", t0.elapsed().as_secs_f64());
+        let n = test.fine.len();
+        let recon = |sub: &Subspace, c: &[Vec<f64>]| -> Vec<Frame> {
+            c.iter().map(|x| sub.reconstruct(x)).collect()
+        };
+        let map_all = |f: &dyn Fn(&[V3]) -> Vec<V3>, xs: &[Frame]| -> Vec<Frame> {
+            xs.iter().map(|x| f(x)).collect()
+        };
+        let d = |x: &[V3]| detail.apply(&op, x);
+        let d_alpha = |x: &[V3], a: f64| -> Vec<V3> {
+            d(x).iter()
+                .zip(x)
+                .map(|(p, q)| vec3::add(*q, vec3::scale(vec3::sub(*p, *q), a)))
+                .collect()
+        };
+        let lp = |x: &[V3]| low.apply(x);
+        let sub_gt = &fit_gt.subspace;
+        let sub_cap = &fit_cap.subspace;
+        let cp = fit_gt.coefficients(RegressorKind::Blend, &test.poses)?;
+        let cq = fit_cap.coefficients(RegressorKind::Blend, &test.poses)?;
+        let clin = fit_gt.coefficients(RegressorKind::Linear, &test.poses)?;
+        let p = recon(sub_gt, &cp);
+        let q = recon(sub_cap, &cq);
+        let plin = recon(sub_gt, &clin);
+        let gproj: Vec<Frame> = test
+            .fine
+            .iter()
+            .map(|f| sub_gt.reconstruct(&sub_gt.project(f, sub_gt.k())))
+            .collect();
+        let lpp = map_all(&lp, &p);
+        let mut v: Vec<(String, Vec<Frame>)> = vec![
+            ("captured (= L(gt))".into(), test.coarse.clone()),
+            (
+                "D(captured) (apply --coarse)".into(),
+                map_all(&d, &test.coarse),
+            ),
+            ("P (apply --pose now)".into(), p.clone()),
+            ("L(P)".into(), lpp.clone()),
+            (
+                "L(P) + (gt − captured): predicted low band, true folds".into(),
+                (0..n)
+                    .map(|t| {
+                        (0..topo.n_vertices())
+                            .map(|i| {
+                                vec3::add(lpp[t][i], vec3::sub(test.fine[t][i], test.coarse[t][i]))
+                            })
+                            .collect()
+                    })
+                    .collect(),
+            ),
+            (
+                "captured + (P − L(P)): true low band, predicted folds".into(),
+                (0..n)
+                    .map(|t| {
+                        (0..topo.n_vertices())
+                            .map(|i| vec3::add(test.coarse[t][i], vec3::sub(p[t][i], lpp[t][i])))
+                            .collect()
+                    })
+                    .collect(),
+            ),
+            ("L_40 steps(P)".into(), map_all(&|x| low_half.apply(x), &p)),
+            (
+                "L_160 steps(P)".into(),
+                map_all(&|x| low_double.apply(x), &p),
+            ),
+            ("D(P)".into(), map_all(&d, &p)),
+            ("D(L(P))".into(), map_all(&d, &lpp)),
+            ("D_0.5(L(P))".into(), map_all(&|x| d_alpha(x, 0.5), &lpp)),
+            ("D_0.25(L(P))".into(), map_all(&|x| d_alpha(x, 0.25), &lpp)),
+            ("Plin (linear regressor)".into(), plin.clone()),
+            ("L(Plin)".into(), map_all(&lp, &plin)),
+            ("D(L(Plin))".into(), map_all(&|x| d(&lp(x)), &plin)),
+            ("gt projected on the subspace (bound)".into(), gproj.clone()),
+            ("L(gt projected)".into(), map_all(&lp, &gproj)),
+            ("D(L(gt projected))".into(), map_all(&|x| d(&lp(x)), &gproj)),
+            ("Q (smooth subspace, regressed)".into(), q.clone()),
+            ("L(Q)".into(), map_all(&lp, &q)),
+            ("D(Q)".into(), map_all(&d, &q)),
+            ("D_0.5(Q)".into(), map_all(&|x| d_alpha(x, 0.5), &q)),
+            ("D(L(Q))".into(), map_all(&|x| d(&lp(x)), &q)),
+        ];
+        for &s in sigmas {
+            let ps = recon(sub_gt, &smooth_in_time(&cp, s));
+            let qs = recon(sub_cap, &smooth_in_time(&cq, s));
+            v.push((format!("P~{s}"), ps.clone()));
+            v.push((format!("L(P~{s})"), map_all(&lp, &ps)));
+            v.push((format!("D(L(P~{s}))"), map_all(&|x| d(&lp(x)), &ps)));
+            v.push((
+                format!("D_0.5(L(P~{s}))"),
+                map_all(&|x| d_alpha(&lp(x), 0.5), &ps),
+            ));
+            v.push((format!("Q~{s}"), qs.clone()));
+            v.push((format!("D(Q~{s})"), map_all(&d, &qs)));
+            v.push((format!("D_0.5(Q~{s})"), map_all(&|x| d_alpha(x, 0.5), &qs)));
+        }
+        // Low band alone: L(P) against the captured mesh (not gt).
+        let low_only = (0..n)
+            .map(|t| mesh_normal_error(&topo, &lpp[t], &test.coarse[t]))
+            .sum::<f64>()
+            / n as f64;
+        eprintln!("{h}: L(P) against captured (low band alone): {low_only:.2}°");
+        let mean_shape = crease_deep::subspace::unflatten(&sub_gt.mean);
+        let layout = auto_atlas(&topo, &mean_shape, 0.01)?;
+        let texels = TexelMap::new(&layout, res, res);
+        let idx: Vec<usize> = (0..n).step_by(step.max(1)).collect();
+        for (name, frames) in &v {
+            let mesh = (0..n)
+                .map(|t| mesh_normal_error(&topo, &frames[t], &test.fine[t]))
+                .sum::<f64>()
+                / n as f64;
+            let map = idx
+                .iter()
+                .map(|&t| {
+                    let m = world_from_vertex_normals(
+                        &texels,
+                        &topo,
+                        &vertex_normals(&topo, &frames[t]),
+                    );
+                    map_normal_error(
+                        &sample_vertex_normals(&m, &topo, &layout),
+                        &topo,
+                        &test.fine[t],
+                    )
+                    .0
+                })
+                .sum::<f64>()
+                / idx.len() as f64;
+            let (vert, _) = mean_err(frames, &test.fine);
+            eprintln!("{h} | {name} | {mesh:.2} | {map:.2} | {}", mm(vert));
+            match table.iter_mut().find(|(n, _)| n == name) {
+                Some((_, r)) => r.push((mesh, map, vert)),
+                None => table.push((name.clone(), vec![(mesh, map, vert)])),
+            }
+        }
+        low_band.push(low_only);
+    }
+    println!("L(P) against the captured mesh (the low band's own error, °): {low_band:.2?}");
+    print!("| variant |");
+    for h in &helds {
+        print!(" {h}: mesh / {res}² map (°), vertex (mm) |");
+    }
+    println!(" mean map (°) | mean vertex (mm) |");
+    println!("|---|{}---|---|", "---|".repeat(helds.len()));
+    let mut rows = Vec::new();
+    for (name, r) in &table {
+        print!("| {name} |");
+        for (a, b, c) in r {
+            print!(" {a:.2} / {b:.2}, {} |", mm(*c));
+        }
+        let k = r.len() as f64;
+        let map = r.iter().map(|x| x.1).sum::<f64>() / k;
+        let vert = r.iter().map(|x| x.2).sum::<f64>() / k;
+        println!(" {map:.2} | {} |", mm(vert));
+        rows.push(serde_json::json!({"variant": name, "per_split": r, "mean_map_deg": map, "mean_vertex_m": vert}));
+    }
+    write_json(
+        out,
+        "posenorm.json",
+        &serde_json::json!({"splits": helds, "rows": rows, "step": step, "resolution": res, "low_band_vs_captured_deg": low_band}),
+    )
+}
+
+/// How smooth the pose-only shape should be for its normals: `crease deep train`'s fit (defaults) per held-out
+/// sequence, the blend (and linear) regressor's coefficients truncated to their leading `k'` (all: 0), the
+/// reconstruction low-passed by `s` steps of the capture filter's λ|μ (0: none), scored like `posenorm`.
+fn posesmooth(
+    data: &str,
+    out: &str,
+    held: &str,
+    steps: &[usize],
+    truncs: &[usize],
+    step: usize,
+    res: usize,
+) -> R<()> {
+    use crease_core::shape::TaubinFilter;
+    use crease_deep::model::RegressorKind;
+    use crease_deep::normal_map::world_from_vertex_normals;
+    let helds = if held == "all" {
+        sequence_names(data)?
+    } else {
+        vec![held.to_string()]
+    };
+    let mut table: Vec<(String, Vec<(f64, f64, f64)>)> = Vec::new();
+    for h in &helds {
+        let (train, test) = split(data, h)?;
+        let topo = test.topology.clone();
+        let fit = crease_deep::train::fit(
+            &train,
+            &TrainParams::default(),
+            &crease_core::progress::NoProgress,
+        )?;
+        let sub = &fit.subspace;
+        let mean_shape = crease_deep::subspace::unflatten(&sub.mean);
+        let layout = auto_atlas(&topo, &mean_shape, 0.01)?;
+        let texels = TexelMap::new(&layout, res, res);
+        let n = test.fine.len();
+        let idx: Vec<usize> = (0..n).step_by(step.max(1)).collect();
+        for kind in [RegressorKind::Blend, RegressorKind::Linear] {
+            let c = fit.coefficients(kind, &test.poses)?;
+            for &kt in truncs {
+                let frames: Vec<Frame> = c
+                    .iter()
+                    .map(|x| {
+                        let mut x = x.clone();
+                        if kt > 0 {
+                            x.iter_mut().skip(kt).for_each(|v| *v = 0.0);
+                        }
+                        sub.reconstruct(&x)
+                    })
+                    .collect();
+                for &s in steps {
+                    let f = TaubinFilter::new(&topo, 0.5, -0.53, s);
+                    let fr: Vec<Frame> = if s == 0 {
+                        frames.clone()
+                    } else {
+                        frames.iter().map(|x| f.apply(x)).collect()
+                    };
+                    let mesh = (0..n)
+                        .map(|t| mesh_normal_error(&topo, &fr[t], &test.fine[t]))
+                        .sum::<f64>()
+                        / n as f64;
+                    let map = idx
+                        .iter()
+                        .map(|&t| {
+                            let m = world_from_vertex_normals(
+                                &texels,
+                                &topo,
+                                &vertex_normals(&topo, &fr[t]),
+                            );
+                            map_normal_error(
+                                &sample_vertex_normals(&m, &topo, &layout),
+                                &topo,
+                                &test.fine[t],
+                            )
+                            .0
+                        })
+                        .sum::<f64>()
+                        / idx.len() as f64;
+                    let (vert, _) = mean_err(&fr, &test.fine);
+                    let name = format!("{}, k' {kt}, {s} steps", kind.name());
+                    eprintln!("{h} | {name} | {mesh:.2} | {map:.2} | {}", mm(vert));
+                    match table.iter_mut().find(|(n, _)| *n == name) {
+                        Some((_, r)) => r.push((mesh, map, vert)),
+                        None => table.push((name, vec![(mesh, map, vert)])),
+                    }
+                }
+            }
+        }
+    }
+    print!("| regressor, leading coefficients, low-pass steps |");
+    for h in &helds {
+        print!(" {h}: mesh / {res}² map (°), vertex (mm) |");
+    }
+    println!(" mean map (°) | mean vertex (mm) |");
+    println!("|---|{}---|---|", "---|".repeat(helds.len()));
+    let mut rows = Vec::new();
+    for (name, r) in &table {
+        print!("| {name} |");
+        for (a, b, c) in r {
+            print!(" {a:.2} / {b:.2}, {} |", mm(*c));
+        }
+        let k = r.len() as f64;
+        let map = r.iter().map(|x| x.1).sum::<f64>() / k;
+        let vert = r.iter().map(|x| x.2).sum::<f64>() / k;
+        println!(" {map:.2} | {} |", mm(vert));
+        rows.push(serde_json::json!({"variant": name, "per_split": r, "mean_map_deg": map, "mean_vertex_m": vert}));
+    }
+    write_json(
+        out,
+        "posesmooth.json",
+        &serde_json::json!({"splits": helds, "rows": rows, "step": step, "resolution": res}),
+    )
+}
+
+/// Normals regressed directly: a PCA of the training frames' vertex normal fields (gt's, or the captured
+/// meshes' smooth ones; with the mirrored frames when the fit mirrors), the control vectors of `crease deep
+/// train`'s fit mapped onto its coefficients by ridge regression, the prediction renormalised per vertex and
+/// scored like `posenorm`; beside the normal subspace's own bound (held-out gt normals projected).
+fn posenormals(data: &str, out: &str, held: &str, ks: &[usize], step: usize, res: usize) -> R<()> {
+    use crease_deep::normal_map::world_from_vertex_normals;
+    let helds = if held == "all" {
+        sequence_names(data)?
+    } else {
+        vec![held.to_string()]
+    };
+    let mut table: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for h in &helds {
+        let (train, test) = split(data, h)?;
+        let topo = test.topology.clone();
+        let fit = crease_deep::train::fit(
+            &train,
+            &TrainParams::default(),
+            &crease_core::progress::NoProgress,
+        )?;
+        let mean_shape = crease_deep::subspace::unflatten(&fit.subspace.mean);
+        let layout = auto_atlas(&topo, &mean_shape, 0.01)?;
+        let texels = TexelMap::new(&layout, res, res);
+        let n = test.fine.len();
+        let idx: Vec<usize> = (0..n).step_by(step.max(1)).collect();
+        let truth: Vec<Vec<V3>> = test.fine.iter().map(|f| vertex_normals(&topo, f)).collect();
+        let score = |pred: &[Vec<V3>]| -> (f64, f64) {
+            let mesh = (0..n)
+                .map(|t| {
+                    pred[t]
+                        .iter()
+                        .zip(&truth[t])
+                        .map(|(a, b)| vec3::dot(*a, *b).clamp(-1.0, 1.0).acos().to_degrees())
+                        .sum::<f64>()
+                        / a_len(&pred[t])
+                })
+                .sum::<f64>()
+                / n as f64;
+            let map = idx
+                .iter()
+                .map(|&t| {
+                    let m = world_from_vertex_normals(&texels, &topo, &pred[t]);
+                    map_normal_error(
+                        &sample_vertex_normals(&m, &topo, &layout),
+                        &topo,
+                        &test.fine[t],
+                    )
+                    .0
+                })
+                .sum::<f64>()
+                / idx.len() as f64;
+            (mesh, map)
+        };
+        for source in ["gt", "captured"] {
+            let mut fields: Vec<Vec<V3>> = Vec::new();
+            let mut controls: Vec<Vec<f64>> = Vec::new();
+            for s in &train {
+                let frames = if source == "gt" { &s.fine } else { &s.coarse };
+                fields.extend(frames.iter().map(|f| vertex_normals(&topo, f)));
+                controls.extend(fit.control.controls(&s.poses)?);
+                if let Some(r) = &fit.mirror {
+                    fields.extend(
+                        frames
+                            .iter()
+                            .map(|f| vertex_normals(&topo, &r.reflect_frame(f))),
+                    );
+                    let rp: Vec<Vec<f64>> = s
+                        .poses
+                        .iter()
+                        .map(|p| crease_deep::mirror::reflect_pose(p, r.axis))
+                        .collect();
+                    controls.extend(fit.control.controls(&rp)?);
+                }
+            }
+            let refs: Vec<&[V3]> = fields.iter().map(|f| f.as_slice()).collect();
+            let test_controls = fit.control.controls(&test.poses)?;
+            for &k in ks {
+                let sub = Subspace::fit(&refs, k)?;
+                let kk = sub.k();
+                let targets: Vec<Vec<f64>> = fields.iter().map(|f| sub.project(f, kk)).collect();
+                let lin = LinearRegression::fit(&controls, &targets, 1e-3)?;
+                let norm = |v: Vec<V3>| -> Vec<V3> { v.into_iter().map(vec3::normalize).collect() };
+                let pred: Vec<Vec<V3>> = test_controls
+                    .iter()
+                    .map(|c| norm(sub.reconstruct(&lin.predict(c))))
+                    .collect();
+                let bound: Vec<Vec<V3>> = truth
+                    .iter()
+                    .map(|f| norm(sub.reconstruct(&sub.project(f, kk))))
+                    .collect();
+                for (name, p) in [
+                    (format!("{source} normals, k {k}: regressed (linear)"), pred),
+                    (
+                        format!("{source} normals, k {k}: held-out gt normals projected (bound)"),
+                        bound,
+                    ),
+                ] {
+                    let (mesh, map) = score(&p);
+                    eprintln!("{h} | {name} | {mesh:.2} | {map:.2}");
+                    match table.iter_mut().find(|(n, _)| *n == name) {
+                        Some((_, r)) => r.push((mesh, map)),
+                        None => table.push((name, vec![(mesh, map)])),
+                    }
+                }
+            }
+        }
+    }
+    print!("| normal field, subspace size: variant |");
+    for h in &helds {
+        print!(" {h}: mesh / {res}² map (°) |");
+    }
+    println!(" mean map (°) |");
+    println!("|---|{}---|", "---|".repeat(helds.len()));
+    let mut rows = Vec::new();
+    for (name, r) in &table {
+        print!("| {name} |");
+        for (a, b) in r {
+            print!(" {a:.2} / {b:.2} |");
+        }
+        let map = r.iter().map(|x| x.1).sum::<f64>() / r.len() as f64;
+        println!(" {map:.2} |");
+        rows.push(serde_json::json!({"variant": name, "per_split": r, "mean_map_deg": map}));
+    }
+    write_json(
+        out,
+        "posenormals.json",
+        &serde_json::json!({"splits": helds, "rows": rows, "step": step, "resolution": res}),
+    )
+}
+
+fn a_len(v: &[V3]) -> f64 {
+    v.len().max(1) as f64
 }

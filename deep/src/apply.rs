@@ -68,14 +68,51 @@ impl CoarseShapes {
     }
 }
 
-/// Shapes predicted from a pose file (the whole file: controls need the history, and the autoregressive
-/// regressor is rolled out from the first frame on its own predictions, so every frame range of a chunked
-/// apply recomputes the same rollout: a linear map per frame, cheap next to the maps).
+/// Shapes predicted from a pose file: the regression's reconstruction of [`coefficients_from_poses`], as it is
+/// (`apply --pose` smooths it first when the model says so: [`pose_shapes`]).
 pub fn shapes_from_poses(
     model: &Model,
     pose_path: &Path,
     regressor: RegressorKind,
 ) -> Result<Vec<Frame>> {
+    Ok(coefficients_from_poses(model, pose_path, regressor)?
+        .iter()
+        .map(|c| model.subspace.reconstruct(c))
+        .collect())
+}
+
+/// The shapes `apply --pose` writes for the frames in `range`: the regression's coefficients, made smooth by the
+/// model's `pose_smoothing` (format 8 on; [`crate::pose_smoothing`]), or reconstructed as they are. Frames
+/// outside `range` stay empty (a chunk smooths only its own frames).
+pub fn pose_shapes(
+    model: &Model,
+    pose_path: &Path,
+    regressor: RegressorKind,
+    range: Option<Range<usize>>,
+) -> Result<Vec<Frame>> {
+    let coeffs = coefficients_from_poses(model, pose_path, regressor)?;
+    let range = range.unwrap_or(0..coeffs.len());
+    let smoothing = model.manifest.pose_smoothing.as_ref();
+    let filter = smoothing.and_then(|s| s.filter(&model.topology));
+    Ok(coeffs
+        .iter()
+        .enumerate()
+        .map(|(t, c)| match smoothing {
+            _ if !range.contains(&t) => Vec::new(),
+            Some(s) => s.shape(&model.subspace, filter.as_ref(), c),
+            None => model.subspace.reconstruct(c),
+        })
+        .collect())
+}
+
+/// Subspace coefficients predicted from a pose file (the whole file: controls need the history, and the
+/// autoregressive regressor is rolled out from the first frame on its own predictions, so every frame range of
+/// a chunked apply recomputes the same rollout: a linear map per frame, cheap next to the maps).
+pub fn coefficients_from_poses(
+    model: &Model,
+    pose_path: &Path,
+    regressor: RegressorKind,
+) -> Result<Vec<Vec<f64>>> {
     let poses = read_pose_file(pose_path, None)?;
     if poses[0].len() != model.manifest.control.pose_dim() {
         return Err(Error::format(
@@ -131,10 +168,7 @@ pub fn shapes_from_poses(
             net.predict_sequence(&controls, base.as_deref())?
         }
     };
-    Ok(coeffs
-        .iter()
-        .map(|c| model.subspace.reconstruct(c))
-        .collect())
+    Ok(coeffs)
 }
 
 /// Opens coarse meshes and checks them against the model's topology, naming the file on a mismatch.
@@ -169,10 +203,11 @@ pub fn apply(
     progress: &dyn Progress,
 ) -> Result<usize> {
     let shapes = match input {
-        ApplyInput::Pose(p) => CoarseShapes::Frames(shapes_from_poses(
+        ApplyInput::Pose(p) => CoarseShapes::Frames(pose_shapes(
             model,
             p,
             params.regressor.unwrap_or(model.manifest.regressor),
+            params.frames.clone(),
         )?),
         ApplyInput::Coarse(d) => CoarseShapes::Source(open_coarse(model, d)?),
     };
@@ -195,8 +230,9 @@ pub fn apply(
     } else {
         crate::enhance::Enhancer::for_model(model)?
     };
-    // The detail filter learned captured → fine; a regression's reconstruction is no capture, so poses get the
-    // plain coarse map.
+    // The detail filter learned captured → fine; a regression's reconstruction is no capture (it sharpens the
+    // mixed-in folds: docs/deepwrinkles.md, "Pose-only normals taken apart"), so poses get the map of their
+    // (smoothed) shape.
     let op = crate::detail_filter::Umbrella::new(&model.topology);
     let detail = match input {
         ApplyInput::Coarse(_) => model.detail.as_ref().map(|f| (f, &op)),

@@ -4,7 +4,8 @@
 //! [`lstm`] §3.3 (pose-to-shape regression), [`uv`], [`raster`] and [`normal_map`] §4.1 (normal maps in UV
 //! space), [`cgan`] §4.2 (U-Net + 70×70 PatchGAN with the temporal term of Eq. 4). [`model`] stores a trained model, [`train`] fits one, [`apply`] runs it and writes the DESIGN §7
 //! output contract ([`contract`]), [`bake`] turns any detailed sequence into normal maps on its coarse input;
-//! [`detail_filter`] predicts the fine surface from a captured mesh (the detail `apply --coarse` draws).
+//! [`detail_filter`] predicts the fine surface from a captured mesh (the detail `apply --coarse` draws);
+//! [`pose_smoothing`] makes the pose-only shape smooth before `apply --pose` draws it.
 //! No async and no networking: the CLI and the cluster worker call in here.
 
 pub mod adam;
@@ -27,6 +28,7 @@ pub mod point_normals;
 pub mod pose;
 pub mod pose_features;
 pub mod pose_history;
+pub mod pose_smoothing;
 pub mod raster;
 pub mod register;
 pub mod regress;

@@ -35,7 +35,11 @@ use std::sync::Arc;
 /// Version 7 made the LSTM a residual one (`lstm.residual_of` in the manifest: the regressor whose
 /// coefficients `lstm.safetensors` corrects); a version 6 crease would have ignored the field and run the
 /// correction alone as if it were the shape. Older LSTMs have no such field and run as before.
-pub const MODEL_VERSION: u32 = 7;
+/// Version 8 added the pose-only shape's smoothing (`pose_smoothing` in the manifest: leading components kept
+/// and low-pass steps, [`crate::pose_smoothing`]) that `apply --pose` runs before drawing mesh and map; a
+/// version 7 crease would have ignored it and written the unsmoothed shapes. Older models have none and run
+/// as before.
+pub const MODEL_VERSION: u32 = 8;
 /// Oldest format this build still reads: a version 1 model differs only by lacking the autoregressive
 /// regressor, so it still runs with the linear or LSTM one; the generator of a version 1 or 2 model has no
 /// `residual` field and runs as the plain generator it was trained as; models before version 4 have no blend
@@ -108,6 +112,10 @@ pub struct Manifest {
     /// The mesh-space detail filter ([`crate::detail_filter`], weights in `detail.npy`); absent before version 6.
     #[serde(default)]
     pub detail: Option<DetailSpec>,
+    /// How `apply --pose` smooths the regression's shape ([`crate::pose_smoothing`]); absent before version 8
+    /// (the reconstruction as it is).
+    #[serde(default)]
+    pub pose_smoothing: Option<crate::pose_smoothing::PoseSmoothing>,
     /// The LSTM's output unit per coefficient: one shared value (the RMS of all training coefficients,
     /// [`crate::lstm::output_scale`]) since this session; each coefficient's own standard deviation in models
     /// trained before, which load and run with their stored units unchanged.
@@ -541,6 +549,22 @@ impl Model {
                     None,
                     format!(
                         "format version {} manifest without the `blend` field it requires",
+                        manifest.version
+                    ),
+                ))
+            }
+            None => {}
+        }
+        match &manifest.pose_smoothing {
+            Some(ps) => ps
+                .check()
+                .map_err(|e| Error::format(&mpath, None, format!("`pose_smoothing`: {e}")))?,
+            None if manifest.version >= 8 => {
+                return Err(Error::format(
+                    &mpath,
+                    None,
+                    format!(
+                        "format version {} manifest without the `pose_smoothing` field it requires",
                         manifest.version
                     ),
                 ))

@@ -39,7 +39,7 @@ fn stored_rollout_equals_a_hand_rolled_loop_and_beats_the_pose_only_map() {
     let dir = tmp.path().join("model");
     train(&seqs, &params(), &dir, &NoProgress).unwrap();
     let model = Model::load(&dir).unwrap();
-    assert_eq!(model.manifest.version, 7);
+    assert_eq!(model.manifest.version, 8);
     assert_eq!(
         model.manifest.regressor,
         RegressorKind::Blend,

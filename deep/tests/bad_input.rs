@@ -128,13 +128,13 @@ fn models_meshes_and_uv_requirements_are_checked() {
     let old = copy("old");
     let m = std::fs::read_to_string(old.join("manifest.json"))
         .unwrap()
-        .replace("\"version\": 7", "\"version\": 99");
+        .replace("\"version\": 8", "\"version\": 99");
     std::fs::write(old.join("manifest.json"), m).unwrap();
     let e = err(Model::load(&old));
     assert!(
         e.contains("manifest.json")
             && e.contains("version 99")
-            && e.contains("reads versions 1 to 7"),
+            && e.contains("reads versions 1 to 8"),
         "{e}"
     );
     let damaged = copy("damaged");

@@ -62,7 +62,7 @@ fn the_blend_mixes_the_stored_parts_by_its_weight_and_its_ends_are_the_parts() {
     let dir = tmp.path().join("model");
     train(&seqs, &fitted_params, &dir, &NoProgress).unwrap();
     let model = Model::load(&dir).unwrap();
-    assert_eq!(model.manifest.version, 7);
+    assert_eq!(model.manifest.version, 8);
     let blend = model.manifest.blend.clone().expect("a blend weight");
     assert_eq!(blend.method, "inner-leave-one-out");
     assert_eq!(blend.fold_weights.len(), 2, "one weight per inner fold");
@@ -194,7 +194,7 @@ fn older_models_are_read_and_refuse_the_blend_by_name() {
     });
     let e = Model::load(&broken).err().expect("refused").to_string();
     assert!(
-        e.contains("manifest.json") && e.contains("version 7") && e.contains("`blend`"),
+        e.contains("manifest.json") && e.contains("version 8") && e.contains("`blend`"),
         "{e}"
     );
 

@@ -141,7 +141,7 @@ fn a_version_2_models_generator_runs_as_the_plain_one_it_was() {
     train(&seqs, &params, &dir, &NoProgress).unwrap();
     let manifest: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
-    assert_eq!(manifest["version"], 7);
+    assert_eq!(manifest["version"], 8);
     assert_eq!(manifest["cgan"]["residual"], true);
 
     // What version 2 wrote: the same files, no `residual` in the cGAN section.

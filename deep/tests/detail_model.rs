@@ -132,7 +132,7 @@ fn apply_coarse_draws_the_predicted_folds_and_beats_the_captured_map() {
     train(&seqs, &params(), &model_dir, &NoProgress).unwrap();
     let model = Model::load(&model_dir).unwrap();
     assert_eq!(model.manifest.version, MODEL_VERSION);
-    assert_eq!(MODEL_VERSION, 7);
+    assert_eq!(MODEL_VERSION, 8);
     let spec = model.manifest.detail.clone().expect("a detail filter");
     // The filter explains most of what the capture removed on its own training frames.
     assert!(

@@ -150,7 +150,7 @@ fn a_stored_residual_lstm_adds_to_the_blend_and_a_version_6_one_runs_alone() {
     };
     train(&seqs, &five, &dir, &NoProgress).unwrap();
     let v7 = Model::load(&dir).unwrap();
-    assert_eq!(v7.manifest.version, 7);
+    assert_eq!(v7.manifest.version, 8);
     assert_eq!(
         v7.manifest.lstm.as_ref().unwrap().residual_of,
         Some(RegressorKind::Blend)

@@ -99,7 +99,7 @@ fn rigid_features_fit_a_twist_that_raw_poses_cannot() {
         m_rigid.manifest.control.features,
         PoseFeatures::Rigid { objects: 1 }
     );
-    assert_eq!(m_rigid.manifest.version, 7);
+    assert_eq!(m_rigid.manifest.version, 8);
     // The pose number read back is the raw one: apply checks its length, not the feature count.
     assert_eq!(m_rigid.manifest.control.pose_dim(), 6);
     assert!(

@@ -60,7 +60,7 @@ fn history_features_are_stored_rebuilt_by_apply_and_carry_the_cloths_memory() {
     let plain = Model::load(&plain_dir).unwrap();
     let hist = Model::load(&hist_dir).unwrap();
     assert_eq!(hist.manifest.version, MODEL_VERSION);
-    assert_eq!(MODEL_VERSION, 7);
+    assert_eq!(MODEL_VERSION, 8);
     let h = hist
         .manifest
         .control

@@ -76,6 +76,8 @@ pub struct DeepTrainParams {
     pub lstm_seq: usize,
     pub lstm_epochs: usize,
     pub lstm_lr: f64,
+    pub pose_components: usize,
+    pub pose_smoothing: usize,
     pub seed: u64,
     pub resolution: usize,
     /// URI of an OBJ whose `vt` gives the UV layout (it must have `vt`); default: computed.
@@ -108,6 +110,8 @@ impl Default for DeepTrainParams {
             lstm_seq: t.lstm.seq_len,
             lstm_epochs: t.lstm.epochs,
             lstm_lr: t.lstm.lr,
+            pose_components: t.pose_components,
+            pose_smoothing: t.pose_smoothing,
             seed: 1,
             resolution: t.resolution,
             uv: None,
@@ -145,6 +149,8 @@ impl DeepTrainParams {
                 // Residual of the blend, cross-fitted, early stopping: as `crease deep train`.
                 ..LstmConfig::default()
             },
+            pose_components: self.pose_components,
+            pose_smoothing: self.pose_smoothing,
             resolution: self.resolution,
             uv,
             cgan: (self.cgan_epochs > 0).then(|| CganConfig {

@@ -5,7 +5,8 @@
 //! The generator's weights are freshly initialised, not trained: a forward pass costs the same whatever the
 //! weights. The mesh is a training directory's captured frame (`--deep-data`), or by default a synthetic tube
 //! with the sleeve's size (80 × 92 = 7,360 vertices). Separately, what `apply --coarse` does per frame with a
-//! default model (no cGAN): the detail filter's map and writing the frame's OBJ and PNG.
+//! default model (no cGAN): the detail filter's map (the inference of the default model) and writing the frame's OBJ and
+//! PNG (bytes, files, sync apart), the PNG encoder's settings against each other, and every `--deep-filters` size.
 
 use crate::bench::BenchArgs;
 use anyhow::{bail, Context, Result};
@@ -71,22 +72,57 @@ fn median_ms(mut v: Vec<f64>) -> f64 {
     1e3 * v[v.len() / 2]
 }
 
+/// Median milliseconds of `repeats` calls of `f`.
+fn time_ms(repeats: usize, mut f: impl FnMut() -> Result<()>) -> Result<f64> {
+    let mut v = Vec::with_capacity(repeats);
+    for _ in 0..repeats {
+        let t = Instant::now();
+        f()?;
+        v.push(t.elapsed().as_secs_f64());
+    }
+    Ok(median_ms(v))
+}
+
+fn verdict(ms: f64) -> &'static str {
+    if ms <= 50.0 {
+        "met"
+    } else {
+        "not met"
+    }
+}
+
+/// One generator size: forward pass per frame and (unless `train_steps` is 0) a training step.
+struct GeneratorTimes {
+    filters: usize,
+    forward_ms: f64,
+    train_step_ms: Option<f64>,
+}
+
 pub fn bench_deep(a: &BenchArgs) -> Result<()> {
-    if a.repeats == 0 || a.deep_train_steps == 0 {
-        bail!("--repeats and --deep-train-steps must be at least 1");
+    if a.repeats == 0 {
+        bail!("--repeats must be at least 1");
+    }
+    if a.deep_filters.is_empty() || a.deep_filters.contains(&0) {
+        bail!("--deep-filters needs one or more sizes of at least 1");
     }
     let threads = rayon::current_num_threads();
     // candle sizes its own parallel loops from RAYON_NUM_THREADS: make it use the pool `--threads` set.
     std::env::set_var("RAYON_NUM_THREADS", threads.to_string());
     let res = a.deep_resolution;
-    let config = CganConfig {
-        resolution: res,
-        filters: a.deep_filters,
-        disc_filters: a.deep_filters,
-        seed: 1,
-        ..Default::default()
-    };
-    config.validate()?;
+    let configs: Vec<CganConfig> = a
+        .deep_filters
+        .iter()
+        .map(|&filters| CganConfig {
+            resolution: res,
+            filters,
+            disc_filters: filters,
+            seed: 1,
+            ..Default::default()
+        })
+        .collect();
+    for c in &configs {
+        c.validate()?;
+    }
     let (topo, coarse, fine, source) = match &a.deep_data {
         Some(dir) => {
             let (t, c, f) = training_frames(dir)?;
@@ -99,40 +135,26 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
             (t, [c.clone(), c], [f0, f1], "synthetic tube".to_string())
         }
     };
+    let filters_list: Vec<String> = a.deep_filters.iter().map(|f| f.to_string()).collect();
     println!(
         "crease bench --deep: {} ({} vertices, {} triangles), {res}² maps, generator {} filters, {threads} thread(s), median of {} runs",
         source,
         topo.n_vertices(),
         topo.n_triangles(),
-        a.deep_filters,
+        filters_list.join(" and "),
         a.repeats
     );
     let layout = auto_atlas(&topo, &coarse[0], 0.01).context("UV layout")?;
     let t = Instant::now();
     let texels = TexelMap::new(&layout, res, res);
     let texel_setup_ms = 1e3 * t.elapsed().as_secs_f64();
+    println!(
+        "  texel map set-up (once per model): {texel_setup_ms:.1} ms; the surface covers {:.0}% of the texels",
+        100.0 * texels.coverage()
+    );
 
-    let mut raster = Vec::new();
-    let mut map = bake_coarse(&texels, &topo, &coarse[0]);
-    for _ in 0..a.repeats {
-        let t = Instant::now();
-        map = bake_coarse(&texels, &topo, &coarse[0]);
-        raster.push(t.elapsed().as_secs_f64());
-    }
-    let mut gan = Cgan::new(config.clone())?;
-    gan.enhance(&map)?; // first call allocates; not counted
-    let mut forward = Vec::new();
-    for _ in 0..a.repeats {
-        let t = Instant::now();
-        let out = gan.enhance(&map)?;
-        forward.push(t.elapsed().as_secs_f64());
-        if out.n.len() != map.n.len() {
-            bail!("the generator returned a map of another size");
-        }
-    }
-    // What `crease deep apply --coarse` does per frame with a default model (no cGAN): the detail filter's
-    // fine shape (degree 40; its cost does not depend on the weights) drawn into the map, then the frame's OBJ
-    // and 16-bit PNG written (the output contract), into a scratch directory removed afterwards.
+    // Inference of the default model (`apply --coarse`, no cGAN): the detail filter's fine shape (degree 40;
+    // its cost does not depend on the weights) drawn into the map, with the buffers apply reuses per frame.
     let op = crease_deep::detail_filter::Umbrella::new(&topo);
     let degree = crease_deep::detail_filter::DEFAULT_DEGREE;
     let filter = crease_deep::detail_filter::DetailFilter {
@@ -140,74 +162,196 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
         interior: (0..=degree).map(|j| 0.1 / (1.0 + j as f64)).collect(),
         boundary: (0..=degree).map(|j| 0.05 / (1.0 + j as f64)).collect(),
     };
-    let mut detail = Vec::new();
-    let mut dmap = map.clone();
-    for _ in 0..a.repeats {
-        let t = Instant::now();
-        dmap = crease_deep::apply::detail_map(&texels, &topo, &op, &filter, &coarse[0]);
-        detail.push(t.elapsed().as_secs_f64());
-    }
-    let scratch = std::env::temp_dir().join(format!("crease-bench-deep-{}", std::process::id()));
-    crease_deep::contract::prepare(&scratch)?;
-    let mut write = Vec::new();
-    for r in 0..a.repeats {
-        let t = Instant::now();
-        crease_deep::contract::write_frame(&scratch, r, &topo, &coarse[0], &layout, &dmap)?;
-        write.push(t.elapsed().as_secs_f64());
-    }
-    let _ = std::fs::remove_dir_all(&scratch);
-    let (detail_ms, write_ms) = (median_ms(detail), median_ms(write));
-    println!("  apply --coarse without a cGAN (the default model), per frame: detail filter + map {detail_ms:.1} ms + write OBJ and PNG {write_ms:.1} ms = {:.1} ms", detail_ms + write_ms);
-    let (raster_ms, forward_ms) = (median_ms(raster), median_ms(forward));
-    println!(
-        "  texel map set-up (once per model): {texel_setup_ms:.1} ms; the surface covers {:.0}% of the texels",
-        100.0 * texels.coverage()
-    );
-    println!("  per frame: rasterise coarse normal map {raster_ms:.1} ms + generator forward {forward_ms:.1} ms = {:.1} ms (target ≤ 50 ms at 256² on one core)", raster_ms + forward_ms);
+    let mut scratch = crease_deep::apply::ApplyScratch::default();
+    let mut dmap =
+        crease_deep::apply::detail_map_with(&texels, &topo, &op, &filter, &coarse[0], &mut scratch);
+    let detail_ms = time_ms(a.repeats, || {
+        dmap = crease_deep::apply::detail_map_with(
+            &texels,
+            &topo,
+            &op,
+            &filter,
+            &coarse[0],
+            &mut scratch,
+        );
+        Ok(())
+    })?;
+    // `apply --pose`'s map: the coarse mesh's own normals (no detail filter).
+    let mut map = bake_coarse(&texels, &topo, &coarse[0]);
+    let raster_ms = time_ms(a.repeats, || {
+        map = bake_coarse(&texels, &topo, &coarse[0]);
+        Ok(())
+    })?;
 
-    // Training: one step (discriminator + generator, batch 1) per training frame.
-    let pairs = crease_deep::cgan_data::map_pairs(
-        &topo,
-        &texels,
-        &[coarse[0].clone(), coarse[1].clone()],
-        &[fine[0].clone(), fine[1].clone()],
-        8.0,
-    )?;
-    let samples = crease_deep::cgan_data::samples(&pairs);
-    gan.step(&[&samples[1]])?; // warm-up
-    let mut steps = Vec::new();
-    for i in 0..a.deep_train_steps {
-        let t = Instant::now();
-        gan.step(&[&samples[i % samples.len()]])?;
-        steps.push(t.elapsed().as_secs_f64());
-    }
-    let step_ms = median_ms(steps);
-    let epoch_frames = a.deep_epoch_frames;
-    let epoch_s = step_ms * 1e-3 * epoch_frames as f64;
+    // Writing the frame (the output contract): the bytes of the OBJ and the PNG, then the files (written and
+    // renamed into place), then their sync to the device (apply syncs once at the end; here per frame, to time
+    // it), into a scratch directory removed afterwards.
+    let writer = crease_deep::contract::FrameWriter::new(&topo, &layout);
+    let mut files = crease_deep::contract::FrameScratch::default();
+    let scratch_dir =
+        std::env::temp_dir().join(format!("crease-bench-deep-{}", std::process::id()));
+    crease_deep::contract::prepare(&scratch_dir)?;
+    let written = (|| -> Result<(f64, f64, f64, usize)> {
+        let mut bytes = 0;
+        let encode_ms = time_ms(a.repeats, || {
+            let (obj, png) = writer.encode(&scratch_dir, 0, &coarse[0], &dmap, &mut files)?;
+            bytes = obj.len() + png.len();
+            Ok(())
+        })?;
+        let mut frame = 0;
+        let files_ms = time_ms(a.repeats, || {
+            writer.write(&scratch_dir, frame, &coarse[0], &dmap, &mut files)?;
+            frame += 1;
+            Ok(())
+        })?;
+        let mut frame = 0;
+        let sync_ms = time_ms(a.repeats, || {
+            crease_deep::contract::sync_frames(&scratch_dir, frame..frame + 1)?;
+            frame += 1;
+            Ok(())
+        })?;
+        // The OBJ tail (vt and f lines) is the same for every frame: add its share to the byte count.
+        Ok((
+            encode_ms,
+            files_ms,
+            sync_ms,
+            bytes + writer.constant_obj_bytes(),
+        ))
+    })();
+    let _ = std::fs::remove_dir_all(&scratch_dir);
+    let (encode_ms, files_ms, sync_ms, frame_bytes) = written?;
     println!(
-        "  training: {step_ms:.0} ms per step (batch 1, median of {}) → {epoch_s:.0} s per epoch of {epoch_frames} frames",
-        a.deep_train_steps
+        "  inference, default model (apply --coarse, no cGAN): detail filter + map {detail_ms:.2} ms per frame (target ≤ 50 ms at 256² on one core: {})",
+        verdict(detail_ms)
     );
+    println!(
+        "  inference, apply --pose's map (rasterise the coarse normals): {raster_ms:.2} ms per frame"
+    );
+    println!(
+        "  writing a frame: OBJ + PNG bytes {encode_ms:.2} ms, files written and renamed {files_ms:.2} ms (both: {:.2} ms, {:.2} MB), synced to the device {sync_ms:.2} ms",
+        encode_ms + files_ms,
+        frame_bytes as f64 / 1e6
+    );
+    println!(
+        "  default apply --coarse per frame: inference + writing {:.2} ms (+ {sync_ms:.2} ms sync)",
+        detail_ms + encode_ms + files_ms
+    );
+
+    // PNG encoder settings (the bytes differ, the pixels do not): what the default costs against the others.
+    let mut png_variants = Vec::new();
+    {
+        use crease_deep::normal_map::{PngScratch, PngSettings};
+        use image::codecs::png::{CompressionType as C, FilterType as F};
+        let mut ps = PngScratch::default();
+        let mut line = Vec::new();
+        for (name, compression, filter) in [
+            ("default (fast, adaptive)", C::Fast, F::Adaptive),
+            ("balanced (zlib level 6), adaptive", C::Default, F::Adaptive),
+            ("fast, up", C::Fast, F::Up),
+            ("fast, sub", C::Fast, F::Sub),
+            ("uncompressed, no filter", C::Uncompressed, F::NoFilter),
+        ] {
+            let settings = PngSettings {
+                compression,
+                filter,
+            };
+            let mut size = 0;
+            let ms = time_ms(a.repeats, || {
+                size = dmap
+                    .encode_png(Path::new("bench.png"), settings, &mut ps)?
+                    .len();
+                Ok(())
+            })?;
+            line.push(format!("{name} {ms:.2} ms {:.0} KB", size as f64 / 1e3));
+            png_variants.push(json!({"settings": name, "encode_ms": ms, "bytes": size}));
+        }
+        println!("  PNG encoding (dilation included): {}", line.join("; "));
+    }
+
+    let mut generators = Vec::new();
+    for config in &configs {
+        let mut gan = Cgan::new(config.clone())?;
+        gan.enhance(&map)?; // first call allocates; not counted
+        let forward_ms = time_ms(a.repeats, || {
+            let out = gan.enhance(&map)?;
+            if out.n.len() != map.n.len() {
+                bail!("the generator returned a map of another size");
+            }
+            Ok(())
+        })?;
+        println!(
+            "  generator forward, {} filters: {forward_ms:.1} ms per frame (+ rasterise {raster_ms:.2} ms; target ≤ 50 ms at 256² on one core: {})",
+            config.filters,
+            verdict(forward_ms + raster_ms)
+        );
+        let train_step_ms = if a.deep_train_steps == 0 {
+            None
+        } else {
+            // Training: one step (discriminator + generator, batch 1) per training frame.
+            let pairs = crease_deep::cgan_data::map_pairs(
+                &topo,
+                &texels,
+                &[coarse[0].clone(), coarse[1].clone()],
+                &[fine[0].clone(), fine[1].clone()],
+                8.0,
+            )?;
+            let samples = crease_deep::cgan_data::samples(&pairs);
+            gan.step(&[&samples[1]])?; // warm-up
+            let mut i = 0;
+            let step_ms = time_ms(a.deep_train_steps, || {
+                gan.step(&[&samples[i % samples.len()]])?;
+                i += 1;
+                Ok(())
+            })?;
+            println!(
+                "  training, {} filters: {step_ms:.0} ms per step (batch 1, median of {}) → {:.0} s per epoch of {} frames",
+                config.filters,
+                a.deep_train_steps,
+                step_ms * 1e-3 * a.deep_epoch_frames as f64,
+                a.deep_epoch_frames
+            );
+            Some(step_ms)
+        };
+        generators.push(GeneratorTimes {
+            filters: config.filters,
+            forward_ms,
+            train_step_ms,
+        });
+    }
+
     if let Some(path) = &a.json {
+        let first = &generators[0];
+        let epoch_s = |ms: Option<f64>| ms.map(|ms| ms * 1e-3 * a.deep_epoch_frames as f64);
         let doc = json!({ "deep": {
             "source": source,
             "vertices": topo.n_vertices(),
             "triangles": topo.n_triangles(),
             "resolution": res,
-            "filters": a.deep_filters,
+            "filters": first.filters,
             "threads": threads,
             "repeats": a.repeats,
             "texel_setup_ms": texel_setup_ms,
             "coverage": texels.coverage(),
             "raster_ms": raster_ms,
-            "forward_ms": forward_ms,
-            "per_frame_ms": raster_ms + forward_ms,
+            "forward_ms": first.forward_ms,
+            "per_frame_ms": raster_ms + first.forward_ms,
             "detail_map_ms": detail_ms,
-            "write_frame_ms": write_ms,
-            "apply_coarse_default_ms": detail_ms + write_ms,
-            "train_step_ms": step_ms,
-            "epoch_frames": epoch_frames,
-            "epoch_s": epoch_s,
+            "encode_frame_ms": encode_ms,
+            "write_files_ms": files_ms,
+            "write_frame_ms": encode_ms + files_ms,
+            "sync_frame_ms": sync_ms,
+            "frame_bytes": frame_bytes,
+            "apply_coarse_default_ms": detail_ms + encode_ms + files_ms,
+            "png_encoders": png_variants,
+            "generators": generators.iter().map(|g| json!({
+                "filters": g.filters,
+                "forward_ms": g.forward_ms,
+                "train_step_ms": g.train_step_ms,
+                "epoch_s": epoch_s(g.train_step_ms),
+            })).collect::<Vec<_>>(),
+            "train_step_ms": first.train_step_ms,
+            "epoch_frames": a.deep_epoch_frames,
+            "epoch_s": epoch_s(first.train_step_ms),
         }});
         crease_core::fsutil::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     }

@@ -1,5 +1,6 @@
-//! `crease bench --deep` at a tiny size: it runs, reports both inference steps and the training step, and
-//! refuses nonsense. Timings are only checked to be measured (positive, finite), never against a bound.
+//! `crease bench --deep` at a tiny size: it runs, reports the inference steps (the default model's detail
+//! filter, the rasterised map, the generator at each size), the writing and the training step, and refuses
+//! nonsense. Timings are only checked to be measured (positive, finite), never against a bound.
 
 use std::process::Command;
 
@@ -20,7 +21,7 @@ fn bench_deep_reports_rasterisation_forward_and_training_times() {
         ])
         .args([
             "--deep-filters",
-            "4",
+            "4,2",
             "--repeats",
             "2",
             "--deep-train-steps",
@@ -46,10 +47,35 @@ fn bench_deep_reports_rasterisation_forward_and_training_times() {
     assert_eq!(d["resolution"], 32);
     assert_eq!(d["threads"], 1);
     assert_eq!(d["vertices"], 80 * 92, "the sleeve-sized tube");
-    for key in ["raster_ms", "forward_ms", "train_step_ms", "epoch_s"] {
+    for key in [
+        "raster_ms",
+        "forward_ms",
+        "train_step_ms",
+        "epoch_s",
+        "detail_map_ms",
+        "encode_frame_ms",
+        "write_files_ms",
+        "sync_frame_ms",
+        "frame_bytes",
+    ] {
         let v = d[key].as_f64().unwrap_or(f64::NAN);
         assert!(v.is_finite() && v > 0.0, "{key} = {v}");
     }
+    // Both generator sizes, in the order asked, each with its own forward and training times.
+    let gens = d["generators"].as_array().unwrap();
+    assert_eq!(gens.len(), 2);
+    for (g, filters) in gens.iter().zip([4, 2]) {
+        assert_eq!(g["filters"], filters);
+        for key in ["forward_ms", "train_step_ms", "epoch_s"] {
+            let v = g[key].as_f64().unwrap_or(f64::NAN);
+            assert!(v.is_finite() && v > 0.0, "{filters} filters: {key} = {v}");
+        }
+    }
+    assert_eq!(d["filters"], 4);
+    assert_eq!(d["png_encoders"].as_array().unwrap().len(), 5);
+    let write = d["encode_frame_ms"].as_f64().unwrap() + d["write_files_ms"].as_f64().unwrap();
+    assert!((d["write_frame_ms"].as_f64().unwrap() - write).abs() < 1e-9);
+    assert!(out.contains("target ≤ 50 ms"), "{out}");
     let coverage = d["coverage"].as_f64().unwrap();
     assert!(coverage > 0.1 && coverage <= 1.0, "coverage {coverage}");
     let sum = d["raster_ms"].as_f64().unwrap() + d["forward_ms"].as_f64().unwrap();

@@ -239,23 +239,56 @@ pub fn apply(
         ApplyInput::Pose(_) => None,
     };
     contract::prepare(out)?;
+    let writer = contract::FrameWriter::new(&model.topology, &model.layout);
     progress.begin("apply", range.len() as u64);
-    // Each frame needs its predecessor's map only through the cGAN's input, never its output, so frames are
-    // independent; they run one after another to keep memory flat and the cGAN on all cores.
-    for t in range.clone() {
+    let one_frame = |t: usize, scratch: &mut ApplyScratch| -> Result<()> {
         if progress.cancelled() {
             return Err(Error::Cancelled);
         }
         let c = shapes.frame(t)?;
-        let map = frame_map(model, &texels, &c, detail, enhancer.as_ref(), params.space)?;
-        contract::write_frame(out, t, &model.topology, &c, &model.layout, &map)?;
+        let map = frame_map_with(
+            model,
+            &texels,
+            &c,
+            detail,
+            enhancer.as_ref(),
+            params.space,
+            scratch,
+        )?;
+        writer.write(out, t, &c, &map, &mut scratch.files)?;
         progress.advance("apply", 1);
+        Ok(())
+    };
+    // Each frame needs its predecessor's map only through the cGAN's input, never its output, so frames are
+    // independent and their files the same bytes in any order. Without a cGAN they run in parallel (each
+    // thread with its own buffers, so memory stays at a frame per thread); the cGAN's own loops use every
+    // core, so with one the frames run one after another.
+    if enhancer.is_none() && rayon::current_num_threads() > 1 {
+        use rayon::prelude::*;
+        range
+            .clone()
+            .into_par_iter()
+            .try_for_each_init(ApplyScratch::default, |s, t| one_frame(t, s))?;
+    } else {
+        let mut scratch = ApplyScratch::default();
+        for t in range.clone() {
+            one_frame(t, &mut scratch)?;
+        }
     }
+    contract::sync_frames(out, range.clone())?;
     progress.end("apply");
     if params.frames.is_none() {
         contract::finish(out, n, params.space, res, "crease deep apply")?;
     }
     Ok(range.len())
+}
+
+/// Buffers one thread of `apply` reuses from frame to frame.
+#[derive(Debug, Default)]
+pub struct ApplyScratch {
+    filter: crate::detail_filter::FilterScratch,
+    fine: Vec<V3>,
+    files: contract::FrameScratch,
 }
 
 /// The map of a captured mesh's predicted fine shape: the vertex normals of `filter`'s prediction interpolated
@@ -267,8 +300,27 @@ pub fn detail_map(
     filter: &DetailFilter,
     coarse: &[V3],
 ) -> NormalMap {
-    let fine = filter.apply(op, coarse);
-    world_from_vertex_normals(texels, topo, &geometry::vertex_normals(topo, &fine))
+    detail_map_with(
+        texels,
+        topo,
+        op,
+        filter,
+        coarse,
+        &mut ApplyScratch::default(),
+    )
+}
+
+/// [`detail_map`] with `scratch`'s buffers.
+pub fn detail_map_with(
+    texels: &TexelMap,
+    topo: &Topology,
+    op: &Umbrella,
+    filter: &DetailFilter,
+    coarse: &[V3],
+    scratch: &mut ApplyScratch,
+) -> NormalMap {
+    filter.apply_into(op, coarse, &mut scratch.fine, &mut scratch.filter);
+    world_from_vertex_normals(texels, topo, &geometry::vertex_normals(topo, &scratch.fine))
 }
 
 /// One frame's map: the coarse map (or, with a detail filter, the map of the predicted fine shape), enhanced by
@@ -281,8 +333,29 @@ pub fn frame_map(
     enhancer: Option<&crate::enhance::Enhancer>,
     space: Space,
 ) -> Result<NormalMap> {
+    frame_map_with(
+        model,
+        texels,
+        coarse,
+        detail,
+        enhancer,
+        space,
+        &mut ApplyScratch::default(),
+    )
+}
+
+/// [`frame_map`] with `scratch`'s buffers.
+pub fn frame_map_with(
+    model: &Model,
+    texels: &TexelMap,
+    coarse: &[V3],
+    detail: Option<(&DetailFilter, &Umbrella)>,
+    enhancer: Option<&crate::enhance::Enhancer>,
+    space: Space,
+    scratch: &mut ApplyScratch,
+) -> Result<NormalMap> {
     let mut map = match detail {
-        Some((f, op)) => detail_map(texels, &model.topology, op, f, coarse),
+        Some((f, op)) => detail_map_with(texels, &model.topology, op, f, coarse, scratch),
         None => bake_coarse(texels, &model.topology, coarse),
     };
     if let Some(e) = enhancer {

@@ -69,19 +69,21 @@ impl Umbrella {
 
     /// Δx: the mean of each vertex's neighbours minus the vertex (0 for a vertex without neighbours).
     pub fn laplacian(&self, x: &[V3]) -> Vec<V3> {
-        (0..x.len())
-            .map(|v| {
-                let nb = self.rings.neighbors(v);
-                if nb.is_empty() {
-                    return [0.0; 3];
-                }
-                let mut avg = [0.0; 3];
-                for &w in nb {
-                    avg = vec3::add(avg, x[w as usize]);
-                }
-                vec3::sub(vec3::scale(avg, 1.0 / nb.len() as f64), x[v])
-            })
-            .collect()
+        (0..x.len()).map(|v| self.laplacian_at(x, v)).collect()
+    }
+
+    /// (Δx)_v, the one definition [`Umbrella::laplacian`] and [`DetailFilter::apply_into`] share.
+    #[inline]
+    pub fn laplacian_at(&self, x: &[V3], v: usize) -> V3 {
+        let nb = self.rings.neighbors(v);
+        if nb.is_empty() {
+            return [0.0; 3];
+        }
+        let mut avg = [0.0; 3];
+        for &w in nb {
+            avg = vec3::add(avg, x[w as usize]);
+        }
+        vec3::sub(vec3::scale(avg, 1.0 / nb.len() as f64), x[v])
     }
 
     /// The filter's features of a coarse frame: T_j(A) Δc for j = 0..=degree, A = −Δ − I.
@@ -267,17 +269,62 @@ impl DetailFilter {
 
     /// The fine shape the filter predicts for a coarse frame.
     pub fn apply(&self, op: &Umbrella, coarse: &[V3]) -> Vec<V3> {
-        let f = op.features(coarse, self.degree);
-        (0..coarse.len())
-            .map(|v| {
-                let w = self.weights(op.is_boundary(v));
-                let mut p = coarse[v];
-                for (j, fj) in f.iter().enumerate() {
-                    p = vec3::add(p, vec3::scale(fj[v], w[j]));
-                }
-                p
-            })
-            .collect()
+        let mut out = Vec::new();
+        self.apply_into(op, coarse, &mut out, &mut FilterScratch::default());
+        out
+    }
+
+    /// [`DetailFilter::apply`] into `out`, with `scratch`'s buffers reused from frame to frame: the Chebyshev
+    /// recurrence keeps only its last two terms, and each term is added into the result as soon as it is made
+    /// (41 passes over three flat arrays instead of 41 stored feature arrays). Every vertex sees the same
+    /// operations in the same order as [`Umbrella::features`] followed by the weighted sum, so the result is
+    /// bit for bit the same.
+    pub fn apply_into(
+        &self,
+        op: &Umbrella,
+        coarse: &[V3],
+        out: &mut Vec<V3>,
+        scratch: &mut FilterScratch,
+    ) {
+        let n = coarse.len();
+        out.clear();
+        out.extend_from_slice(coarse);
+        let FilterScratch { prev, cur, next } = scratch;
+        for buf in [&mut *prev, &mut *cur, &mut *next] {
+            buf.clear();
+            buf.resize(n, [0.0; 3]);
+        }
+        let add_term = |out: &mut [V3], f: &[V3], j: usize| {
+            for (v, (p, fv)) in out.iter_mut().zip(f).enumerate() {
+                let w = self.weights(op.is_boundary(v))[j];
+                *p = vec3::add(*p, vec3::scale(*fv, w));
+            }
+        };
+        // T_0(A) Δc = Δc.
+        for (v, l) in cur.iter_mut().enumerate() {
+            *l = op.laplacian_at(coarse, v);
+        }
+        add_term(out, cur, 0);
+        if self.degree == 0 {
+            return;
+        }
+        // T_1(A) Δc = A Δc, A x = −(Δx + x).
+        std::mem::swap(prev, cur);
+        for (v, t) in cur.iter_mut().enumerate() {
+            *t = vec3::scale(vec3::add(op.laplacian_at(prev, v), prev[v]), -1.0);
+        }
+        add_term(out, cur, 1);
+        // T_j = 2 A T_(j−1) − T_(j−2).
+        for j in 2..=self.degree {
+            for (v, t) in next.iter_mut().enumerate() {
+                let at = vec3::scale(vec3::add(op.laplacian_at(cur, v), cur[v]), -1.0);
+                *t = vec3::sub(vec3::scale(at, 2.0), prev[v]);
+            }
+            add_term(out, next, j);
+            // (prev, cur, next) ← (cur, next, prev): the oldest term's buffer is the next one written.
+            std::mem::swap(prev, cur);
+            std::mem::swap(cur, next);
+        }
     }
 
     /// Checks the weights against the stored degree (a damaged or foreign `detail.npy`).
@@ -301,6 +348,14 @@ impl DetailFilter {
         }
         Ok(())
     }
+}
+
+/// The three recurrence buffers of [`DetailFilter::apply_into`], kept between frames.
+#[derive(Debug, Clone, Default)]
+pub struct FilterScratch {
+    prev: Vec<V3>,
+    cur: Vec<V3>,
+    next: Vec<V3>,
 }
 
 /// A (coarse, fine) frame pair of one topology.
@@ -400,6 +455,57 @@ mod tests {
         };
         // The smoothed surface is far from the folds; the filter brings an unseen phase most of the way back.
         assert!(err(&got) < 0.2 * err(&c), "{} vs {}", err(&got), err(&c));
+    }
+
+    /// The filter as it was first written: every feature array stored, then the weighted sum per vertex.
+    fn apply_from_features(filter: &DetailFilter, op: &Umbrella, coarse: &[V3]) -> Vec<V3> {
+        let f = op.features(coarse, filter.degree);
+        (0..coarse.len())
+            .map(|v| {
+                let w = filter.weights(op.is_boundary(v));
+                let mut p = coarse[v];
+                for (j, fj) in f.iter().enumerate() {
+                    p = vec3::add(p, vec3::scale(fj[v], w[j]));
+                }
+                p
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_fused_filter_gives_the_bits_of_the_stored_features() {
+        let (topo, flat) = grid(15, 11);
+        let op = Umbrella::new(&topo);
+        let mut scratch = FilterScratch::default();
+        let mut out = Vec::new();
+        for (degree, phase) in [(0usize, 0.1), (1, 0.4), (2, 0.9), (7, 1.3), (40, 2.2)] {
+            let (c, _) = pair(&topo, &flat, phase);
+            // Distinct interior and boundary weights of both signs, so a mixed-up class or order shows.
+            let filter = DetailFilter {
+                degree,
+                interior: (0..=degree)
+                    .map(|j| 0.3 / (1.0 + j as f64) * if j % 3 == 1 { -1.0 } else { 1.0 })
+                    .collect(),
+                boundary: (0..=degree)
+                    .map(|j| -0.07 * (j as f64 + 0.5).sqrt())
+                    .collect(),
+            };
+            let want = apply_from_features(&filter, &op, &c);
+            // The scratch comes in dirty from the previous degree: it must not matter.
+            filter.apply_into(&op, &c, &mut out, &mut scratch);
+            assert_eq!(out.len(), want.len());
+            for (v, (a, b)) in out.iter().zip(&want).enumerate() {
+                for k in 0..3 {
+                    assert_eq!(
+                        a[k].to_bits(),
+                        b[k].to_bits(),
+                        "degree {degree} vertex {v} axis {k}"
+                    );
+                }
+            }
+            assert_ne!(out, c, "the filter moved the surface (degree {degree})");
+            assert_eq!(filter.apply(&op, &c), want);
+        }
     }
 
     #[test]

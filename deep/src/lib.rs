@@ -24,6 +24,7 @@ pub mod lstm;
 pub mod mirror;
 pub mod model;
 pub mod normal_map;
+pub mod obj_text;
 pub mod point_normals;
 pub mod pose;
 pub mod pose_features;

@@ -72,26 +72,52 @@ impl NormalMap {
         }
     }
 
-    /// Writes a 16-bit RGBA PNG (atomically).
+    /// Writes a 16-bit RGBA PNG (atomically, synced).
     pub fn write_png(&self, path: &Path) -> Result<()> {
-        let dilated = self.dilated(3);
-        let mut img = image::ImageBuffer::<image::Rgba<u16>, Vec<u16>>::new(
+        let mut scratch = PngScratch::default();
+        let bytes = self.encode_png(path, PngSettings::default(), &mut scratch)?;
+        crease_core::fsutil::write_atomic(path, bytes)
+    }
+
+    /// The PNG file's bytes (16-bit RGBA, RGB dilated 3 texels into the gutter, alpha = coverage) in
+    /// `scratch`, whose buffers are reused from frame to frame. `path` only names the file in an error.
+    pub fn encode_png<'s>(
+        &self,
+        path: &Path,
+        settings: PngSettings,
+        scratch: &'s mut PngScratch,
+    ) -> Result<&'s [u8]> {
+        let PngScratch {
+            dilated,
+            dilation,
+            pixels,
+            bytes,
+        } = scratch;
+        self.dilate_into(3, dilated, dilation);
+        let enc = |x: f32| (((x.clamp(-1.0, 1.0) + 1.0) * 0.5) * 65535.0).round() as u16;
+        pixels.clear();
+        pixels.reserve(8 * self.n.len());
+        for (n, &covered) in dilated.n.iter().zip(&self.covered) {
+            let a: u16 = if covered { 65535 } else { 0 };
+            for c in [enc(n[0]), enc(n[1]), enc(n[2]), a] {
+                pixels.extend_from_slice(&c.to_ne_bytes());
+            }
+        }
+        bytes.clear();
+        use image::ImageEncoder as _;
+        image::codecs::png::PngEncoder::new_with_quality(
+            &mut *bytes,
+            settings.compression,
+            settings.filter,
+        )
+        .write_image(
+            pixels,
             self.width as u32,
             self.height as u32,
-        );
-        for (k, px) in img.pixels_mut().enumerate() {
-            let n = dilated.n[k];
-            let enc = |x: f32| (((x.clamp(-1.0, 1.0) + 1.0) * 0.5) * 65535.0).round() as u16;
-            let a = if self.covered[k] { 65535 } else { 0 };
-            *px = image::Rgba([enc(n[0]), enc(n[1]), enc(n[2]), a]);
-        }
-        let mut bytes = Vec::new();
-        img.write_to(
-            &mut std::io::Cursor::new(&mut bytes),
-            image::ImageFormat::Png,
+            image::ExtendedColorType::Rgba16,
         )
         .map_err(|e| Error::format(path, None, format!("cannot encode PNG: {e}")))?;
-        crease_core::fsutil::write_atomic(path, &bytes)
+        Ok(bytes)
     }
 
     /// Reads a normal map PNG (8 or 16 bit, RGB or RGBA; without alpha every texel counts as covered).
@@ -112,47 +138,76 @@ impl NormalMap {
 
     /// Copies covered normals into uncovered texels next to them, `rings` times (the gutter fill).
     pub fn dilated(&self, rings: usize) -> NormalMap {
-        let mut out = self.clone();
+        let mut out = NormalMap::empty(0, 0);
+        self.dilate_into(rings, &mut out, &mut Dilation::default());
+        out
+    }
+
+    /// [`NormalMap::dilated`] into `out`, reusing its buffers and `work`'s. Each ring fills an uncovered texel
+    /// with the normalised sum of its covered 8-neighbours as they were before the ring; only the texels next
+    /// to the previous ring's new ones can change, so a ring visits those instead of the whole map.
+    pub fn dilate_into(&self, rings: usize, out: &mut NormalMap, work: &mut Dilation) {
+        out.width = self.width;
+        out.height = self.height;
+        out.n.clone_from(&self.n);
+        out.covered.clone_from(&self.covered);
         let (w, h) = (self.width as i64, self.height as i64);
-        for _ in 0..rings {
-            let prev = out.clone();
-            for y in 0..h {
-                for x in 0..w {
-                    let k = (y * w + x) as usize;
-                    if prev.covered[k] {
-                        continue;
-                    }
-                    let mut acc = [0.0f32; 3];
-                    let mut any = false;
-                    for (dx, dy) in [
-                        (-1, 0),
-                        (1, 0),
-                        (0, -1),
-                        (0, 1),
-                        (-1, -1),
-                        (1, 1),
-                        (-1, 1),
-                        (1, -1),
-                    ] {
-                        let (xx, yy) = (x + dx, y + dy);
-                        if xx >= 0 && yy >= 0 && xx < w && yy < h {
-                            let j = (yy * w + xx) as usize;
-                            if prev.covered[j] {
-                                for (a, v) in acc.iter_mut().zip(prev.n[j]) {
-                                    *a += v;
-                                }
-                                any = true;
-                            }
+        let neighbours = |k: usize| {
+            let (x, y) = ((k as i64) % w, (k as i64) / w);
+            DILATION_NEIGHBOURS.iter().filter_map(move |&(dx, dy)| {
+                let (xx, yy) = (x + dx, y + dy);
+                (xx >= 0 && yy >= 0 && xx < w && yy < h).then_some((yy * w + xx) as usize)
+            })
+        };
+        let Dilation {
+            candidates,
+            seen,
+            filled,
+        } = work;
+        seen.clear();
+        seen.resize(self.n.len(), 0);
+        candidates.clear();
+        if rings > 0 {
+            candidates.extend(
+                (0..self.n.len())
+                    .filter(|&k| !out.covered[k] && neighbours(k).any(|j| out.covered[j])),
+            );
+        }
+        for ring in 1..=rings {
+            filled.clear();
+            for &k in candidates.iter() {
+                let mut acc = [0.0f32; 3];
+                let mut any = false;
+                for j in neighbours(k) {
+                    if out.covered[j] {
+                        for (a, v) in acc.iter_mut().zip(out.n[j]) {
+                            *a += v;
                         }
+                        any = true;
                     }
-                    if any {
-                        out.n[k] = normalize_f32(acc);
-                        out.covered[k] = true;
+                }
+                if any {
+                    filled.push((k, normalize_f32(acc)));
+                }
+            }
+            for &(k, n) in filled.iter() {
+                out.n[k] = n;
+                out.covered[k] = true;
+            }
+            if ring == rings {
+                break;
+            }
+            // The next ring's candidates: uncovered neighbours of this ring's texels, each once.
+            candidates.clear();
+            for &(k, _) in filled.iter() {
+                for j in neighbours(k) {
+                    if !out.covered[j] && seen[j] != ring as u32 {
+                        seen[j] = ring as u32;
+                        candidates.push(j);
                     }
                 }
             }
         }
-        out
     }
 
     /// Bilinear lookup at (u, v) (DESIGN §7 pixel convention), weighting only covered texels; `None` when none
@@ -181,6 +236,64 @@ impl NormalMap {
             }
         }
         (wsum > 0.0).then(|| vec3::normalize(acc))
+    }
+}
+
+/// The neighbours a gutter texel averages, in the order their normals are summed (the order fixes the bits).
+const DILATION_NEIGHBOURS: [(i64, i64); 8] = [
+    (-1, 0),
+    (1, 0),
+    (0, -1),
+    (0, 1),
+    (-1, -1),
+    (1, 1),
+    (-1, 1),
+    (1, -1),
+];
+
+/// Work lists of [`NormalMap::dilate_into`], kept between frames.
+#[derive(Debug, Clone, Default)]
+pub struct Dilation {
+    candidates: Vec<usize>,
+    seen: Vec<u32>,
+    filled: Vec<(usize, [f32; 3])>,
+}
+
+/// Encoder settings of the normal-map PNGs. The default is the `image` crate's default (its fast deflate,
+/// fdeflate, and the adaptive filter): the bytes every earlier `crease deep apply` wrote, and the fastest
+/// setting that still compresses (`crease bench --deep` times the others).
+#[derive(Debug, Clone, Copy)]
+pub struct PngSettings {
+    pub compression: image::codecs::png::CompressionType,
+    pub filter: image::codecs::png::FilterType,
+}
+
+impl Default for PngSettings {
+    fn default() -> Self {
+        PngSettings {
+            compression: image::codecs::png::CompressionType::Fast,
+            filter: image::codecs::png::FilterType::Adaptive,
+        }
+    }
+}
+
+/// Buffers of [`NormalMap::encode_png`], kept between frames (a 256² map is 0.5 MB of pixels).
+#[derive(Debug, Clone)]
+pub struct PngScratch {
+    dilated: NormalMap,
+    dilation: Dilation,
+    pixels: Vec<u8>,
+    bytes: Vec<u8>,
+}
+
+impl Default for PngScratch {
+    fn default() -> Self {
+        PngScratch {
+            dilated: NormalMap::empty(0, 0),
+            dilation: Dilation::default(),
+            pixels: Vec::new(),
+            bytes: Vec::new(),
+        }
     }
 }
 

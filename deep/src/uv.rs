@@ -497,27 +497,6 @@ pub fn write_obj_with_uv(
     positions: &[V3],
     layout: &UvLayout,
 ) -> Result<()> {
-    use std::fmt::Write as _;
-    let mut s =
-        String::with_capacity(64 * (positions.len() + layout.uv.len() + topo.n_triangles()));
-    s.push_str("# crease deep: coarse mesh with the normal map's UV layout\n");
-    for p in positions {
-        let _ = writeln!(s, "v {} {} {}", p[0], p[1], p[2]);
-    }
-    for t in &layout.uv {
-        let _ = writeln!(s, "vt {} {}", t[0], t[1]);
-    }
-    for (tri, c) in topo.triangles().iter().zip(&layout.corners) {
-        let _ = writeln!(
-            s,
-            "f {}/{} {}/{} {}/{}",
-            tri[0] + 1,
-            c[0] + 1,
-            tri[1] + 1,
-            c[1] + 1,
-            tri[2] + 1,
-            c[2] + 1
-        );
-    }
-    crease_core::fsutil::write_atomic(path, s.as_bytes())
+    let text = crate::obj_text::ObjText::new(topo, &layout.uv, &layout.corners);
+    crease_core::fsutil::write_atomic(path, &text.file(positions))
 }

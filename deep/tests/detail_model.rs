@@ -51,6 +51,23 @@ fn sequence(dir: &Path, frames: usize, seed: f64) -> TrainingSequence {
     }
 }
 
+/// Every file under `dir/mesh` and `dir/normals` (temporary files included), by name.
+fn read_tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    for sub in ["mesh", "normals"] {
+        let mut files: Vec<_> = std::fs::read_dir(dir.join(sub))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        files.sort();
+        for f in files {
+            let name = f.file_name().unwrap().to_string_lossy().into_owned();
+            out.push((format!("{sub}/{name}"), std::fs::read(&f).unwrap()));
+        }
+    }
+    out
+}
+
 fn write_pc2(path: &Path, frames: &[Vec<V3>]) {
     let mut b = Vec::new();
     b.extend_from_slice(b"POINTCACHE2\0");
@@ -153,6 +170,32 @@ fn apply_coarse_draws_the_predicted_folds_and_beats_the_captured_map() {
     )
     .unwrap();
     let detailed = map_error(&out, &model, &held.fine);
+    // Frames run in parallel when there are threads: one thread or three, the same files byte for byte.
+    let trees: Vec<Vec<(String, Vec<u8>)>> = [1usize, 3]
+        .iter()
+        .map(|&threads| {
+            let dir = tmp.path().join(format!("out-{threads}-threads"));
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    apply(
+                        &model,
+                        &ApplyInput::Coarse(tmp.path().join("held/captured")),
+                        &ApplyParams::default(),
+                        &dir,
+                        &NoProgress,
+                    )
+                })
+                .unwrap();
+            assert!(dir.join("done.json").exists());
+            read_tree(&dir)
+        })
+        .collect();
+    assert_eq!(trees[0].len(), 12, "6 frames, 2 files each, nothing else");
+    assert_eq!(trees[0], trees[1]);
+    assert_eq!(trees[0], read_tree(&out));
     // What the captured mesh's own map scores (what apply wrote before the filter).
     let texels = TexelMap::new(&model.layout, 128, 128);
     let plain = coarse

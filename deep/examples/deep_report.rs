@@ -2147,6 +2147,9 @@ fn tube_register(targets: &str, floors: &str, iterations: usize) -> R<()> {
     Ok(())
 }
 
+/// Per split: mesh normal error (°), map normal error (°), mean vertex error (m).
+type ScoreTriple = (f64, f64, f64);
+
 /// Gaussian smoothing of a coefficient sequence over time (centred, σ in frames, the kernel cut at 3σ and
 /// renormalised at the sequence's ends); σ = 0 returns the input.
 fn smooth_in_time(c: &[Vec<f64>], sigma: f64) -> Vec<Vec<f64>> {
@@ -2188,7 +2191,7 @@ fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res:
         vec![held.to_string()]
     };
     // (variant, per split: (mesh °, map °, vertex error m))
-    let mut table: Vec<(String, Vec<(f64, f64, f64)>)> = Vec::new();
+    let mut table: Vec<(String, Vec<ScoreTriple>)> = Vec::new();
     let mut low_band = Vec::new();
     for h in &helds {
         let (train, test) = split(data, h)?;
@@ -2396,7 +2399,7 @@ fn posesmooth(
     } else {
         vec![held.to_string()]
     };
-    let mut table: Vec<(String, Vec<(f64, f64, f64)>)> = Vec::new();
+    let mut table: Vec<(String, Vec<ScoreTriple>)> = Vec::new();
     for h in &helds {
         let (train, test) = split(data, h)?;
         let topo = test.topology.clone();

@@ -163,7 +163,7 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
 fn on_compute_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     static IN_POOL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     let in_pool = *IN_POOL
-        .get_or_init(|| std::env::var("CREASE_BLOCKS_IN_POOL").map_or(true, |v| v.trim() != "0"));
+        .get_or_init(|| !std::env::var("CREASE_BLOCKS_IN_POOL").is_ok_and(|v| v.trim() == "0"));
     if in_pool && rayon::current_thread_index().is_none() {
         rayon::scope(|_| f())
     } else {

@@ -425,10 +425,7 @@ fn cut_tree<'a>(
     let mut frontier: Vec<usize> = (0..ns).filter(|&s| parent[s].is_none()).collect();
     let mut top = vec![false; ns];
     let mut top_weight = 0;
-    loop {
-        let Some((i, &h)) = frontier.iter().enumerate().max_by_key(|(_, &s)| weight[s]) else {
-            break;
-        };
+    while let Some((i, &h)) = frontier.iter().enumerate().max_by_key(|(_, &s)| weight[s]) {
         if weight[h] * SUBTREE_SHARE <= total
             || children[h].is_empty()
             || (top_weight + own(h)) * TOP_SHARE > total

@@ -15,6 +15,7 @@ use crease_core::folds::stretch::StretchDetector;
 use crease_core::folds::{Anchor, Artifact, FrameAnchors};
 use crease_core::mesh::io::OpenedSequence;
 use crease_core::mesh::FrameSource;
+use crease_core::progress::Progress;
 use serde_json::{json, Value};
 use std::cell::RefCell;
 use std::ops::Range;
@@ -195,6 +196,16 @@ pub fn trace(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
         carry.wrap(codes)
     };
     let mut shown = Vec::with_capacity(overlays.len());
+    // Several pieces report as one stage over the chunk's frames (exact chunks: no warm-up), so the task's bar
+    // counts its frames once instead of restarting at every overlay frame.
+    let pieces = PiecesProgress(env.progress());
+    let progress: &dyn Progress = if overlays.is_empty() {
+        env.progress()
+    } else {
+        env.progress()
+            .begin(TRACING_STAGE, (frames.end - frames.start) as u64);
+        &pieces
+    };
     let r = ChunkTracer::new(&det, opened.source.as_ref()).and_then(|mut tracer| {
         // Traced in pieces that end at the overlay frames, so that each overlay frame's signal is taken right
         // after its tracing, from the meshes its tracing holds. Without the seed memory (the only case with
@@ -211,7 +222,7 @@ pub fn trace(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
                 start..end,
                 env.job.partition.stretch_warm_up,
                 codes,
-                env.progress(),
+                progress,
             )?;
             match chunk.as_mut() {
                 None => chunk = Some(piece),
@@ -234,6 +245,9 @@ pub fn trace(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
         }
         Ok(chunk.expect("a tracing chunk has frames"))
     });
+    if !overlays.is_empty() {
+        env.progress().end(TRACING_STAGE);
+    }
     let chunk = carry.finish(&label, r)?;
     let seconds = clock.elapsed().as_secs_f64();
     lap.lap("fold-detect: trace (meshes parsed, signals, tracing; codes read)");
@@ -527,4 +541,23 @@ pub fn folds_png(env: &TaskEnv, opened: &OpenedSequence) -> Result<Vec<Artifact>
     let artifacts = carry.finish(label, r)?;
     lap.lap("fold-plot: overlay frames' signals, folds.png");
     Ok(artifacts)
+}
+
+/// The stage name `split::trace_chunk` reports its frames under.
+const TRACING_STAGE: &str = "stretch tracing";
+
+/// Forwards a piece's frame counts and cancellation but not its begin and end: the caller reports the whole
+/// chunk as one stage, so pieces traced for the overlay frames do not show as separate bars.
+struct PiecesProgress<'a>(&'a dyn Progress);
+
+impl Progress for PiecesProgress<'_> {
+    fn advance(&self, stage: &str, n: u64) {
+        self.0.advance(stage, n);
+    }
+    fn note(&self, msg: &str) {
+        self.0.note(msg);
+    }
+    fn cancelled(&self) -> bool {
+        self.0.cancelled()
+    }
 }

@@ -223,6 +223,36 @@ fn mm(x: f64) -> String {
     format!("{:.2}", x * 1e3)
 }
 
+/// Mean normal error of `frames` against `fine`: at the vertices over every frame, and sampled back from
+/// world-space maps of their vertex normals over the frames `idx` (the two figures the pose experiments compare).
+fn normal_errors(
+    topo: &Topology,
+    texels: &TexelMap,
+    layout: &crease_deep::uv::UvLayout,
+    idx: &[usize],
+    frames: &[Frame],
+    fine: &[Frame],
+) -> (f64, f64) {
+    let n = frames.len();
+    let mesh = (0..n)
+        .map(|t| mesh_normal_error(topo, &frames[t], &fine[t]))
+        .sum::<f64>()
+        / n as f64;
+    let map = idx
+        .iter()
+        .map(|&t| {
+            let m = crease_deep::normal_map::world_from_vertex_normals(
+                texels,
+                topo,
+                &vertex_normals(topo, &frames[t]),
+            );
+            map_normal_error(&sample_vertex_normals(&m, topo, layout), topo, &fine[t]).0
+        })
+        .sum::<f64>()
+        / idx.len() as f64;
+    (mesh, map)
+}
+
 fn mean_err(a: &[Frame], b: &[Frame]) -> (f64, f64) {
     let e: Vec<(f64, f64)> = a.iter().zip(b).map(|(x, y)| vertex_error(x, y)).collect();
     let n = e.len() as f64;
@@ -2184,7 +2214,6 @@ fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res:
     use crease_core::shape::TaubinFilter;
     use crease_deep::detail_filter::Umbrella;
     use crease_deep::model::RegressorKind;
-    use crease_deep::normal_map::world_from_vertex_normals;
     let helds = if held == "all" {
         sequence_names(data)?
     } else {
@@ -2323,27 +2352,7 @@ fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res:
         let texels = TexelMap::new(&layout, res, res);
         let idx: Vec<usize> = (0..n).step_by(step.max(1)).collect();
         for (name, frames) in &v {
-            let mesh = (0..n)
-                .map(|t| mesh_normal_error(&topo, &frames[t], &test.fine[t]))
-                .sum::<f64>()
-                / n as f64;
-            let map = idx
-                .iter()
-                .map(|&t| {
-                    let m = world_from_vertex_normals(
-                        &texels,
-                        &topo,
-                        &vertex_normals(&topo, &frames[t]),
-                    );
-                    map_normal_error(
-                        &sample_vertex_normals(&m, &topo, &layout),
-                        &topo,
-                        &test.fine[t],
-                    )
-                    .0
-                })
-                .sum::<f64>()
-                / idx.len() as f64;
+            let (mesh, map) = normal_errors(&topo, &texels, &layout, &idx, frames, &test.fine);
             let (vert, _) = mean_err(frames, &test.fine);
             eprintln!("{h} | {name} | {mesh:.2} | {map:.2} | {}", mm(vert));
             match table.iter_mut().find(|(n, _)| n == name) {
@@ -2393,7 +2402,6 @@ fn posesmooth(
 ) -> R<()> {
     use crease_core::shape::TaubinFilter;
     use crease_deep::model::RegressorKind;
-    use crease_deep::normal_map::world_from_vertex_normals;
     let helds = if held == "all" {
         sequence_names(data)?
     } else {
@@ -2434,27 +2442,7 @@ fn posesmooth(
                     } else {
                         frames.iter().map(|x| f.apply(x)).collect()
                     };
-                    let mesh = (0..n)
-                        .map(|t| mesh_normal_error(&topo, &fr[t], &test.fine[t]))
-                        .sum::<f64>()
-                        / n as f64;
-                    let map = idx
-                        .iter()
-                        .map(|&t| {
-                            let m = world_from_vertex_normals(
-                                &texels,
-                                &topo,
-                                &vertex_normals(&topo, &fr[t]),
-                            );
-                            map_normal_error(
-                                &sample_vertex_normals(&m, &topo, &layout),
-                                &topo,
-                                &test.fine[t],
-                            )
-                            .0
-                        })
-                        .sum::<f64>()
-                        / idx.len() as f64;
+                    let (mesh, map) = normal_errors(&topo, &texels, &layout, &idx, &fr, &test.fine);
                     let (vert, _) = mean_err(&fr, &test.fine);
                     let name = format!("{}, k' {kt}, {s} steps", kind.name());
                     eprintln!("{h} | {name} | {mesh:.2} | {map:.2} | {}", mm(vert));

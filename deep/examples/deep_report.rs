@@ -2180,6 +2180,35 @@ fn tube_register(targets: &str, floors: &str, iterations: usize) -> R<()> {
 /// Per split: mesh normal error (°), map normal error (°), mean vertex error (m).
 type ScoreTriple = (f64, f64, f64);
 
+/// Prints the pose experiments' table (per split: mesh and map normal error, vertex error; then the means) and
+/// returns its rows for the JSON report.
+fn print_score_table(
+    header: &str,
+    helds: &[String],
+    res: usize,
+    table: &[(String, Vec<ScoreTriple>)],
+) -> Vec<serde_json::Value> {
+    print!("| {header} |");
+    for h in helds {
+        print!(" {h}: mesh / {res}² map (°), vertex (mm) |");
+    }
+    println!(" mean map (°) | mean vertex (mm) |");
+    println!("|---|{}---|---|", "---|".repeat(helds.len()));
+    let mut rows = Vec::new();
+    for (name, r) in table {
+        print!("| {name} |");
+        for (a, b, c) in r {
+            print!(" {a:.2} / {b:.2}, {} |", mm(*c));
+        }
+        let k = r.len() as f64;
+        let map = r.iter().map(|x| x.1).sum::<f64>() / k;
+        let vert = r.iter().map(|x| x.2).sum::<f64>() / k;
+        println!(" {map:.2} | {} |", mm(vert));
+        rows.push(serde_json::json!({"variant": name, "per_split": r, "mean_map_deg": map, "mean_vertex_m": vert}));
+    }
+    rows
+}
+
 /// Gaussian smoothing of a coefficient sequence over time (centred, σ in frames, the kernel cut at 3σ and
 /// renormalised at the sequence's ends); σ = 0 returns the input.
 fn smooth_in_time(c: &[Vec<f64>], sigma: f64) -> Vec<Vec<f64>> {
@@ -2363,24 +2392,7 @@ fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res:
         low_band.push(low_only);
     }
     println!("L(P) against the captured mesh (the low band's own error, °): {low_band:.2?}");
-    print!("| variant |");
-    for h in &helds {
-        print!(" {h}: mesh / {res}² map (°), vertex (mm) |");
-    }
-    println!(" mean map (°) | mean vertex (mm) |");
-    println!("|---|{}---|---|", "---|".repeat(helds.len()));
-    let mut rows = Vec::new();
-    for (name, r) in &table {
-        print!("| {name} |");
-        for (a, b, c) in r {
-            print!(" {a:.2} / {b:.2}, {} |", mm(*c));
-        }
-        let k = r.len() as f64;
-        let map = r.iter().map(|x| x.1).sum::<f64>() / k;
-        let vert = r.iter().map(|x| x.2).sum::<f64>() / k;
-        println!(" {map:.2} | {} |", mm(vert));
-        rows.push(serde_json::json!({"variant": name, "per_split": r, "mean_map_deg": map, "mean_vertex_m": vert}));
-    }
+    let rows = print_score_table("variant", &helds, res, &table);
     write_json(
         out,
         "posenorm.json",
@@ -2454,24 +2466,12 @@ fn posesmooth(
             }
         }
     }
-    print!("| regressor, leading coefficients, low-pass steps |");
-    for h in &helds {
-        print!(" {h}: mesh / {res}² map (°), vertex (mm) |");
-    }
-    println!(" mean map (°) | mean vertex (mm) |");
-    println!("|---|{}---|---|", "---|".repeat(helds.len()));
-    let mut rows = Vec::new();
-    for (name, r) in &table {
-        print!("| {name} |");
-        for (a, b, c) in r {
-            print!(" {a:.2} / {b:.2}, {} |", mm(*c));
-        }
-        let k = r.len() as f64;
-        let map = r.iter().map(|x| x.1).sum::<f64>() / k;
-        let vert = r.iter().map(|x| x.2).sum::<f64>() / k;
-        println!(" {map:.2} | {} |", mm(vert));
-        rows.push(serde_json::json!({"variant": name, "per_split": r, "mean_map_deg": map, "mean_vertex_m": vert}));
-    }
+    let rows = print_score_table(
+        "regressor, leading coefficients, low-pass steps",
+        &helds,
+        res,
+        &table,
+    );
     write_json(
         out,
         "posesmooth.json",

@@ -617,8 +617,8 @@ impl Registration {
             for p in 0..3 {
                 let cp = col(p);
                 let r = vec3::dot(cp, cp) - 1.0;
-                for i in 0..3 {
-                    rg.entries[3 + p][i] = (idx(p)[i], 2.0 * cp[i]);
+                for (i, c) in cp.iter().enumerate() {
+                    rg.entries[3 + p][i] = (idx(p)[i], 2.0 * c);
                 }
                 rg.len[3 + p] = 3;
                 rg.r[3 + p] = r;

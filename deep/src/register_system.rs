@@ -297,8 +297,8 @@ fn fill_block(
         let (cj, ck) = (coef(v, pj), coef(v, pk));
         if rows.w_point > 0.0 {
             for c in 0..3 {
-                for q in 0..4 {
-                    let wa = rows.w_point * cj[q];
+                for (q, a) in cj.iter().enumerate() {
+                    let wa = rows.w_point * a;
                     let row = loc(c, q) * NV;
                     for (q2, b) in ck.iter().enumerate() {
                         acc[row + loc(c, q2)] += wa * b;
@@ -309,8 +309,8 @@ fn fill_block(
         if rows.w_plane > 0.0 {
             let n = d.normal;
             for c in 0..3 {
-                for q in 0..4 {
-                    let wa = rows.w_plane * (cj[q] * n[c]);
+                for (q, a) in cj.iter().enumerate() {
+                    let wa = rows.w_plane * (a * n[c]);
                     let row = loc(c, q) * NV;
                     for (c2, nc2) in n.iter().enumerate() {
                         for (q2, b) in ck.iter().enumerate() {
@@ -327,8 +327,8 @@ fn fill_block(
         }
         let (cj, ck) = (coef(v, pj), coef(v, pk));
         for c in 0..3 {
-            for q in 0..4 {
-                let wa = rows.w_bound * cj[q];
+            for (q, a) in cj.iter().enumerate() {
+                let wa = rows.w_bound * a;
                 let row = loc(c, q) * NV;
                 for (q2, b) in ck.iter().enumerate() {
                     acc[row + loc(c, q2)] += wa * b;
@@ -439,7 +439,7 @@ fn fill_rhs(acc: &mut [f64; NV], j: u32, vertices: &[(u32, u32)], edges: &[u32],
                 acc[9 + c] += rows.w_smooth * 1.0 * r;
             }
             if j == ek {
-                acc[9 + c] += rows.w_smooth * -1.0 * r;
+                acc[9 + c] += -rows.w_smooth * r;
             }
         }
     }

@@ -54,6 +54,7 @@ fn main() -> R<()> {
             &arg(1).ok_or("DATA")?,
             &arg(2).ok_or("OUT")?,
             &arg(3).unwrap_or("raw,none,1e-3;auto,auto,1e-3".into()),
+            arg(4),
         ),
         "regression" if arg(3).as_deref() == Some("all") => regression_loso(
             &arg(1).ok_or("DATA")?,
@@ -751,9 +752,15 @@ fn regression_loso(
 /// `,lstm LxHxE` for an LSTM of L layers × H units trained E epochs), the pose-only vertex error of the
 /// linear, autoregressive, blend (and LSTM) regressors on each held-out sequence, and the bound of the fitted
 /// subspace (projection of the held-out gt).
-fn fit_loso(data: &str, out: &str, variants: &str) -> R<()> {
+fn fit_loso(data: &str, out: &str, variants: &str, held_only: Option<String>) -> R<()> {
     use crease_deep::model::RegressorKind;
-    let names = sequence_names(data)?;
+    let mut names = sequence_names(data)?;
+    // Optional comma-separated list of the splits to run (their held-out sequences), e.g. "seed_3": a large
+    // network's splits one at a time on a slow machine.
+    if let Some(only) = held_only {
+        let keep: Vec<&str> = only.split(',').map(str::trim).collect();
+        names.retain(|n| keep.contains(&n.as_str()));
+    }
     let mut table: Vec<(String, Vec<Scores>)> = Vec::new();
     let mut notes = Vec::new();
     for (si, held) in names.iter().enumerate() {
@@ -789,6 +796,10 @@ fn fit_loso(data: &str, out: &str, variants: &str) -> R<()> {
             let fitted =
                 crease_deep::train::fit(&train, &params, &crease_core::progress::NoProgress)?;
             let fit_s = t0.elapsed().as_secs_f64();
+            eprintln!(
+                "{held} held out, {v}: fit {fit_s:.0} s, LSTM {:.1} s/epoch, kept epoch {:?}, held-out MSE {:?}",
+                fitted.seconds.lstm_s_per_epoch, fitted.lstm_best_epoch, fitted.lstm_held_out
+            );
             let sub = &fitted.subspace;
             let k = sub.k();
             let truth: Vec<Vec<f64>> = test.fine.iter().map(|fr| sub.project(fr, k)).collect();
@@ -1894,6 +1905,16 @@ fn register(data: &str, out: &str, frames: &str, params: RegisterParams) -> R<()
             .into());
         }
         let scan = synth_scan(&topo, &seq.frames[t], 3.0, 0.2, 0.002, t as u64);
+        // CREASE_REG_WRITE_SCANS=DIR: also write the template and the scans, the input of `crease deep register`.
+        if let Some(dir) = std::env::var_os("CREASE_REG_WRITE_SCANS") {
+            let dir = Path::new(&dir);
+            std::fs::create_dir_all(dir.join("scans"))?;
+            crease_core::mesh::io::write_obj(&dir.join("template.obj"), &topo, &seq.frames[0])?;
+            crease_deep::register::write_scan(
+                &dir.join("scans").join(format!("scan_{:04}.obj", t + 1)),
+                &scan,
+            )?;
+        }
         let t0 = Instant::now();
         let got = reg.register(&scan)?;
         let secs = t0.elapsed().as_secs_f64();

@@ -32,6 +32,7 @@ pub mod pose_history;
 pub mod pose_smoothing;
 pub mod raster;
 pub mod register;
+mod register_system;
 pub mod regress;
 pub mod rollout_fit;
 pub mod seed;

@@ -18,15 +18,13 @@
 
 use crate::kdtree::KdTree;
 use crate::point_normals::estimate_normals;
+use crate::register_system::{DataRows, Plan, RigidRows, Rows, SmoothRows, NV};
 use crease_core::mesh::geometry::vertex_normals;
 use crease_core::mesh::{Topology, NONE};
 use crease_core::vec3::{self, V3};
 use crease_core::{Error, Result};
-use faer::linalg::solvers::Solve;
-use faer::sparse::SparseColMat;
-use faer::{Mat, Side};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
 use std::path::Path;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -218,63 +216,19 @@ pub struct Registration {
     boundary_vertices: Vec<u32>,
     /// Current node transforms: A (row-major 9) then t (3), in scaled units.
     x: Vec<f64>,
-    /// The normal equations' fixed sparsity (every Gauss–Newton step of every scan has the same blocks), its
-    /// value order and symbolic Cholesky factor, computed once.
-    structure: Structure,
+    /// Per vertex: start of its entries in `coef` (the influence lists, flattened).
+    infl_start: Vec<usize>,
+    /// Per influence entry (vertex v, node j, weight w): (w·d₀, w·d₁, w·d₂, w), d = v − g_j: the Jacobian of
+    /// each deformed coordinate w.r.t. node j's A row and t component, the same for every step.
+    coef: Vec<[f64; 4]>,
+    /// The normal equations' fixed sparsity (every Gauss–Newton step of every scan has the same blocks), who
+    /// contributes to each block, the symbolic Cholesky factor and the numeric buffers, made once.
+    plan: Plan,
     /// The last scan's noise variance along its normal (squared edge lengths), when it was estimated.
     last_noise: Option<f64>,
     /// The floor ω_r, ω_s relaxed to on the last scan.
     last_floor: f64,
 }
-
-/// Lower-triangle block pattern of JᵀJ: the diagonal blocks and the blocks of node pairs that share a vertex
-/// (the same pairs the smoothness term links), as a faer symbolic matrix with its argsort and Cholesky
-/// analysis.
-struct Structure {
-    /// Lower blocks (row block ≥ column block), in the order their values are laid out.
-    blocks: Vec<(u32, u32)>,
-    symbolic: faer::sparse::SymbolicSparseColMat<usize>,
-    argsort: faer::sparse::Argsort<usize>,
-    llt: faer::sparse::linalg::solvers::SymbolicLlt<usize>,
-}
-
-impl Structure {
-    fn new(n_nodes: usize, edges: &[(u32, u32)]) -> Result<Self> {
-        let mut blocks: Vec<(u32, u32)> = (0..n_nodes as u32).map(|j| (j, j)).collect();
-        blocks.extend(edges.iter().copied().filter(|(a, b)| a > b));
-        blocks.sort_unstable();
-        let mut idx = Vec::new();
-        for &(bi, bj) in &blocks {
-            for a in 0..NV {
-                for b in 0..NV {
-                    let (i, j) = (bi as usize * NV + a, bj as usize * NV + b);
-                    if i >= j {
-                        idx.push(faer::sparse::Pair { row: i, col: j });
-                    }
-                }
-            }
-        }
-        let n = n_nodes * NV;
-        let numeric = |e: String| Error::Numeric {
-            stage: "registration".into(),
-            msg: e,
-        };
-        let (symbolic, argsort) =
-            faer::sparse::SymbolicSparseColMat::try_new_from_indices(n, n, &idx)
-                .map_err(|e| numeric(format!("{e:?}")))?;
-        let llt =
-            faer::sparse::linalg::solvers::SymbolicLlt::try_new(symbolic.as_ref(), Side::Lower)
-                .map_err(|e| numeric(format!("Cholesky analysis: {e:?}")))?;
-        Ok(Structure {
-            blocks,
-            symbolic,
-            argsort,
-            llt,
-        })
-    }
-}
-
-const NV: usize = 12;
 
 impl Registration {
     /// Builds the graph on `template` (the template in its starting pose).
@@ -336,7 +290,17 @@ impl Registration {
             x[j * NV + 8] = 1.0;
         }
         let edges: Vec<(u32, u32)> = pair_set.into_iter().collect();
-        let structure = Structure::new(nodes.len(), &edges)?;
+        let plan = Plan::new(nodes.len(), &influence, &edges)?;
+        let mut infl_start = Vec::with_capacity(rest.len() + 1);
+        let mut coef = Vec::new();
+        for (p, inf) in rest.iter().zip(&influence) {
+            infl_start.push(coef.len());
+            for &(j, w) in inf {
+                let d = vec3::sub(*p, nodes[j as usize]);
+                coef.push([w * d[0], w * d[1], w * d[2], w]);
+            }
+        }
+        infl_start.push(coef.len());
         Ok(Registration {
             last_floor: params.min_weight,
             params,
@@ -348,7 +312,9 @@ impl Registration {
             edges,
             boundary_vertices,
             x,
-            structure,
+            infl_start,
+            coef,
+            plan,
             last_noise: None,
         })
     }
@@ -481,7 +447,7 @@ impl Registration {
         let cur = self.deformed();
         let cur_n = vertex_normals(&self.topo, &cur);
         let pairs: Vec<Option<Pair>> = cur
-            .iter()
+            .par_iter()
             .zip(&cur_n)
             .map(|(p, n)| {
                 let (i, d2) = tree.nearest(*p)?;
@@ -559,7 +525,9 @@ impl Registration {
     }
 
     /// One Gauss–Newton step of Eq. 1 at the current transforms (only its energy when `!step`); returns the
-    /// energy before the step.
+    /// energy before the step. The residuals and the energy are computed here, row by row in a fixed order
+    /// (temporal, data, boundary, rigidity, smoothness); the normal equations are assembled from them in
+    /// parallel in the same order and solved by [`Plan::solve`].
     fn gauss_newton_step(
         &mut self,
         pairs: &[Option<Pair>],
@@ -569,98 +537,96 @@ impl Registration {
         x_start: &[f64],
         step: bool,
     ) -> Result<f64> {
-        let n = self.nodes.len() * NV;
-        let mut sys = NormalEq::new(n);
         let mut energy = 0.0;
-        // Temporal pull toward the transforms this scan started from.
+        // Temporal pull toward the transforms this scan started from: one row (coefficient a) per unknown.
+        let mut temporal = Vec::new();
         if self.params.w_temporal > 0.0 {
             let wt = self.params.w_temporal;
             let s = self.params.node_spacing;
+            temporal.reserve(self.x.len());
             for (i, (x, x0)) in self.x.iter().zip(x_start).enumerate() {
                 let a = if i % NV < 9 { s } else { 1.0 };
                 let r = a * (x - x0);
                 energy += wt * r * r;
-                sys.add_row(&[(i, a)], r, wt);
+                temporal.push((a, r));
             }
         }
-        // Data and boundary. Per vertex coordinate c, v'_c = Σ_j w (Σ_d A_j[c][d] (v − g_j)_d + g_j[c] + t_j[c]):
-        // the Jacobian rows of the three coordinates, and the current position.
-        let coord_rows = |v: usize| -> ([Vec<(usize, f64)>; 3], V3) {
-            let p = self.rest[v];
-            let mut cur = [0.0; 3];
-            for &(j, w) in &self.influence[v] {
-                cur = vec3::add(cur, vec3::scale(self.apply_node(j as usize, p), w));
-            }
-            let rows = std::array::from_fn(|c| {
-                let mut row: Vec<(usize, f64)> = Vec::with_capacity(16);
-                for &(j, w) in &self.influence[v] {
-                    let base = j as usize * NV;
-                    let d = vec3::sub(p, self.nodes[j as usize]);
-                    for (dd, dv) in d.iter().enumerate() {
-                        row.push((base + 3 * c + dd, w * dv));
-                    }
-                    row.push((base + 9 + c, w));
-                }
-                row
-            });
-            (rows, cur)
-        };
-        let point_rows =
-            |sys: &mut NormalEq, energy: &mut f64, v: usize, target: V3, weight: f64| {
-                let (rows, cur) = coord_rows(v);
-                for c in 0..3 {
-                    let r = cur[c] - target[c];
-                    *energy += weight * r * r;
-                    sys.add_row(&rows[c], r, weight);
-                }
-            };
+        // Data and boundary: per vertex coordinate c, v'_c = Σ_j w (Σ_d A_j[c][d] (v − g_j)_d + g_j[c] +
+        // t_j[c]); its Jacobian is `coef`, the current position is the deformed vertex.
+        let cur = self.deformed();
+        let n_vert = cur.len();
+        let (w_point, w_plane, w_bound) = (
+            self.params.w_point,
+            self.params.w_plane,
+            self.params.w_bound,
+        );
+        let mut data: Vec<Option<DataRows>> = vec![None; n_vert];
         for (v, pair) in pairs.iter().enumerate() {
             let Some(pair) = pair else { continue };
-            if self.params.w_point > 0.0 {
-                point_rows(&mut sys, &mut energy, v, pair.target, self.params.w_point);
-            }
-            if self.params.w_plane > 0.0 {
-                // Point-to-plane: n · (v' − s), one row combining the coordinate rows.
-                let (rows, cur) = coord_rows(v);
-                let n = pair.normal;
-                let r = vec3::dot(n, vec3::sub(cur, pair.target));
-                let mut row: Vec<(usize, f64)> = Vec::with_capacity(48);
+            let p = cur[v];
+            let mut point_r = [0.0; 3];
+            if w_point > 0.0 {
                 for c in 0..3 {
-                    row.extend(rows[c].iter().map(|&(i, a)| (i, a * n[c])));
+                    let r = p[c] - pair.target[c];
+                    energy += w_point * r * r;
+                    point_r[c] = r;
                 }
-                energy += self.params.w_plane * r * r;
-                sys.add_row(&row, r, self.params.w_plane);
             }
+            let mut plane_r = 0.0;
+            if w_plane > 0.0 {
+                // Point-to-plane: n · (v' − s), one row combining the coordinate rows.
+                let r = vec3::dot(pair.normal, vec3::sub(p, pair.target));
+                energy += w_plane * r * r;
+                plane_r = r;
+            }
+            data[v] = Some(DataRows {
+                point_r,
+                normal: pair.normal,
+                plane_r,
+            });
         }
+        // Boundary rows are assembled per vertex in vertex order: `boundary_pairs` lists them that way.
+        debug_assert!(bound.windows(2).all(|w| w[0].0 < w[1].0));
+        let mut bound_r: Vec<Option<[f64; 3]>> = vec![None; n_vert];
         for &(v, t) in bound {
-            point_rows(&mut sys, &mut energy, v as usize, t, self.params.w_bound);
+            let p = cur[v as usize];
+            let mut r = [0.0; 3];
+            for c in 0..3 {
+                r[c] = p[c] - t[c];
+                energy += w_bound * r[c] * r[c];
+            }
+            bound_r[v as usize] = Some(r);
         }
         // Rigidity: columns of A orthonormal.
-        for j in 0..self.nodes.len() {
-            let base = j * NV;
-            let a = &self.x[base..base + 9];
+        let mut rigid = vec![RigidRows::default(); self.nodes.len()];
+        for (j, rg) in rigid.iter_mut().enumerate() {
+            let a = &self.x[j * NV..j * NV + 9];
             let col = |k: usize| [a[k], a[3 + k], a[6 + k]];
-            let idx = |k: usize| [base + k, base + 3 + k, base + 6 + k];
-            for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+            let idx = |k: usize| [k, 3 + k, 6 + k];
+            for (row, (p, q)) in [(0, 1), (0, 2), (1, 2)].into_iter().enumerate() {
                 let (cp, cq) = (col(p), col(q));
                 let r = vec3::dot(cp, cq);
-                let mut row = Vec::with_capacity(6);
                 for i in 0..3 {
-                    row.push((idx(p)[i], cq[i]));
-                    row.push((idx(q)[i], cp[i]));
+                    rg.entries[row][2 * i] = (idx(p)[i], cq[i]);
+                    rg.entries[row][2 * i + 1] = (idx(q)[i], cp[i]);
                 }
+                rg.len[row] = 6;
+                rg.r[row] = r;
                 energy += wr * r * r;
-                sys.add_row(&row, r, wr);
             }
             for p in 0..3 {
                 let cp = col(p);
                 let r = vec3::dot(cp, cp) - 1.0;
-                let row: Vec<(usize, f64)> = (0..3).map(|i| (idx(p)[i], 2.0 * cp[i])).collect();
+                for (i, c) in cp.iter().enumerate() {
+                    rg.entries[3 + p][i] = (idx(p)[i], 2.0 * c);
+                }
+                rg.len[3 + p] = 3;
+                rg.r[3 + p] = r;
                 energy += wr * r * r;
-                sys.add_row(&row, r, wr);
             }
         }
         // Smoothness: node j's map of node k's position agrees with node k's own move.
+        let mut smooth = Vec::with_capacity(self.edges.len());
         for &(j, k) in &self.edges {
             let (j, k) = (j as usize, k as usize);
             let d = vec3::sub(self.nodes[k], self.nodes[j]);
@@ -669,22 +635,33 @@ impl Registration {
                 self.nodes[k],
                 [self.x[k * NV + 9], self.x[k * NV + 10], self.x[k * NV + 11]],
             );
+            let mut r = [0.0; 3];
             for c in 0..3 {
-                let mut row = Vec::with_capacity(5);
-                for (dd, dv) in d.iter().enumerate() {
-                    row.push((j * NV + 3 * c + dd, *dv));
-                }
-                row.push((j * NV + 9 + c, 1.0));
-                row.push((k * NV + 9 + c, -1.0));
-                let r = pj[c] - pk[c];
-                energy += ws * r * r;
-                sys.add_row(&row, r, ws);
+                r[c] = pj[c] - pk[c];
+                energy += ws * r[c] * r[c];
             }
+            smooth.push(SmoothRows { d, r });
         }
         if !step {
             return Ok(energy);
         }
-        let delta = sys.solve(&self.structure, 1e-6)?;
+        let rows = Rows {
+            infl_start: &self.infl_start,
+            coef: &self.coef,
+            data: &data,
+            bound: &bound_r,
+            w_point,
+            w_plane,
+            w_bound,
+            w_temporal: self.params.w_temporal,
+            temporal: &temporal,
+            w_rigid: wr,
+            rigid: &rigid,
+            w_smooth: ws,
+            edges: &self.edges,
+            smooth: &smooth,
+        };
+        let delta = self.plan.solve(&rows, 1e-6)?;
         for (x, d) in self.x.iter_mut().zip(&delta) {
             *x -= d;
         }
@@ -759,88 +736,6 @@ pub fn boundary_pairs(
         .zip(best)
         .filter_map(|(&v, b)| b.map(|(_, s)| (v, s)))
         .collect()
-}
-
-/// Gauss–Newton normal equations JᵀW J δ = JᵀW r, accumulated in 12 × 12 node blocks.
-struct NormalEq {
-    n: usize,
-    blocks: HashMap<(u32, u32), [f64; NV * NV]>,
-    rhs: Vec<f64>,
-}
-
-impl NormalEq {
-    fn new(n: usize) -> Self {
-        NormalEq {
-            n,
-            blocks: HashMap::new(),
-            rhs: vec![0.0; n],
-        }
-    }
-
-    fn add_row(&mut self, row: &[(usize, f64)], r: f64, w: f64) {
-        // Group the row's entries by node block once, so each block pair costs one map lookup.
-        let mut groups: Vec<(u32, Vec<(usize, f64)>)> = Vec::with_capacity(4);
-        for &(i, a) in row {
-            self.rhs[i] += w * a * r;
-            let b = (i / NV) as u32;
-            match groups.iter_mut().find(|g| g.0 == b) {
-                Some(g) => g.1.push((i % NV, a)),
-                None => groups.push((b, vec![(i % NV, a)])),
-            }
-        }
-        for (bi, ei) in &groups {
-            for (bj, ej) in &groups {
-                let blk = self.blocks.entry((*bi, *bj)).or_insert([0.0; NV * NV]);
-                for &(i, a) in ei {
-                    for &(j, b) in ej {
-                        blk[i * NV + j] += w * a * b;
-                    }
-                }
-            }
-        }
-    }
-
-    fn solve(self, st: &Structure, damping: f64) -> Result<Vec<f64>> {
-        // Values in the fixed pattern's order: every block the rows touched lies in it (data, boundary and
-        // smoothness rows link nodes that share a vertex; rigidity and temporal rows are diagonal).
-        debug_assert!(self.blocks.keys().all(|k| st
-            .blocks
-            .binary_search(&(k.0.max(k.1), k.0.min(k.1)))
-            .is_ok()));
-        let zero = [0.0; NV * NV];
-        let mut vals = Vec::with_capacity(st.blocks.len() * NV * NV);
-        for key in &st.blocks {
-            let blk = self.blocks.get(key).unwrap_or(&zero);
-            for a in 0..NV {
-                for b in 0..NV {
-                    let (i, j) = (key.0 as usize * NV + a, key.1 as usize * NV + b);
-                    if i >= j {
-                        let mut v = blk[a * NV + b];
-                        if i == j {
-                            v += damping * (1.0 + v.abs());
-                        }
-                        vals.push(v);
-                    }
-                }
-            }
-        }
-        let numeric = |e: String| Error::Numeric {
-            stage: "registration".into(),
-            msg: e,
-        };
-        let mat =
-            SparseColMat::<usize, f64>::new_from_argsort(st.symbolic.clone(), &st.argsort, &vals)
-                .map_err(|e| numeric(format!("{e:?}")))?;
-        let llt = faer::sparse::linalg::solvers::Llt::try_new_with_symbolic(
-            st.llt.clone(),
-            mat.as_ref(),
-            Side::Lower,
-        )
-        .map_err(|e| numeric(format!("Cholesky: {e:?}")))?;
-        let rhs = Mat::<f64>::from_fn(self.n, 1, |i, _| self.rhs[i]);
-        let sol = llt.solve(&rhs);
-        Ok((0..self.n).map(|i| sol[(i, 0)]).collect())
-    }
 }
 
 /// Samples a scan from a mesh: `per_vertex` × vertex-count points, area-weighted on the triangles, with

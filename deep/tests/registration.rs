@@ -63,6 +63,43 @@ fn registration_follows_a_bent_twisted_tube_through_holes_and_noise() {
     assert!(p95 < 0.5 * before, "p95 vertex error {:.2} mm", p95 * 1e3);
 }
 
+/// The normal equations are assembled in parallel (`register_system.rs`), each block's rows in a fixed order:
+/// the registration must not depend on how many threads run it.
+#[test]
+fn registration_is_the_same_to_the_bit_on_one_thread_and_on_four() {
+    let (topo, rest) = support::tube(32, 24, |_, _| 0.07);
+    let target: Vec<[f64; 3]> = rest
+        .iter()
+        .map(|p| [p[0], p[1] + 0.01 * (6.0 * p[0]).sin(), p[2] * 1.05])
+        .collect();
+    let scans: Vec<_> = (0..2)
+        .map(|i| synth_scan(&topo, &target, 3.0, 0.2, 0.002, 5 + i))
+        .collect();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let params = RegisterParams {
+                iterations: 8,
+                ..Default::default()
+            };
+            let mut reg = Registration::new(topo.clone(), &rest, params).unwrap();
+            let mut out = Vec::new();
+            for scan in &scans {
+                out = reg.register(scan).unwrap();
+            }
+            out
+        })
+    };
+    let (one, four) = (run(1), run(4));
+    assert_eq!(one.len(), rest.len());
+    let bits = |v: &[[f64; 3]]| -> Vec<u64> { v.iter().flatten().map(|x| x.to_bits()).collect() };
+    assert!(vertex_error(&one, &rest).0 > 1e-4, "the fit did not move");
+    assert_eq!(bits(&one), bits(&four));
+}
+
 /// The sleeve's case (docs/deepwrinkles.md, "Registration"): the scan's noise (σ ≈ 0.35 mean edge lengths per
 /// coordinate) is as large as the deformation, and a fit that follows its nearest scan points slides along the
 /// surface after them. The defaults (point-to-plane data term, floor of ω_r, ω_s tied to the scan's noise) must

@@ -186,6 +186,10 @@ pub struct WorkerArgs {
     /// anchors and block workspaces), kept between tasks; least recently used windows go first; 0 turns it off.
     #[arg(long, default_value_t = crease_jobs::window_cache::DEFAULT_BUDGET_BYTES >> 20)]
     pub window_cache_mb: u64,
+    /// Memory (MiB) per opened input for its parsed frames, kept between tasks (the strain limiter, positioning
+    /// and finalize read the same frames); least recently read frames go first; 0 turns it off.
+    #[arg(long, default_value_t = crease_jobs::frame_cache::DEFAULT_BUDGET_BYTES >> 20)]
+    pub frame_cache_mb: u64,
     /// On SIGTERM, seconds running tasks may take to finish before they are handed back.
     #[arg(long, default_value_t = 30.0)]
     pub drain_secs: f64,
@@ -211,6 +215,7 @@ pub fn worker(a: WorkerArgs) -> Result<()> {
         );
     }
     crease_jobs::window_cache::set_budget(a.window_cache_mb.saturating_mul(1 << 20));
+    crease_jobs::frame_cache::set_budget(a.frame_cache_mb.saturating_mul(1 << 20));
     let name = a
         .name
         .unwrap_or_else(|| format!("worker-{}", std::process::id()));

@@ -140,7 +140,7 @@ pub mod task;
 
 pub use confine::StorageRoots;
 pub use error::{JobError, TaskError};
-pub use execute::{execute, phase_times, window_cache, ExecContext};
+pub use execute::{execute, frame_cache, phase_times, window_cache, ExecContext};
 pub use failure::{FailureKind, Policy};
 pub use inspect::{inspect_input, InputInfo};
 pub use limits::JobLimits;

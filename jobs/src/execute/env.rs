@@ -1,6 +1,6 @@
 //! What every task opens the same way: the job's output storage, its input sequence and its anchors.
 
-use super::ExecContext;
+use super::{frame_cache, ExecContext};
 use crate::error::{JobError, TaskError};
 use crate::keys;
 use crate::spec::{FoldSpec, JobSpec};
@@ -9,6 +9,7 @@ use bytes::Bytes;
 use crease_core::folds::AnchorSet;
 use crease_core::mesh::io::{detect_layout, open_layout, OpenedSequence};
 use crease_core::mesh::subdivide::SubdividedSource;
+use crease_core::mesh::FrameSource;
 use crease_core::npy::{self, NpyElement};
 use crease_core::progress::Progress;
 use crease_core::spacetime::windows::Window;
@@ -158,8 +159,8 @@ impl<'a> TaskEnv<'a> {
         .map_err(storage_err)
     }
 
-    /// Opens the input sequence (topology read and validated; frames are read on demand; midpoint-subdivided
-    /// when the job says so). The tasks of a job
+    /// Opens the input sequence (topology read and validated; frames are read on demand, then kept up to the
+    /// frame cache's budget; midpoint-subdivided when the job says so). The tasks of a job
     /// running on one worker share the opened input through a small per-process cache, keyed by the input's
     /// path and the size and modification time of each of its files, so an input changed in place is reopened.
     pub fn open_input(&self) -> Result<Arc<OpenedSequence>, TaskError> {
@@ -177,11 +178,24 @@ impl<'a> TaskEnv<'a> {
         if let Some((_, _, o)) = cache.iter().find(|(p, s, _)| *p == path && *s == stamp) {
             return Ok(o.clone());
         }
-        let mut source = open_layout(&layout).map_err(err)?;
+        // Parsed frames are kept with the opened input, so the tasks of a job on this worker parse each frame
+        // once (see `frame_cache`); a changed input is reopened above, with an empty cache. A subdividing job
+        // keeps both its input frames (what stretch detection reads through `subdivided_from`) and its
+        // subdivided frames (what the deformation reads).
+        let cached = |s: Box<dyn FrameSource>| -> Box<dyn FrameSource> {
+            if frame_cache::budget() > 0 {
+                Box::new(frame_cache::CachedFrames::new(s))
+            } else {
+                s
+            }
+        };
+        let mut source = cached(open_layout(&layout).map_err(err)?);
         // Subdivision happens here and nowhere else, so every task of a subdividing job (detection, weights,
         // positioning, finalize) sees the same subdivided sequence.
         if levels > 0 {
-            source = Box::new(SubdividedSource::owned(source, levels).map_err(err)?);
+            source = cached(Box::new(
+                SubdividedSource::owned(source, levels).map_err(err)?,
+            ));
         }
         let opened = Arc::new(OpenedSequence { source, layout });
         cache.insert(0, (path, stamp, opened.clone()));

@@ -1,6 +1,6 @@
 //! Running one task on a worker: crease-core on a blocking thread, inputs and results through storage.
 //!
-//! Each task kind has its own module named after what it computes: `folds` (detection and merge), `settle`
+//! Each task kind has its own module named after what it computes: `folds` (detection and merge), `frame_cache` (parsed input frames kept per process), `settle`
 //! (temporal coherence of a frame range), `weights` (a fused window, an anchor block, the reduce of a window),
 //! `position` (cross-fade, positioning and stretch passes of a frame chunk), `finalize` (output sequence, previews, report). They share
 //! `env::TaskEnv`: the job's storage, input and anchors, opened the same way by every task.
@@ -15,6 +15,7 @@ mod exact;
 mod export;
 mod finalize;
 mod folds;
+pub mod frame_cache;
 mod partial_file;
 pub mod phase_times;
 mod position;

@@ -9,7 +9,7 @@ use crate::error::TaskError;
 use crate::inspect::{output_files, output_sink, writes_frames};
 use crate::keys;
 use crease_core::mesh::io::OpenedSequence;
-use crease_core::mesh::FrameSource;
+use crease_core::mesh::{FrameSink, FrameSource};
 use crease_core::shape::{ShapeAccumulator, TaubinFilter};
 use crease_core::spacetime::position::{Pinning, PositionSystem};
 use crease_core::spacetime::stages::{self, PositionedFrame};
@@ -60,101 +60,87 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     let limiter = limiter.as_deref();
     let windows = env.windows(n);
     let passes = env.params.stretch_passes;
-    let filter = TaubinFilter::captured(&topo);
+    let filter = shape_filter(&opened);
     lap.lap("position: input, system, strain limiter, filter");
     env.progress().begin("position", frames.len() as u64);
     let mut written = Vec::new();
-    // Frame files go straight to the output through the layout's sink (the same writer `crease run` uses).
+    // Frame files go straight to the output through the layout's sink (the same writer `crease run` uses), one
+    // sink per parallel slot of a batch, so that each frame's file is formatted and written beside the next
+    // frame's positioning instead of one after the other after it. A sink of one-file-per-frame layouts holds no
+    // state across frames that changes what it writes (see `writes_frames`), so the files are the same.
     let out_dir = env.output_dir(&format!("position-{}", frames.start))?;
-    let mut sink = if writes_frames(env.job, &opened.layout) {
-        Some(
-            output_sink(env.job, &opened.layout, &topo, n, &out_dir.path)
-                .map_err(|e| TaskError::from_core(&label, e))?,
-        )
+    let batch = rayon::current_num_threads().max(1);
+    let sinks: Vec<Mutex<Box<dyn FrameSink>>> = if writes_frames(env.job, &opened.layout) {
+        (0..batch.min(frames.len()))
+            .map(|_| {
+                output_sink(env.job, &opened.layout, &topo, n, &out_dir.path)
+                    .map(Mutex::new)
+                    .map_err(|e| TaskError::from_core(&label, e))
+            })
+            .collect::<Result<_, _>>()?
     } else {
-        None
+        Vec::new()
     };
     let names = output_files(env.job, &opened.layout, n);
     let mut stretch_final = Vec::new();
-    // Frames in parallel, in batches of the pool size so memory stays bounded by a few frames.
-    let batch = rayon::current_num_threads().max(1);
+    // Frames in parallel, in batches of the pool size so memory stays bounded by a few frames. Each frame's
+    // fields are read, the frame positioned and measured, and its intermediates and output file written inside
+    // the parallel part; only the lists of keys and figures are gathered in frame order afterwards.
     let all: Vec<usize> = frames.clone().collect();
     for chunk in all.chunks(batch) {
         env.check_cancelled()?;
-        let fields: Vec<Vec<V3>> = chunk
-            .iter()
-            .map(|&t| load_faded(env, &windows, t, n_tri))
-            .collect::<Result<_, _>>()?;
-        lap.lap("position: read and cross-fade fields");
-        let done: Vec<Result<(PositionedFrame, ShapeAccumulator, f64), TaskError>> = chunk
+        let done: Vec<Result<(Vec<String>, Option<Value>), TaskError>> = chunk
             .par_iter()
-            .zip(fields.par_iter())
-            .map(|(&t, phi)| {
+            .enumerate()
+            .map(|(slot, &t)| {
                 if env.ctx.progress.cancelled() {
                     return Err(TaskError::cancelled());
                 }
+                let phi = load_faded(env, &windows, t, n_tri)?;
                 let p = stages::position_frame(
                     system,
                     source,
                     t,
-                    phi,
+                    &phi,
                     passes,
                     env.params.stretch_rotation,
                     env.params.restoration(),
                     limiter,
                 )
                 .map_err(|e| TaskError::from_core(&label, e))?;
+                drop(phi);
                 // The frame's "shape kept" figures (DESIGN §9), here where the frame is, rather than in
                 // finalize, which would filter every frame again one after the other at the end of the job.
                 let clock = std::time::Instant::now();
                 let mut shape = ShapeAccumulator::default();
                 shape.add_frame(&topo, &filter, &p.rest, &p.out);
                 let shape_seconds = clock.elapsed().as_secs_f64();
+                let keys = store_frame(env, &p, &shape, shape_seconds, frames.start, symbolic)?;
+                let mut keys = keys.to_vec();
+                if let Some(sink) = sinks.get(slot) {
+                    sink.lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .write_frame(t, &p.out)
+                        .map_err(|e| TaskError::from_core(&label, e))?;
+                    if let Some(name) = names.get(t) {
+                        keys.push(name.clone());
+                    }
+                }
                 env.progress().advance("position", 1);
-                Ok((p, shape, shape_seconds))
+                let last = p
+                    .stretch
+                    .last()
+                    .map(|(_, st)| json!({"frame": t, "l2": st.l2, "max": st.max}));
+                Ok((keys, last))
             })
             .collect();
-        lap.lap("position: frames (positioning, passes, shape)");
+        // In frame order: the first failing frame's error, else every frame's keys and figures.
         for r in done {
-            let (p, shape, shape_seconds) = r?;
-            let t = p.t;
-            let flat: Vec<f64> = p.out.iter().flatten().copied().collect();
-            let mut words: Vec<u64> = p
-                .stretch
-                .iter()
-                .flat_map(|(acc, _)| acc.to_words())
-                .collect();
-            words.extend(shape.to_words());
-            let timings = FrameTimings {
-                read: p.read,
-                blend: p.blend,
-                factor: p.factor,
-                position: p.position,
-                passes: p.passes.clone(),
-                metrics: p.metrics + shape_seconds,
-                symbolic: if t == frames.start { symbolic } else { 0.0 },
-            };
-            let (kp, ks, kt) = (
-                keys::positions(t),
-                keys::frame_stretch(t),
-                keys::frame_timings(t),
-            );
-            env.put_npy(&kp, &[p.out.len(), 3], &flat)?;
-            env.put_npy(&ks, &[words.len()], &words)?;
-            env.put_json(&kt, &timings)?;
-            written.extend([kp, ks, kt]);
-            if let Some(sink) = sink.as_mut() {
-                sink.write_frame(t, &p.out)
-                    .map_err(|e| TaskError::from_core(&label, e))?;
-                if let Some(name) = names.get(t) {
-                    written.push(name.clone());
-                }
-            }
-            if let Some((_, st)) = p.stretch.last() {
-                stretch_final.push(json!({"frame": t, "l2": st.l2, "max": st.max}));
-            }
+            let (keys, last) = r?;
+            written.extend(keys);
+            stretch_final.extend(last);
         }
-        lap.lap("position: write positions, stretch, frame files");
+        lap.lap("position: frames (fields, positioning, passes, shape, files)");
     }
     out_dir.upload(env)?;
     env.progress().end("position");
@@ -162,6 +148,43 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
         json!({ "frames": [frames.start, frames.end], "stretch_final": stretch_final }),
         written,
     ))
+}
+
+/// Stores frame `p.t`'s positions, its stretch and shape words and its timings (the intermediates finalize
+/// reads); returns their keys. `first` is the chunk's first frame, which carries the system's `symbolic` time.
+fn store_frame(
+    env: &TaskEnv,
+    p: &PositionedFrame,
+    shape: &ShapeAccumulator,
+    shape_seconds: f64,
+    first: usize,
+    symbolic: f64,
+) -> Result<[String; 3], TaskError> {
+    let t = p.t;
+    let mut words: Vec<u64> = p
+        .stretch
+        .iter()
+        .flat_map(|(acc, _)| acc.to_words())
+        .collect();
+    words.extend(shape.to_words());
+    let timings = FrameTimings {
+        read: p.read,
+        blend: p.blend,
+        factor: p.factor,
+        position: p.position,
+        passes: p.passes.clone(),
+        metrics: p.metrics + shape_seconds,
+        symbolic: if t == first { symbolic } else { 0.0 },
+    };
+    let (kp, ks, kt) = (
+        keys::positions(t),
+        keys::frame_stretch(t),
+        keys::frame_timings(t),
+    );
+    env.put_npy(&kp, &[p.out.len(), 3], p.out.as_flattened())?;
+    env.put_npy(&ks, &[words.len()], &words)?;
+    env.put_json(&kt, &timings)?;
+    Ok([kp, ks, kt])
 }
 
 /// A positioning system this process built: (input, pinning, screen bits, operator block, system).
@@ -225,6 +248,23 @@ fn position_system(
         systems.truncate(2);
     }
     Ok((sys, seconds))
+}
+
+/// Shape-kept filters this process built, most recent first: (input, filter).
+#[allow(clippy::type_complexity)]
+static FILTERS: Mutex<Vec<(Arc<OpenedSequence>, Arc<TaubinFilter>)>> = Mutex::new(Vec::new());
+
+/// The input's "shape kept" filter (DESIGN §9). Its neighbour tables depend on the topology alone, so a worker
+/// builds them once per opened input (keyed like [`position_system`]) instead of once per positioning chunk.
+fn shape_filter(opened: &Arc<OpenedSequence>) -> Arc<TaubinFilter> {
+    let mut built = FILTERS.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some((_, f)) = built.iter().find(|(o, _)| Arc::ptr_eq(o, opened)) {
+        return Arc::clone(f);
+    }
+    let filter = Arc::new(TaubinFilter::captured(opened.source.topology()));
+    built.insert(0, (Arc::clone(opened), Arc::clone(&filter)));
+    built.truncate(2);
+    filter
 }
 
 /// A strain limiter this process built: (input, cap bits, sweeps, reference, limiter).

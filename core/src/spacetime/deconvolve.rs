@@ -496,7 +496,7 @@ mod tests {
         let counts: Vec<usize> = (0..p.len())
             .map(|v| stencil.filter.neighbors(v).len())
             .collect();
-        for k in [0, 2, 6] {
+        for k in [0, 2] {
             assert!(counts.contains(&k), "no vertex with {k} neighbours");
         }
         assert!(counts.iter().any(|&k| k > 6), "no vertex above six");

@@ -12,24 +12,71 @@ use serde::Serialize;
 
 /// Singular values (σ₁ ≥ σ₂) of the affine map taking triangle `rest` to triangle `out`.
 pub fn triangle_singular_values(rest: [V3; 3], out: [V3; 3]) -> (f64, f64) {
-    let e1 = vec3::sub(rest[1], rest[0]);
-    let e2 = vec3::sub(rest[2], rest[0]);
-    let l1 = vec3::norm(e1);
-    let u = vec3::scale(e1, 1.0 / l1);
-    let n = vec3::cross(e1, e2);
-    let v = vec3::normalize(vec3::cross(n, e1));
-    // Rest triangle in its own 2D frame: (0,0), (l1, 0), (a, b).
-    let (a, b) = (vec3::dot(e2, u), vec3::dot(e2, v));
-    let f1 = vec3::sub(out[1], out[0]);
-    let f2 = vec3::sub(out[2], out[0]);
-    // J = [f1 f2] P⁻¹ with P = [[l1, a], [0, b]] → columns j1 = f1 / l1, j2 = (f2 − a j1) / b.
-    let j1 = vec3::scale(f1, 1.0 / l1);
-    let j2 = vec3::scale(vec3::sub(f2, vec3::scale(j1, a)), 1.0 / b);
-    // Eigenvalues of JᵀJ.
-    let (p, q, r) = (vec3::dot(j1, j1), vec3::dot(j1, j2), vec3::dot(j2, j2));
-    let mean = 0.5 * (p + r);
-    let disc = (0.25 * (p - r) * (p - r) + q * q).sqrt();
-    ((mean + disc).max(0.0).sqrt(), (mean - disc).max(0.0).sqrt())
+    RestTriangle::of(rest).singular_values(out)
+}
+
+/// What the stretch of a triangle needs of its original shape: its 2D frame (the inverse of its first edge's
+/// length, and its third vertex (a, b) in that frame, as 1 / b) and its area. A deformation measures the
+/// stretch of every frame after positioning and after each pass against the same original frame, so it
+/// computes these once per frame ([`RestTriangles`]) and leaves only the output's half to each measurement:
+/// the same numbers, computed by the same operations, as computing them every time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RestTriangle {
+    inv_l1: f64,
+    a: f64,
+    inv_b: f64,
+    area: f64,
+}
+
+impl RestTriangle {
+    /// The frame and area of the triangle `rest`.
+    #[inline]
+    pub fn of(rest: [V3; 3]) -> Self {
+        let e1 = vec3::sub(rest[1], rest[0]);
+        let e2 = vec3::sub(rest[2], rest[0]);
+        let l1 = vec3::norm(e1);
+        let inv_l1 = 1.0 / l1;
+        let u = vec3::scale(e1, inv_l1);
+        let n = vec3::cross(e1, e2);
+        let v = vec3::normalize(vec3::cross(n, e1));
+        // Rest triangle in its own 2D frame: (0,0), (l1, 0), (a, b).
+        let (a, b) = (vec3::dot(e2, u), vec3::dot(e2, v));
+        RestTriangle {
+            inv_l1,
+            a,
+            inv_b: 1.0 / b,
+            area: 0.5 * vec3::norm(n),
+        }
+    }
+
+    /// Singular values (σ₁ ≥ σ₂) of the affine map taking this triangle to `out`.
+    #[inline]
+    pub fn singular_values(&self, out: [V3; 3]) -> (f64, f64) {
+        let f1 = vec3::sub(out[1], out[0]);
+        let f2 = vec3::sub(out[2], out[0]);
+        // J = [f1 f2] P⁻¹ with P = [[l1, a], [0, b]] → columns j1 = f1 / l1, j2 = (f2 − a j1) / b.
+        let j1 = vec3::scale(f1, self.inv_l1);
+        let j2 = vec3::scale(vec3::sub(f2, vec3::scale(j1, self.a)), self.inv_b);
+        // Eigenvalues of JᵀJ.
+        let (p, q, r) = (vec3::dot(j1, j1), vec3::dot(j1, j2), vec3::dot(j2, j2));
+        let mean = 0.5 * (p + r);
+        let disc = (0.25 * (p - r) * (p - r) + q * q).sqrt();
+        ((mean + disc).max(0.0).sqrt(), (mean - disc).max(0.0).sqrt())
+    }
+}
+
+/// [`RestTriangle`] of every triangle of a frame, in triangle order.
+pub struct RestTriangles(Vec<RestTriangle>);
+
+impl RestTriangles {
+    pub fn new(topo: &Topology, rest: &[V3]) -> Self {
+        RestTriangles(
+            topo.triangles()
+                .iter()
+                .map(|t| RestTriangle::of(t.map(|i| rest[i as usize])))
+                .collect(),
+        )
+    }
 }
 
 /// Stretch summary of one frame (or a whole sequence, see [`StretchAccumulator`]).
@@ -73,21 +120,45 @@ const BINS: usize = 10_000;
 
 impl StretchAccumulator {
     pub fn add_frame(&mut self, topo: &Topology, rest: &[V3], out: &[V3]) {
+        self.start_histogram();
+        for t in topo.triangles() {
+            let r = RestTriangle::of(t.map(|i| rest[i as usize]));
+            self.add_triangle(&r, t.map(|i| out[i as usize]));
+        }
+    }
+
+    /// [`Self::add_frame`] with the original frame's triangles computed beforehand (`rest` must be
+    /// [`RestTriangles::new`] of the same topology): the same figures, bit for bit.
+    pub fn add_frame_with(&mut self, topo: &Topology, rest: &RestTriangles, out: &[V3]) {
+        assert_eq!(
+            rest.0.len(),
+            topo.n_triangles(),
+            "rest triangles of another mesh"
+        );
+        self.start_histogram();
+        for (t, r) in topo.triangles().iter().zip(&rest.0) {
+            self.add_triangle(r, t.map(|i| out[i as usize]));
+        }
+    }
+
+    fn start_histogram(&mut self) {
         if self.hist.is_empty() {
             self.hist = vec![0; BINS + 1];
         }
-        for t in topo.triangles() {
-            let r = t.map(|i| rest[i as usize]);
-            let (s1, s2) = triangle_singular_values(r, t.map(|i| out[i as usize]));
-            let area = 0.5 * vec3::norm(vec3::cross(vec3::sub(r[1], r[0]), vec3::sub(r[2], r[0])));
-            let s = (s1 - 1.0).max(1.0 - s2);
-            self.sum_area_sigma2 += area * 0.5 * (s1 * s1 + s2 * s2);
-            self.sum_area_stretch += area * s;
-            self.sum_area += area;
-            self.max = self.max.max(s);
-            self.hist[((s * BINS as f64) as usize).min(BINS)] += 1;
-            self.count += 1;
-        }
+    }
+
+    /// One triangle's figures (the histogram started).
+    #[inline]
+    fn add_triangle(&mut self, r: &RestTriangle, out: [V3; 3]) {
+        let (s1, s2) = r.singular_values(out);
+        let area = r.area;
+        let s = (s1 - 1.0).max(1.0 - s2);
+        self.sum_area_sigma2 += area * 0.5 * (s1 * s1 + s2 * s2);
+        self.sum_area_stretch += area * s;
+        self.sum_area += area;
+        self.max = self.max.max(s);
+        self.hist[((s * BINS as f64) as usize).min(BINS)] += 1;
+        self.count += 1;
     }
 
     pub fn merge(&mut self, other: &StretchAccumulator) {
@@ -190,6 +261,30 @@ pub fn frame_stretch(topo: &Topology, rest: &[V3], out: &[V3]) -> StretchStats {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The original frame's triangles computed once give every figure of the accumulator bit for bit.
+    #[test]
+    fn rest_triangles_computed_once_give_the_same_figures() {
+        let (seq, _) = crate::synth::demo(&crate::synth::DemoSpec {
+            triangles: 600,
+            frames: 3,
+            ..Default::default()
+        })
+        .unwrap();
+        let topo = &seq.topology;
+        let rest = &seq.frames[0];
+        let out: Vec<V3> = rest
+            .iter()
+            .enumerate()
+            .map(|(i, p)| [p[0] * 1.03, p[1] + 0.01 * (i as f64).sin(), p[2] * 0.97])
+            .collect();
+        let mut once = StretchAccumulator::default();
+        once.add_frame_with(topo, &RestTriangles::new(topo, rest), &out);
+        let mut each = StretchAccumulator::default();
+        each.add_frame(topo, rest, &out);
+        assert_eq!(once.to_words(), each.to_words());
+        assert!(once.stats().max > 0.01, "{:?}", once.stats());
+    }
 
     #[test]
     fn singular_values_of_known_maps() {

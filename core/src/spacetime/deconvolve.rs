@@ -20,6 +20,7 @@
 //! vanishes on constants (r(1) = 0: a filter step keeps a constant field), so the series is applied to c minus
 //! its mean: the result then does not depend on where the garment stands, to rounding.
 
+use super::stencil_sweep::{self, Sweep};
 use crate::mesh::Topology;
 use crate::shape::TaubinFilter;
 use crate::vec3::{self, V3};
@@ -44,6 +45,16 @@ pub struct CaptureStencil {
     /// 1 / (number of neighbours) of each vertex (0 for a vertex without neighbours): the same factor the
     /// filter computes in every sweep, computed once.
     inv_count: Vec<f64>,
+    /// The neighbour lists for the AVX2 sweep ([`stencil_sweep`]): vertex v's neighbours are the slots at
+    /// the byte offsets `slot_bytes[offsets[v] .. offsets[v + 1]]` of the swept field, in the filter's list
+    /// order. `None` when a mesh is too large for 32-bit byte offsets (the scalar sweep runs).
+    wide: Option<WideLists>,
+}
+
+/// [`CaptureStencil`]'s neighbour lists as byte offsets into a field of [f64; 6] slots.
+struct WideLists {
+    offsets: Vec<u32>,
+    slot_bytes: Vec<u32>,
 }
 
 impl CaptureStencil {
@@ -57,7 +68,30 @@ impl CaptureStencil {
                 n => 1.0 / n as f64,
             })
             .collect();
-        CaptureStencil { filter, inv_count }
+        let nv = topo.n_vertices();
+        // Every neighbour index is below the vertex count (the filter's lists come from the topology): the
+        // AVX2 sweep reads the slots unchecked, so this is checked here, once.
+        let wide = (nv.saturating_mul(stencil_sweep::SLOT_BYTES) <= u32::MAX as usize).then(|| {
+            let mut offsets = Vec::with_capacity(nv + 1);
+            let mut slot_bytes = Vec::new();
+            offsets.push(0u32);
+            for v in 0..nv {
+                for &w in filter.neighbors(v) {
+                    assert!((w as usize) < nv, "vertex {v}: neighbour {w} out of range");
+                    slot_bytes.push(w * stencil_sweep::SLOT_BYTES as u32);
+                }
+                offsets.push(slot_bytes.len() as u32);
+            }
+            WideLists {
+                offsets,
+                slot_bytes,
+            }
+        });
+        CaptureStencil {
+            filter,
+            inv_count,
+            wide,
+        }
     }
 
     /// The capture filter itself (the shape projection low-passes with it).
@@ -86,8 +120,26 @@ impl CaptureStencil {
     /// (issue 14, item 5). Every value is computed with the operations, in the order, of the two separate
     /// evaluations; the sweeps run in parallel over vertex chunks (no thread-count dependence).
     pub fn detail_and_low_pass(&self, series: &[f64], c: &[V3], d: &[V3]) -> (Vec<V3>, Vec<V3>) {
+        self.detail_and_low_pass_with(series, c, d, stencil_sweep::available())
+    }
+
+    /// [`Self::detail_and_low_pass`] with the AVX2 sweep (`wide`, where the CPU has it) or the scalar one
+    /// (the reference); the same bits either way.
+    fn detail_and_low_pass_with(
+        &self,
+        series: &[f64],
+        c: &[V3],
+        d: &[V3],
+        wide: bool,
+    ) -> (Vec<V3>, Vec<V3>) {
         let n = c.len();
         assert_eq!(d.len(), n, "fields of different lengths");
+        assert_eq!(
+            n,
+            self.inv_count.len(),
+            "a field of {n} vertices on a mesh of {}",
+            self.inv_count.len()
+        );
         let (lambda, mu) = (self.filter.lambda, self.filter.mu);
         let filter_steps = self.filter.iterations;
         // Series sweeps: T_1 … T_{len−1}, one each.
@@ -95,6 +147,10 @@ impl CaptureStencil {
         if n == 0 || (series_steps == 0 && filter_steps == 0) {
             return (self.detail(series, c), d.to_vec());
         }
+        let wide = self
+            .wide
+            .as_ref()
+            .filter(|_| wide && stencil_sweep::detected());
         let mean = vec3::scale(
             c.iter().fold([0.0; 3], |s, p| vec3::add(s, *p)),
             1.0 / n as f64,
@@ -117,65 +173,96 @@ impl CaptureStencil {
         };
         let mut other: Vec<[f64; 6]> = vec![[0.0; 6]; n];
         for j in 0..filter_steps.max(series_steps) {
-            let step = (j < filter_steps).then_some(if j % 2 == 0 { lambda } else { mu });
             // Sweep j of the series makes T_{j+1} = A T_0 (j = 0) or 2 A T_j − T_{j−1}, weighted series[j + 1].
-            let term = (j < series_steps).then(|| series[j + 1]);
+            let sweep = Sweep {
+                filter: (j < filter_steps).then_some(if j % 2 == 0 { lambda } else { mu }),
+                term: (j < series_steps).then(|| series[j + 1]),
+                first: j == 0,
+            };
             let src = &cur;
             other
                 .par_chunks_mut(CHUNK)
                 .zip(acc.par_chunks_mut(CHUNK))
                 .enumerate()
                 .for_each(|(ch, (os, accs))| {
-                    for (k, (ov, av)) in os.iter_mut().zip(accs.iter_mut()).enumerate() {
-                        let v = ch * CHUNK + k;
-                        let me = src[v];
-                        let nb = self.filter.neighbors(v);
-                        // Neighbour means, summed from zero in list order (as the filter and the series do).
-                        let (xa, ta) = if nb.is_empty() {
-                            ([me[0], me[1], me[2]], [me[3], me[4], me[5]])
-                        } else {
-                            let mut s = [0.0; 6];
-                            for &w in nb {
-                                let q = &src[w as usize];
-                                for i in 0..6 {
-                                    s[i] += q[i];
-                                }
-                            }
-                            let inv = self.inv_count[v];
-                            (
-                                [s[0] * inv, s[1] * inv, s[2] * inv],
-                                [s[3] * inv, s[4] * inv, s[5] * inv],
+                    #[cfg(target_arch = "x86_64")]
+                    if let Some(lists) = wide {
+                        // SAFETY: AVX2 is present (`detected`); `offsets` has n + 1 entries and `inv_count` n
+                        // (asserted above), every byte offset is that of a slot below n (checked in `new`),
+                        // `src` has n slots, and the chunks of `other` and `acc` have the same length.
+                        unsafe {
+                            stencil_sweep::avx2::sweep(
+                                &lists.offsets,
+                                &lists.slot_bytes,
+                                &self.inv_count,
+                                src,
+                                ch * CHUNK,
+                                os,
+                                accs,
+                                sweep,
                             )
                         };
-                        // The filter step x + f (mean − x); a vertex without neighbours keeps x.
-                        if let Some(f) = step {
-                            let x = [me[0], me[1], me[2]];
-                            let nx = if nb.is_empty() {
-                                x
-                            } else {
-                                vec3::add(x, vec3::scale(vec3::sub(xa, x), f))
-                            };
-                            ov[..3].copy_from_slice(&nx);
-                        } else {
-                            ov[..3].copy_from_slice(&me[..3]);
-                        }
-                        if let Some(a) = term {
-                            let next = if j == 0 {
-                                ta
-                            } else {
-                                vec3::sub(vec3::scale(ta, 2.0), [ov[3], ov[4], ov[5]])
-                            };
-                            ov[3..].copy_from_slice(&next);
-                            *av = vec3::add(*av, vec3::scale(next, a));
-                        } else {
-                            ov[3..].copy_from_slice(&me[3..]);
-                        }
+                        return;
+                    }
+                    #[cfg(not(target_arch = "x86_64"))]
+                    let _ = wide;
+                    for (k, (ov, av)) in os.iter_mut().zip(accs.iter_mut()).enumerate() {
+                        self.sweep_vertex(src, ch * CHUNK + k, ov, av, sweep);
                     }
                 });
             std::mem::swap(&mut cur, &mut other);
         }
         let low = cur.iter().map(|q| [q[0], q[1], q[2]]).collect();
         (acc, low)
+    }
+
+    /// One vertex of one fused sweep (the scalar reference of [`stencil_sweep::avx2::sweep`]): from the
+    /// field `src`, vertex `v`'s next filter iterate and series iterate into `ov` (whose last three values
+    /// are T_{j−1} u on entry), and the series term added to `av`.
+    #[inline]
+    fn sweep_vertex(&self, src: &[[f64; 6]], v: usize, ov: &mut [f64; 6], av: &mut V3, s: Sweep) {
+        let me = src[v];
+        let nb = self.filter.neighbors(v);
+        // Neighbour means, summed from zero in list order (as the filter and the series do).
+        let (xa, ta) = if nb.is_empty() {
+            ([me[0], me[1], me[2]], [me[3], me[4], me[5]])
+        } else {
+            let mut s = [0.0; 6];
+            for &w in nb {
+                let q = &src[w as usize];
+                for i in 0..6 {
+                    s[i] += q[i];
+                }
+            }
+            let inv = self.inv_count[v];
+            (
+                [s[0] * inv, s[1] * inv, s[2] * inv],
+                [s[3] * inv, s[4] * inv, s[5] * inv],
+            )
+        };
+        // The filter step x + f (mean − x); a vertex without neighbours keeps x.
+        if let Some(f) = s.filter {
+            let x = [me[0], me[1], me[2]];
+            let nx = if nb.is_empty() {
+                x
+            } else {
+                vec3::add(x, vec3::scale(vec3::sub(xa, x), f))
+            };
+            ov[..3].copy_from_slice(&nx);
+        } else {
+            ov[..3].copy_from_slice(&me[..3]);
+        }
+        if let Some(a) = s.term {
+            let next = if s.first {
+                ta
+            } else {
+                vec3::sub(vec3::scale(ta, 2.0), [ov[3], ov[4], ov[5]])
+            };
+            ov[3..].copy_from_slice(&next);
+            *av = vec3::add(*av, vec3::scale(next, a));
+        } else {
+            ov[3..].copy_from_slice(&me[3..]);
+        }
     }
 
     /// The Chebyshev series of the detail Van Cittert's `steps` add ([`van_cittert_series`] for this filter).
@@ -397,6 +484,46 @@ mod tests {
         let one = [0.7];
         let (detail, _) = stencil.detail_and_low_pass(&one, &p, &d);
         assert_eq!(bits(&detail), bits(&stencil.detail(&one, &p)));
+    }
+
+    /// The AVX2 sweep gives the scalar sweep's bits: series shorter and longer than the filter's 80 steps,
+    /// no series, on a mesh with boundary vertices, interior vertices of six neighbours and of other counts,
+    /// and a vertex without neighbours. (Where the CPU lacks AVX2 both calls run the scalar sweep.)
+    #[test]
+    fn wide_sweeps_are_the_scalar_sweeps() {
+        let (topo, p) = sheet(37, 29);
+        let stencil = CaptureStencil::new(&topo);
+        let counts: Vec<usize> = (0..p.len())
+            .map(|v| stencil.filter.neighbors(v).len())
+            .collect();
+        for k in [0, 2] {
+            assert!(counts.contains(&k), "no vertex with {k} neighbours");
+        }
+        assert!(counts.iter().any(|&k| k > 6), "no vertex above six");
+        let d: Vec<V3> = p
+            .iter()
+            .map(|q| [(q[0] * 1.7).cos(), 0.3 * q[1].sin(), -0.2 * q[0]])
+            .collect();
+        let bits = |v: &[V3]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        for steps in [0.5, 1.0, 8.0, 20.0] {
+            let series = stencil.series(steps);
+            for s in [&series[..], &series[..1], &[]] {
+                let (dw, lw) = stencil.detail_and_low_pass_with(s, &p, &d, true);
+                let (ds, ls) = stencil.detail_and_low_pass_with(s, &p, &d, false);
+                assert_eq!(
+                    bits(&dw),
+                    bits(&ds),
+                    "detail, steps {steps}, {} terms",
+                    s.len()
+                );
+                assert_eq!(
+                    bits(&lw),
+                    bits(&ls),
+                    "low-pass, steps {steps}, {} terms",
+                    s.len()
+                );
+            }
+        }
     }
 
     /// The truncated series gives what Van Cittert's iteration adds, to 1e-12 of the extent, for whole and

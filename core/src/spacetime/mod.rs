@@ -15,6 +15,7 @@ pub mod restore;
 pub mod shape_projection;
 pub mod so3;
 pub mod stages;
+mod stencil_sweep;
 pub mod strain_limit;
 pub mod stretch;
 pub mod weights;

@@ -393,6 +393,12 @@ mod tests {
     /// An irregular sheet with a boundary: a grid of `nx` × `ny` vertices whose cells are split along either
     /// diagonal by a hash, heights from a few ripples, and one corner cell missing (a notch in the boundary).
     fn sheet(nx: usize, ny: usize) -> (Topology, Vec<V3>) {
+        sheet_with_diagonals(nx, ny, true)
+    }
+
+    /// A sheet whose quads are split along one diagonal everywhere (`mixed` false: interior vertices have six
+    /// neighbours, the sweep's unrolled case) or along either diagonal by a pattern (valences 4 to 8).
+    fn sheet_with_diagonals(nx: usize, ny: usize, mixed: bool) -> (Topology, Vec<V3>) {
         let mut p = Vec::new();
         for j in 0..ny {
             for i in 0..nx {
@@ -415,7 +421,7 @@ mod tests {
                 }
                 let a = (j * nx + i) as u32;
                 let (b, c, d) = (a + 1, a + nx as u32, a + nx as u32 + 1);
-                if (i * 31 + j * 17) % 3 == 0 {
+                if mixed && (i * 31 + j * 17) % 3 == 0 {
                     tris.extend([[a, b, c], [b, d, c]]);
                 } else {
                     tris.extend([[a, b, d], [a, d, c]]);
@@ -487,41 +493,48 @@ mod tests {
     }
 
     /// The AVX2 sweep gives the scalar sweep's bits: series shorter and longer than the filter's 80 steps,
-    /// no series, on a mesh with boundary vertices, interior vertices of six neighbours and of other counts,
-    /// and a vertex without neighbours. (Where the CPU lacks AVX2 both calls run the scalar sweep.)
+    /// no series, on two sheets with boundary vertices and a vertex without neighbours: one with interior
+    /// vertices of six neighbours (the unrolled case), one with valences from four to eight. (Where the CPU
+    /// lacks AVX2 both calls run the scalar sweep.)
     #[test]
     fn wide_sweeps_are_the_scalar_sweeps() {
-        let (topo, p) = sheet(37, 29);
-        let stencil = CaptureStencil::new(&topo);
-        let counts: Vec<usize> = (0..p.len())
-            .map(|v| stencil.filter.neighbors(v).len())
-            .collect();
-        for k in [0, 2] {
-            assert!(counts.contains(&k), "no vertex with {k} neighbours");
-        }
-        assert!(counts.iter().any(|&k| k > 6), "no vertex above six");
-        let d: Vec<V3> = p
-            .iter()
-            .map(|q| [(q[0] * 1.7).cos(), 0.3 * q[1].sin(), -0.2 * q[0]])
-            .collect();
-        let bits = |v: &[V3]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
-        for steps in [0.5, 1.0, 8.0, 20.0] {
-            let series = stencil.series(steps);
-            for s in [&series[..], &series[..1], &[]] {
-                let (dw, lw) = stencil.detail_and_low_pass_with(s, &p, &d, true);
-                let (ds, ls) = stencil.detail_and_low_pass_with(s, &p, &d, false);
-                assert_eq!(
-                    bits(&dw),
-                    bits(&ds),
-                    "detail, steps {steps}, {} terms",
-                    s.len()
-                );
-                assert_eq!(
-                    bits(&lw),
-                    bits(&ls),
-                    "low-pass, steps {steps}, {} terms",
-                    s.len()
-                );
+        for mixed in [true, false] {
+            let (topo, p) = sheet_with_diagonals(37, 29, mixed);
+            let stencil = CaptureStencil::new(&topo);
+            let counts: Vec<usize> = (0..p.len())
+                .map(|v| stencil.filter.neighbors(v).len())
+                .collect();
+            for k in [0, 2] {
+                assert!(counts.contains(&k), "no vertex with {k} neighbours");
+            }
+            if mixed {
+                assert!(counts.iter().any(|&k| k > 6), "no vertex above six");
+            } else {
+                assert!(counts.contains(&6), "no vertex with six neighbours");
+            }
+            let d: Vec<V3> = p
+                .iter()
+                .map(|q| [(q[0] * 1.7).cos(), 0.3 * q[1].sin(), -0.2 * q[0]])
+                .collect();
+            let bits = |v: &[V3]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+            for steps in [0.5, 1.0, 8.0, 20.0] {
+                let series = stencil.series(steps);
+                for s in [&series[..], &series[..1], &[]] {
+                    let (dw, lw) = stencil.detail_and_low_pass_with(s, &p, &d, true);
+                    let (ds, ls) = stencil.detail_and_low_pass_with(s, &p, &d, false);
+                    assert_eq!(
+                        bits(&dw),
+                        bits(&ds),
+                        "detail, mixed {mixed}, steps {steps}, {} terms",
+                        s.len()
+                    );
+                    assert_eq!(
+                        bits(&lw),
+                        bits(&ls),
+                        "low-pass, mixed {mixed}, steps {steps}, {} terms",
+                        s.len()
+                    );
+                }
             }
         }
     }

@@ -40,6 +40,9 @@ pub(crate) struct FrameTimings {
     pub symbolic: f64,
 }
 
+/// What one positioned frame hands back to the task: the storage keys it wrote and its last stretch figures.
+type FrameDone = (Vec<String>, Option<Value>);
+
 /// Positions `frames`.
 pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
     let mut lap = Lap::start();
@@ -89,7 +92,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     let all: Vec<usize> = frames.clone().collect();
     for chunk in all.chunks(batch) {
         env.check_cancelled()?;
-        let done: Vec<Result<(Vec<String>, Option<Value>), TaskError>> = chunk
+        let done: Vec<Result<FrameDone, TaskError>> = chunk
             .par_iter()
             .enumerate()
             .map(|(slot, &t)| {

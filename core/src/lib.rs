@@ -9,6 +9,7 @@
 pub mod error;
 pub mod eval;
 pub mod export;
+pub mod float_text;
 pub mod folds;
 pub mod fsutil;
 pub mod mesh;

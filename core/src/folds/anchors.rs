@@ -275,25 +275,38 @@ impl AnchorSet {
     /// The control lines as OBJ polylines (`v` + `l`), one `o frame_N` object per frame with lines, for viewing
     /// in any DCC tool. Frames without lines are left out.
     pub fn control_lines_obj(&self) -> String {
-        use std::fmt::Write as _;
-        let mut s = String::new();
+        // Floats as `Display` writes them (crate::float_text), into one buffer: tens of MB at paper scale.
+        let mut s: Vec<u8> = Vec::new();
         let mut next = 1usize;
         for t in 0..self.n_frames() {
             let lines = self.control_lines(t);
             if lines.is_empty() {
                 continue;
             }
-            let _ = writeln!(s, "o frame_{t}");
+            s.extend_from_slice(b"o frame_");
+            crate::float_text::push_u64(&mut s, t as u64);
+            s.push(b'\n');
             for line in lines {
                 for p in line {
-                    let _ = writeln!(s, "v {} {} {}", p[0], p[1], p[2]);
+                    s.push(b'v');
+                    for &c in p {
+                        s.push(b' ');
+                        crate::float_text::push_f64(&mut s, c);
+                    }
+                    s.push(b'\n');
                 }
-                let idx: Vec<String> = (next..next + line.len()).map(|i| i.to_string()).collect();
-                let _ = writeln!(s, "l {}", idx.join(" "));
+                s.extend_from_slice(b"l ");
+                for (k, i) in (next..next + line.len()).enumerate() {
+                    if k > 0 {
+                        s.push(b' ');
+                    }
+                    crate::float_text::push_u64(&mut s, i as u64);
+                }
+                s.push(b'\n');
                 next += line.len();
             }
         }
-        s
+        String::from_utf8(s).expect("control lines are ASCII")
     }
 
     /// Serialises the set (frames without anchors or lines are omitted).
@@ -318,6 +331,58 @@ impl AnchorSet {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The control-line OBJ as it was written with `write!` and `Display` before `crate::float_text`.
+    fn control_lines_obj_with_display(set: &AnchorSet) -> String {
+        use std::fmt::Write as _;
+        let mut s = String::new();
+        let mut next = 1usize;
+        for t in 0..set.n_frames() {
+            let lines = set.control_lines(t);
+            if lines.is_empty() {
+                continue;
+            }
+            let _ = writeln!(s, "o frame_{t}");
+            for line in lines {
+                for p in line {
+                    let _ = writeln!(s, "v {} {} {}", p[0], p[1], p[2]);
+                }
+                let idx: Vec<String> = (next..next + line.len()).map(|i| i.to_string()).collect();
+                let _ = writeln!(s, "l {}", idx.join(" "));
+                next += line.len();
+            }
+        }
+        s
+    }
+
+    #[test]
+    fn control_lines_obj_keeps_its_bytes() {
+        let frames: Vec<FrameAnchors> = (0..4)
+            .map(|f| FrameAnchors {
+                frame: f,
+                anchors: vec![],
+                control_lines: match f {
+                    1 => vec![],
+                    2 => vec![vec![], vec![[1e-17, -0.0, 12.0]]],
+                    _ => (0..3)
+                        .map(|l| {
+                            (0..l + 2)
+                                .map(|i| {
+                                    let x = (f * 31 + l * 7 + i) as f64;
+                                    [x.sin() * 1e3, 1.0 / (x + 1.0), -x * 1e-9]
+                                })
+                                .collect()
+                        })
+                        .collect(),
+                },
+                detection: None,
+            })
+            .collect();
+        let set = AnchorSet::from_frame_anchors(frames, 10, None).unwrap();
+        let obj = set.control_lines_obj();
+        assert!(obj.contains("o frame_3") && !obj.contains("o frame_1"));
+        assert_eq!(obj, control_lines_obj_with_display(&set));
+    }
 
     /// Fuzzing found an axis whose squared length overflows ([1, 2, 5.9e182]): it was divided by an infinite
     /// length and silently became [0, 0, 0], so the anchor asked for no rotation at all and the set no longer

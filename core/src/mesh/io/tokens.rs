@@ -165,20 +165,17 @@ pub(crate) fn strip_bom(bytes: &[u8]) -> &[u8] {
     bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes)
 }
 
-/// Shortest decimal text that parses back to exactly `v` (Rust's `Display` for floats), so written files are
-/// deterministic and lose nothing of the computed positions.
+/// Shortest decimal text that parses back to exactly `v` (Rust's `Display` for floats, written faster by
+/// [`crate::float_text`]), so written files are deterministic and lose nothing of the computed positions.
 #[inline]
 pub(crate) fn push_f64(out: &mut Vec<u8>, v: f64) {
-    use std::io::Write;
-    // Writing to a Vec cannot fail.
-    let _ = write!(out, "{v}");
+    crate::float_text::push_f64(out, v);
 }
 
 /// Like [`push_f64`] for a value stored as `f32`: the shortest text that reads back as the same `f32`.
 #[inline]
 pub(crate) fn push_f32(out: &mut Vec<u8>, v: f32) {
-    use std::io::Write;
-    let _ = write!(out, "{v}");
+    crate::float_text::push_f32(out, v);
 }
 
 #[cfg(test)]

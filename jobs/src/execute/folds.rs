@@ -178,14 +178,17 @@ pub fn files(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         r.end().map_err(bad)?;
         frames
     };
-    // Read as the weight tasks read it, which checks it against the input and gives the control lines.
-    let set = AnchorSet::from_binary(&bytes, path, n, n_tri).map_err(bad)?;
-    let total = set.total();
     drop(bytes);
-    lap.lap("fold-files: read anchors.bin (twice: as stored, as the weight tasks read it)");
+    lap.lap("fold-files: read anchors.bin");
     env.check_cancelled()?;
+    // anchors.json from the values as stored; then the same frames validated as the weight tasks read them
+    // (`AnchorSet::from_binary`: checked against the input, axes normalised), which gives the control lines,
+    // without parsing the bytes a second time.
     let json = anchors_json(&stored);
     lap.lap("fold-files: format anchors.json");
+    let set = AnchorSet::from_stored_frames(stored, path, n, n_tri).map_err(bad)?;
+    let total = set.total();
+    lap.lap("fold-files: validate the anchors");
     env.put(keys::ANCHORS, json)?;
     lap.lap("fold-files: write anchors.json");
     // In a subdirectory: an extra .obj beside the output frames would make the output unreadable as a sequence.

@@ -390,6 +390,17 @@ impl AnchorSet {
         let mut r = Reader::open(path, bytes, Kind::AnchorSet)?;
         let frames = read_frames(&mut r)?;
         r.end()?;
+        AnchorSet::from_stored_frames(frames, path, n_frames, n_triangles)
+    }
+
+    /// [`AnchorSet::from_binary`] of frames already read from the binary form (`read_frames`): the same checks
+    /// against the sequence, for a caller that also needs the values as stored.
+    pub fn from_stored_frames(
+        frames: Vec<FrameAnchors>,
+        path: &Path,
+        n_frames: usize,
+        n_triangles: usize,
+    ) -> Result<Self> {
         if frames.len() != n_frames {
             return Err(Error::Anchors {
                 path: Some(path.to_path_buf()),

@@ -15,33 +15,37 @@ use std::fmt::Display;
 /// Appends `v` as `format!("{v}")` would.
 #[inline]
 pub fn push_f64(out: &mut Vec<u8>, v: f64) {
-    if !v.is_finite() {
-        return push_display(out, v);
-    }
-    let mut buf = ryu::Buffer::new();
-    let text = buf.format_finite(v).as_bytes();
-    push_shortest(
-        out,
-        v,
-        text,
-        odd_mantissa(v.to_bits() & !(1 << 63), 52, 1075),
-    );
+    push_float(out, v, v.is_finite(), || {
+        odd_mantissa(v.to_bits() & !(1 << 63), 52, 1075)
+    });
 }
 
 /// Appends `v` as `format!("{v}")` would (the shortest text that reads back as the same `f32`).
 #[inline]
 pub fn push_f32(out: &mut Vec<u8>, v: f32) {
-    if !v.is_finite() {
+    push_float(out, v, v.is_finite(), || {
+        odd_mantissa(u64::from(v.to_bits() & !(1 << 31)), 23, 150)
+    });
+}
+
+/// Ryū's digits of `v` in `Display`'s layout, or `Display` itself where they may differ (non-finite values,
+/// midpoints); `odd` gives `|v| = m · 2^e`, m odd ([`odd_mantissa`]).
+#[inline]
+fn push_float<F: ryu::Float + Display>(
+    out: &mut Vec<u8>,
+    v: F,
+    finite: bool,
+    odd: impl FnOnce() -> Option<(u64, i32)>,
+) {
+    if !finite {
         return push_display(out, v);
     }
     let mut buf = ryu::Buffer::new();
-    let text = buf.format_finite(v).as_bytes();
-    push_shortest(
-        out,
-        v,
-        text,
-        odd_mantissa(u64::from(v.to_bits() & !(1 << 31)), 23, 150),
-    );
+    let decimal = Decimal::parse(buf.format_finite(v).as_bytes());
+    if is_tie(&decimal, odd()) {
+        return push_display(out, v);
+    }
+    decimal.push(out);
 }
 
 /// Appends the decimal digits of `v` (what `{}` writes for an unsigned integer).
@@ -156,15 +160,6 @@ fn parse_exponent(s: &[u8]) -> i32 {
     sign * s
         .iter()
         .fold(0i32, |e, &c| e * 10 + i32::from(c.wrapping_sub(b'0')))
-}
-
-/// Ryū's `text` of the finite `v` in `Display`'s layout, or `Display` itself where the digits may differ.
-fn push_shortest(out: &mut Vec<u8>, v: impl Display, text: &[u8], odd: Option<(u64, i32)>) {
-    let decimal = Decimal::parse(text);
-    if is_tie(&decimal, odd) {
-        return push_display(out, v);
-    }
-    decimal.push(out);
 }
 
 /// `|v| = m · 2^e` with `m` odd, from the magnitude's bits (`None` for zero): `frac_bits` stored mantissa bits,

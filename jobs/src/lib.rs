@@ -32,7 +32,7 @@
 //!
 //! [partition]
 //! anchor_block = 256                       # anchor columns per weight task (per-anchor mode)
-//! frames_per_chunk = 4                     # frames per positioning task
+//! frames_per_chunk = 4                     # at most this many frames per positioning task
 //! fold_frames_per_chunk = 8                # frames per fold-detection task (per-frame detectors)
 //! stretch_frames_per_chunk = 0             # frames per stretch tracing task (0: from the mesh size)
 //! stretch_warm_up = 3                      # frames a stretch tracing task traces ahead (same output)

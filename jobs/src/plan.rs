@@ -175,6 +175,33 @@ pub fn chunk_ranges(n: usize, size: usize) -> Vec<std::ops::Range<usize>> {
         .collect()
 }
 
+/// The positioning chunks: `[0, n)` cut where the last window a frame needs changes, then into ranges of at
+/// most `size` frames.
+///
+/// Why at the windows' release points: a frame can be positioned once the last window covering it is solved
+/// (the in-process deformation positions exactly those frames beside the next window's solve). A chunk that
+/// straddled a release point waited for the later window with all its frames, so with 10-frame windows shifted
+/// by 7 and 4-frame chunks the per-anchor job ended with 8 frames to position after its last window instead
+/// of 6, one core idle during the tail. The frames of each chunk are positioned independently, so any cut
+/// gives the same outputs.
+pub fn position_chunks(n: usize, windows: &[Window], size: usize) -> Vec<std::ops::Range<usize>> {
+    // Frame t's last window: the last one starting at or before t (windows are in frame order).
+    let last_window = |t: usize| windows.iter().rposition(|w| w.start <= t);
+    let mut out = Vec::new();
+    let mut start = 0;
+    for t in 1..=n {
+        if t == n || last_window(t) != last_window(start) {
+            out.extend(
+                chunk_ranges(t - start, size)
+                    .into_iter()
+                    .map(|r| r.start + start..r.end + start),
+            );
+            start = t;
+        }
+    }
+    out
+}
+
 /// Windows of a job over `n` frames.
 pub fn job_windows(job: &JobSpec, n: usize) -> Vec<Window> {
     let p = job.params();
@@ -264,7 +291,7 @@ fn deformation_tasks(
     let mut after_window: Vec<Vec<TaskDef>> = vec![Vec::new(); windows.len()];
     let mut unplaced = Vec::new();
     let mut position_keys = Vec::new();
-    for r in chunk_ranges(n, job.partition.frames_per_chunk) {
+    for r in position_chunks(n, &windows, job.partition.frames_per_chunk) {
         let key = keys::position_task(r.start);
         let mut deps = extra_deps.to_vec();
         let mut last = None;

@@ -145,7 +145,8 @@ impl FoldSpec {
 pub struct Partition {
     /// Anchor columns per weight block in per-anchor mode (overrides `deform.anchor_block` when set).
     pub anchor_block: usize,
-    /// Frames per positioning task.
+    /// Frames per positioning task (at most: chunks also end where a window releases its frames, see
+    /// [`crate::plan::position_chunks`]).
     pub frames_per_chunk: usize,
     /// Frames per fold-detection task (per-frame detectors only).
     pub fold_frames_per_chunk: usize,

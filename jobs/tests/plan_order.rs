@@ -129,3 +129,42 @@ fn detected_folds_files_after_the_first_weight_task_and_plot_after_the_merge() {
     assert_topological(&tasks);
     assert_positions_interleaved(&tasks);
 }
+
+/// Positioning chunks end where a window releases its frames: each chunk holds at most `size` frames, all
+/// needing the same last window, so a chunk never waits for a window some of its frames do not need.
+#[test]
+fn positioning_chunks_end_at_the_windows_release_points() {
+    use crease_core::spacetime::windows::plan_windows;
+    use crease_jobs::plan::position_chunks;
+    let w = plan_windows(20, 10, 7);
+    let got = position_chunks(20, &w, 4);
+    assert_eq!(got, [0..4, 4..7, 7..11, 11..14, 14..18, 18..20]);
+    for (n, window, shift, size) in [
+        (1, 10, 7, 4),
+        (12, 6, 4, 4),
+        (14, 4, 3, 2),
+        (31, 10, 7, 5),
+        (9, 3, 3, 1),
+    ] {
+        let windows = plan_windows(n, window, shift);
+        let last = |t: usize| windows.iter().rposition(|w| w.start <= t).unwrap();
+        let chunks = position_chunks(n, &windows, size);
+        let frames: Vec<usize> = chunks.iter().flat_map(|r| r.clone()).collect();
+        assert_eq!(
+            frames,
+            (0..n).collect::<Vec<_>>(),
+            "every frame once, in order"
+        );
+        for r in &chunks {
+            assert!(!r.is_empty() && r.len() <= size, "{r:?}");
+            assert!(
+                r.clone().all(|t| last(t) == last(r.start)),
+                "{r:?} straddles a release point"
+            );
+        }
+        // Never more chunks than cutting each window's released frames alone would make.
+        let released = |k: usize| (0..n).filter(|&t| last(t) == k).count();
+        let bound: usize = (0..windows.len()).map(|k| released(k).div_ceil(size)).sum();
+        assert_eq!(chunks.len(), bound);
+    }
+}

@@ -26,7 +26,7 @@ use crate::mesh::NONE;
 use rayon::prelude::*;
 use std::collections::HashMap;
 
-type V3f = [f32; 3];
+pub(super) type V3f = [f32; 3];
 
 /// Below this relative tolerance the f32 iterates cannot be trusted to reach it (the residual of an f32-rounded
 /// solution is about 10⁻⁶ relative for this operator's condition number), so the solve runs the f64 reference
@@ -35,21 +35,21 @@ pub const F32_MIN_TOLERANCE: f64 = 1e-4;
 
 /// The window operator reduced to what the stencil needs: per-node diagonal class, the class tables, and the
 /// mesh adjacency (borrowed from the operator).
-struct LeanOperator<'a> {
-    tri_adj: &'a [[u32; 3]],
-    n_tri: usize,
-    n_frames: usize,
-    c_s: f64,
-    c_t: f64,
-    class: Vec<u8>,
-    diag: Vec<f64>,
-    inv_diag: Vec<f64>,
+pub(super) struct LeanOperator<'a> {
+    pub(super) tri_adj: &'a [[u32; 3]],
+    pub(super) n_tri: usize,
+    pub(super) n_frames: usize,
+    pub(super) c_s: f64,
+    pub(super) c_t: f64,
+    pub(super) class: Vec<u8>,
+    pub(super) diag: Vec<f64>,
+    pub(super) inv_diag: Vec<f64>,
 }
 
 impl<'a> LeanOperator<'a> {
     /// None when the diagonal has more distinct values than a byte can index (it cannot with the operator's
     /// own construction, but the caller then falls back to the reference solver rather than assume it).
-    fn new(op: &SpaceTimeOperator<'a>) -> Option<Self> {
+    pub(super) fn new(op: &SpaceTimeOperator<'a>) -> Option<Self> {
         let mut index: HashMap<u64, u8> = HashMap::new();
         let mut diag = Vec::new();
         let mut class = Vec::with_capacity(op.n_nodes());
@@ -78,18 +78,18 @@ impl<'a> LeanOperator<'a> {
         })
     }
 
-    fn n_nodes(&self) -> usize {
+    pub(super) fn n_nodes(&self) -> usize {
         self.class.len()
     }
 
     /// (frame, triangle) of the first node of a chunk; callers step it with [`Self::next`] instead of dividing
     /// per node (an integer division per node costs as much as the rest of the stencil).
-    fn locate(&self, n: usize) -> (usize, usize) {
+    pub(super) fn locate(&self, n: usize) -> (usize, usize) {
         (n / self.n_tri, n % self.n_tri)
     }
 
     #[inline(always)]
-    fn next(&self, (lt, i): (usize, usize)) -> (usize, usize) {
+    pub(super) fn next(&self, (lt, i): (usize, usize)) -> (usize, usize) {
         if i + 1 == self.n_tri {
             (lt + 1, 0)
         } else {
@@ -99,7 +99,7 @@ impl<'a> LeanOperator<'a> {
 
     /// (M v)[n] in f64 from f32 storage; n = lt · n_tri + i.
     #[inline(always)]
-    fn row(&self, v: &[V3f], n: usize, (lt, i): (usize, usize)) -> [f64; 3] {
+    pub(super) fn row(&self, v: &[V3f], n: usize, (lt, i): (usize, usize)) -> [f64; 3] {
         let base = n - i;
         let d = self.diag[self.class[n] as usize];
         let vn = v[n];
@@ -132,30 +132,73 @@ impl<'a> LeanOperator<'a> {
 }
 
 /// Sums per-chunk partial results in chunk order (deterministic for any thread count).
-fn in_order(parts: Vec<[f64; 2]>) -> [f64; 2] {
+pub(super) fn in_order(parts: Vec<[f64; 2]>) -> [f64; 2] {
     parts
         .iter()
         .fold([0.0; 2], |a, b| [a[0] + b[0], a[1] + b[1]])
 }
 
 #[inline(always)]
-fn to32(v: [f64; 3]) -> V3f {
+pub(super) fn to32(v: [f64; 3]) -> V3f {
     [v[0] as f32, v[1] as f32, v[2] as f32]
 }
 
 #[inline(always)]
-fn to64(v: V3f) -> [f64; 3] {
+pub(super) fn to64(v: V3f) -> [f64; 3] {
     [v[0] as f64, v[1] as f64, v[2] as f64]
 }
 
-/// Solves M X = B (rows × 3) to ‖B − M X‖_F ≤ tol ‖B‖_F, measured in f64 on the returned X; same algorithm,
-/// stopping rule and error messages as [`super::fused::solve3`] (block CG on M ⊗ I₃, Jacobi preconditioner),
-/// which it hands over to when `tol` is below [`F32_MIN_TOLERANCE`].
+/// The preconditioner of the lean block CG.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Preconditioner {
+    /// D⁻¹: the default. About 17 iterations on a paper-scale window, each the cheapest there is.
+    Jacobi,
+    /// Symmetric Gauss–Seidel inside each fixed [`CHUNK`]-node chunk, block Jacobi across chunks
+    /// ([`super::chunk_sgs`]): 9 iterations instead of 17 on the 100K window, but each costs about twice a
+    /// Jacobi iteration, so it measured no faster (docs/benchmarks.md, "issue14-sgs"); opt-in.
+    ChunkSgs,
+}
+
+impl Preconditioner {
+    /// Jacobi, or chunk SGS with `CREASE_WEIGHT_PRECOND=sgs`. SGS changes the result within the tolerance, so
+    /// in a cluster every worker must see the same value (as with every other solver setting).
+    pub fn from_env() -> Self {
+        match std::env::var("CREASE_WEIGHT_PRECOND") {
+            Ok(v) if v.trim().eq_ignore_ascii_case("sgs") => Preconditioner::ChunkSgs,
+            _ => Preconditioner::Jacobi,
+        }
+    }
+}
+
+/// The error both preconditioned kernels return when `max_iter` iterations do not reach `tol`.
+pub(super) fn no_convergence(tol: f64, max_iter: usize, reached: f64) -> Error {
+    Error::numeric(
+        "weights (fused CG)",
+        format!(
+            "did not reach relative residual {tol:e} in {max_iter} iterations (at {reached:.3e}); raise --cg-max-iter (cg_max_iter in a job spec) or --cg-tol"
+        ),
+    )
+}
+
+/// [`solve3_lean_with`] with the preconditioner chosen by [`Preconditioner::from_env`].
 pub fn solve3_lean(
     op: &SpaceTimeOperator,
     b: &[[f64; 3]],
     tol: f64,
     max_iter: usize,
+) -> Result<(Vec<[f64; 3]>, CgStats)> {
+    solve3_lean_with(op, b, tol, max_iter, Preconditioner::from_env())
+}
+
+/// Solves M X = B (rows × 3) to ‖B − M X‖_F ≤ tol ‖B‖_F, measured in f64 on the returned X; same stopping
+/// rule and error messages as [`super::fused::solve3`] (block CG on M ⊗ I₃), which it hands over to when `tol`
+/// is below [`F32_MIN_TOLERANCE`]. With [`Preconditioner::Jacobi`] it is also the same algorithm.
+pub fn solve3_lean_with(
+    op: &SpaceTimeOperator,
+    b: &[[f64; 3]],
+    tol: f64,
+    max_iter: usize,
+    precond: Preconditioner,
 ) -> Result<(Vec<[f64; 3]>, CgStats)> {
     if b.len() != op.n_nodes() {
         return Err(Error::param(
@@ -189,6 +232,9 @@ pub fn solve3_lean(
     let bnorm = bnorm2.sqrt();
     if bnorm == 0.0 {
         return Ok((vec![[0.0; 3]; n], stats));
+    }
+    if precond == Preconditioner::ChunkSgs {
+        return super::chunk_sgs::solve(&lean, b, bnorm, tol, max_iter);
     }
     let mut x: Vec<V3f> = vec![[0.0; 3]; n];
     let mut r: Vec<V3f> = b.par_iter().map(|&v| to32(v)).collect();
@@ -303,17 +349,11 @@ pub fn solve3_lean(
                 }
             });
     }
-    Err(Error::numeric(
-        "weights (fused CG)",
-        format!(
-            "did not reach relative residual {tol:e} in {max_iter} iterations (at {:.3e}); raise --cg-max-iter (cg_max_iter in a job spec) or --cg-tol",
-            stats.relative_residual
-        ),
-    ))
+    Err(no_convergence(tol, max_iter, stats.relative_residual))
 }
 
 /// ‖B − M X‖_F in f64.
-fn true_residual(lean: &LeanOperator, x: &[V3f], b: &[[f64; 3]]) -> f64 {
+pub(super) fn true_residual(lean: &LeanOperator, x: &[V3f], b: &[[f64; 3]]) -> f64 {
     in_order(
         b.par_chunks(CHUNK)
             .enumerate()
@@ -374,7 +414,8 @@ mod tests {
         let b = problem.fused_rhs();
         for tol in [1e-3, 1e-4] {
             let (xr, sr) = solve3(&problem.op, &b, tol, 1000).unwrap();
-            let (xl, sl) = solve3_lean(&problem.op, &b, tol, 1000).unwrap();
+            let (xl, sl) =
+                solve3_lean_with(&problem.op, &b, tol, 1000, Preconditioner::Jacobi).unwrap();
             let res = residual(&problem.op, &xl, &b);
             assert!(res <= tol, "tol {tol:e}: true residual {res:e}");
             assert!((res - sl.relative_residual).abs() < 1e-9 * tol.max(res));
@@ -411,11 +452,17 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| solve3_lean(&problem.op, &b, 1e-3, 1000).unwrap().0)
+                .install(|| {
+                    [Preconditioner::Jacobi, Preconditioner::ChunkSgs]
+                        .map(|pc| solve3_lean_with(&problem.op, &b, 1e-3, 1000, pc).unwrap().0)
+                })
         };
-        let bits =
-            |x: Vec<[f64; 3]>| -> Vec<u64> { x.iter().flat_map(|v| v.map(f64::to_bits)).collect() };
-        assert_eq!(bits(run(1)), bits(run(3)));
+        let bits = |x: &[Vec<[f64; 3]>; 2]| -> Vec<u64> {
+            x.iter()
+                .flat_map(|x| x.iter().flat_map(|v| v.map(f64::to_bits)))
+                .collect()
+        };
+        assert_eq!(bits(&run(1)), bits(&run(3)));
     }
 
     #[test]

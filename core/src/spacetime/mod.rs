@@ -2,6 +2,7 @@
 //! positioning, stretch reduction, and the streaming driver that runs them window by window.
 
 pub mod blend;
+mod chunk_sgs;
 pub mod deconvolve;
 pub mod deform;
 pub mod factor_solve;

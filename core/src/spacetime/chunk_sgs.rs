@@ -232,38 +232,11 @@ pub(super) fn solve(
 mod tests {
     use super::*;
     use crate::spacetime::fused::solve3;
+    use crate::spacetime::lean_cg::tests::{problem_input, residual};
     use crate::spacetime::lean_cg::{solve3_lean_with, Preconditioner};
-    use crate::spacetime::operator::{Coefficients, SpaceTimeOperator};
+    use crate::spacetime::operator::Coefficients;
     use crate::spacetime::weights::WindowProblem;
     use crate::spacetime::windows::Window;
-    use crate::synth::{self, DemoSpec};
-
-    fn problem_input(
-        triangles: usize,
-        frames: usize,
-    ) -> (crate::mesh::Sequence, crate::folds::AnchorSet) {
-        let (seq, _) = synth::demo(&DemoSpec {
-            triangles,
-            frames,
-            ..Default::default()
-        })
-        .unwrap();
-        let anchors = synth::random_anchors(&seq.topology, &seq.frames, 150, 3).unwrap();
-        (seq, anchors)
-    }
-
-    fn residual(op: &SpaceTimeOperator, x: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
-        let mut q = vec![[0.0; 3]; x.len()];
-        op.apply3(x, &mut q);
-        let (mut num, mut den) = (0.0, 0.0);
-        for (qq, bb) in q.iter().zip(b) {
-            for k in 0..3 {
-                num += (qq[k] - bb[k]).powi(2);
-                den += bb[k] * bb[k];
-            }
-        }
-        (num / den).sqrt()
-    }
 
     /// P z = r with P = (D + L) D⁻¹ (D + U) on each chunk, built independently of the sweeps from the
     /// operator's own neighbour list: checks that the sweeps apply exactly the intended (symmetric)

@@ -374,7 +374,7 @@ pub(super) fn true_residual(lean: &LeanOperator, x: &[V3f], b: &[[f64; 3]]) -> f
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::spacetime::fused::solve3;
     use crate::spacetime::operator::Coefficients;
@@ -382,10 +382,15 @@ mod tests {
     use crate::spacetime::windows::Window;
     use crate::synth::{self, DemoSpec};
 
-    fn problem_input() -> (crate::mesh::Sequence, crate::folds::AnchorSet) {
+    /// A synthetic garment and 150 random anchors per frame: the weight solvers' test problem, shared with
+    /// `chunk_sgs`'s tests.
+    pub(in crate::spacetime) fn problem_input(
+        triangles: usize,
+        frames: usize,
+    ) -> (crate::mesh::Sequence, crate::folds::AnchorSet) {
         let (seq, _) = synth::demo(&DemoSpec {
-            triangles: 6000,
-            frames: 10,
+            triangles,
+            frames,
             ..Default::default()
         })
         .unwrap();
@@ -393,7 +398,12 @@ mod tests {
         (seq, anchors)
     }
 
-    fn residual(op: &SpaceTimeOperator, x: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
+    /// ‖M x − b‖ / ‖b‖ over all three columns, with the operator's own f64 product.
+    pub(in crate::spacetime) fn residual(
+        op: &SpaceTimeOperator,
+        x: &[[f64; 3]],
+        b: &[[f64; 3]],
+    ) -> f64 {
         let mut q = vec![[0.0; 3]; x.len()];
         op.apply3(x, &mut q);
         let (mut num, mut den) = (0.0, 0.0);
@@ -408,7 +418,7 @@ mod tests {
 
     #[test]
     fn agrees_with_the_f64_reference_within_the_tolerance() {
-        let (seq, anchors) = problem_input();
+        let (seq, anchors) = problem_input(6000, 10);
         let window = Window { start: 0, len: 10 };
         let problem = WindowProblem::new(&seq.topology, &anchors, window, Coefficients::default());
         let b = problem.fused_rhs();
@@ -443,7 +453,7 @@ mod tests {
 
     #[test]
     fn results_do_not_depend_on_the_thread_count() {
-        let (seq, anchors) = problem_input();
+        let (seq, anchors) = problem_input(6000, 10);
         let window = Window { start: 0, len: 10 };
         let problem = WindowProblem::new(&seq.topology, &anchors, window, Coefficients::default());
         let b = problem.fused_rhs();
@@ -467,7 +477,7 @@ mod tests {
 
     #[test]
     fn tight_tolerances_use_the_f64_solver_and_bad_input_is_named() {
-        let (seq, anchors) = problem_input();
+        let (seq, anchors) = problem_input(6000, 10);
         let window = Window { start: 2, len: 6 };
         let problem = WindowProblem::new(&seq.topology, &anchors, window, Coefficients::default());
         let b = problem.fused_rhs();

@@ -238,6 +238,18 @@ mod tests {
     use crate::spacetime::weights::WindowProblem;
     use crate::spacetime::windows::Window;
 
+    /// The weight problem over every frame of `seq`, with the default coefficients.
+    fn whole_window<'a>(
+        seq: &'a crate::mesh::Sequence,
+        anchors: &crate::folds::AnchorSet,
+    ) -> WindowProblem<'a> {
+        let window = Window {
+            start: 0,
+            len: seq.frames.len(),
+        };
+        WindowProblem::new(&seq.topology, anchors, window, Coefficients::default())
+    }
+
     /// P z = r with P = (D + L) D⁻¹ (D + U) on each chunk, built independently of the sweeps from the
     /// operator's own neighbour list: checks that the sweeps apply exactly the intended (symmetric)
     /// preconditioner, on a mesh whose frames fit in a chunk (time couplings inside chunks) and one whose
@@ -246,12 +258,7 @@ mod tests {
     fn sweeps_invert_the_chunk_sgs_matrix() {
         for (triangles, frames) in [(3000, 6), (12000, 3)] {
             let (seq, anchors) = problem_input(triangles, frames);
-            let window = Window {
-                start: 0,
-                len: frames,
-            };
-            let problem =
-                WindowProblem::new(&seq.topology, &anchors, window, Coefficients::default());
+            let problem = whole_window(&seq, &anchors);
             let op = &problem.op;
             let lean = LeanOperator::new(op).unwrap();
             let n = op.n_nodes();
@@ -321,12 +328,7 @@ mod tests {
     fn reaches_the_tolerance_in_fewer_iterations_than_jacobi() {
         for (triangles, frames) in [(6000, 10), (12000, 4)] {
             let (seq, anchors) = problem_input(triangles, frames);
-            let window = Window {
-                start: 0,
-                len: frames,
-            };
-            let problem =
-                WindowProblem::new(&seq.topology, &anchors, window, Coefficients::default());
+            let problem = whole_window(&seq, &anchors);
             let b = problem.fused_rhs();
             for tol in [1e-3, 1e-4] {
                 let (xr, _) = solve3(&problem.op, &b, 1e-9, 10_000).unwrap();

@@ -97,8 +97,7 @@ pub fn deform(
         ..Default::default()
     };
     let t0 = Instant::now();
-    let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?
-        .with_operator_block(params.operator_block);
+    let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?;
     timings.symbolic = t0.elapsed().as_secs_f64();
     // The strain limit's reference lengths need every captured frame: read once (a few frames at a time) before
     // any frame is positioned. Without anchors no frame moves and the limit never applies: no reading pass.

@@ -17,7 +17,6 @@ use super::lean_cg;
 use super::params::DeformParams;
 use super::per_anchor::{self, BlockWorkspace, PartialBlend};
 use super::position::PositionSystem;
-use super::shape_projection::ProjectionOrder;
 use super::weights::WindowProblem;
 use super::windows::{crossfade_weight, Window};
 use crate::error::{Error, Result};
@@ -177,15 +176,13 @@ pub fn position_frame(
     let read = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let fp = system
-        .factor_frame_at(&rest, t, |r| source.read_frame(r))
-        .map_err(|e| match e {
-            Error::Numeric { stage, msg } => Error::numeric(
-                stage,
-                format!("frame {t} ({}): {msg}", source.describe_frame(t)),
-            ),
-            e => e.at(None, Some(t)),
-        })?;
+    let fp = system.factor_frame(&rest).map_err(|e| match e {
+        Error::Numeric { stage, msg } => Error::numeric(
+            stage,
+            format!("frame {t} ({}): {msg}", source.describe_frame(t)),
+        ),
+        e => e.at(None, Some(t)),
+    })?;
     let factor = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
@@ -232,28 +229,7 @@ pub fn position_frame(
         let clock = Instant::now();
         let last = k + 1 == passes;
         if moved {
-            // Before the last pass, the orders other than `Last` project once more (docs/fidelity.md).
-            let projected = (restoring && last && restore.projection > 0.0)
-                .then(|| match restore.order {
-                    ProjectionOrder::Last => None,
-                    order => Some((
-                        order,
-                        super::shape_projection::project(
-                            system.restore_mesh().capture_filter(),
-                            &rest,
-                            &out,
-                            restore.projection,
-                        ),
-                    )),
-                })
-                .flatten();
-            out = match projected {
-                Some((ProjectionOrder::ScreenToProjected, p)) => {
-                    super::stretch::pass_toward(&fp, &out, rotation, &rotations, &p)
-                }
-                Some((_, p)) => super::stretch::pass(&fp, &p, rotation, &rotations),
-                None => super::stretch::pass(&fp, &out, rotation, &rotations),
-            };
+            out = super::stretch::pass(&fp, &out, rotation, &rotations);
         }
         if restoring && last {
             out = restore.finish(system.topology(), system.restore_mesh(), &rest, &out);

@@ -25,7 +25,7 @@ pub mod trace;
 pub mod unfold;
 mod wide_sweep;
 
-pub use params::{Flattening, StretchParams};
+pub use params::StretchParams;
 pub use trace::{FrameFolds, TracedFold};
 
 use super::{Artifact, FoldDetector, FrameAnchors, Granularity};

@@ -137,6 +137,7 @@ pub mod storage;
 pub mod storage_errors;
 pub mod stretch_tasks;
 pub mod task;
+pub mod tuning;
 
 pub use confine::StorageRoots;
 pub use error::{JobError, TaskError};

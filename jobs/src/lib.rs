@@ -129,6 +129,7 @@ pub mod inspect;
 pub mod keys;
 pub mod limits;
 pub mod plan;
+pub mod report;
 pub mod s3;
 pub mod settle_tasks;
 pub mod spec;

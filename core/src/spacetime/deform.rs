@@ -19,12 +19,12 @@ use crate::mesh::{Frame, FrameSink, FrameSource};
 use crate::metrics::{StretchAccumulator, StretchStats};
 use crate::progress::Progress;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// Seconds spent per stage, summed over all frames and windows (work time: with frames positioned in parallel
 /// the wall time is lower; see `wall`).
-#[derive(Debug, Clone, Default, Serialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub struct StageTimings {
     pub symbolic: f64,
     pub read: f64,
@@ -45,7 +45,7 @@ pub struct StageTimings {
 }
 
 /// What a deformation did and measured.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct DeformReport {
     pub params: DeformParams,
     pub frames: usize,

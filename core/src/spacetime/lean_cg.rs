@@ -175,7 +175,7 @@ pub(super) fn no_convergence(tol: f64, max_iter: usize, reached: f64) -> Error {
     Error::numeric(
         "weights (fused CG)",
         format!(
-            "did not reach relative residual {tol:e} in {max_iter} iterations (at {reached:.3e}); raise --cg-max-iter (cg_max_iter in a job spec) or --cg-tol"
+            "did not reach relative residual {tol:e} in {max_iter} iterations (at {reached:.3e}); raise the tuning key deform.cg_max_iterations or deform.cg_tolerance"
         ),
     )
 }

@@ -100,11 +100,10 @@ impl Kind {
     pub fn parse(&self, text: &str) -> Result<Value, String> {
         let t = text.trim();
         let num = |s: &str| -> Result<Value, String> {
-            let x: f64 = s
-                .trim()
-                .parse()
-                .map_err(|_| format!("`{s}` is not a number"))?;
-            Ok(Value::from(x))
+            match s.trim().parse::<f64>() {
+                Ok(x) if x.is_finite() => Ok(Value::from(x)),
+                _ => Err(format!("`{s}` is not a finite number")),
+            }
         };
         let whole = |s: &str| -> Result<Value, String> {
             s.trim()
@@ -240,7 +239,8 @@ mod tests {
         // A TOML integer is a number.
         assert_eq!(k.check(&json!(0)).unwrap(), json!(0.0));
         assert!(k.parse("1").unwrap_err().contains("in [0, 1)"));
-        assert!(k.parse("nan").is_err() && k.parse("x").unwrap_err().contains("`x`"));
+        assert!(k.parse("nan").unwrap_err().contains("`nan` is not a finite number"));
+        assert!(k.parse("x").unwrap_err().contains("`x`"));
         let c = Kind::Count { lo: 1, hi: 20 };
         assert_eq!(c.parse("3").unwrap(), json!(3));
         assert!(c.check(&json!(3.0)).unwrap_err().contains("whole number"));

@@ -65,9 +65,9 @@ pub fn page() -> String {
             s.push_str(&format!(
                 "| `{}` | {} | {} | {} |\n",
                 k.key,
-                k.kind.describe(),
-                default_text(k),
-                k.meaning
+                cell(&k.kind.describe()),
+                cell(&default_text(k)),
+                cell(k.meaning)
             ));
         }
     }
@@ -94,6 +94,11 @@ pub fn listing(prefix: &str) -> String {
         ));
     }
     s
+}
+
+/// Text for a table cell: a `|` (as in |v|) would end the cell.
+fn cell(text: &str) -> String {
+    text.replace('|', "\\|")
 }
 
 fn default_text(k: &Knob) -> String {

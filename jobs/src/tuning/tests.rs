@@ -29,11 +29,6 @@ fn the_registry_describes_the_spec() {
             "{}",
             k.key
         );
-        assert!(
-            !k.meaning.contains('|') && !k.kind.describe().contains('|'),
-            "{}: `|` breaks the table",
-            k.key
-        );
         let d = k.default_value();
         assert_eq!(
             k.kind.check(&d).as_ref(),
@@ -245,13 +240,18 @@ fn removed_fields_say_why() {
     }
 }
 
-/// docs/tuning.md is the registry's page.
+/// docs/tuning.md is the registry's page, and every row of its tables has its four cells.
 #[test]
 fn the_tuning_page_is_the_registry() {
+    let generated = markdown::page();
+    for row in generated.lines().filter(|l| l.starts_with("| `")) {
+        let cells = row.replace("\\|", "").matches('|').count();
+        assert!(cells == 5 || cells == 3, "a `|` breaks the row: {row}");
+    }
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/tuning.md");
     let page = std::fs::read_to_string(path).unwrap_or_default();
     assert!(
-        page == markdown::page(),
+        page == generated,
         "docs/tuning.md differs from the registry: regenerate it with `crease tuning --markdown > docs/tuning.md`"
     );
 }

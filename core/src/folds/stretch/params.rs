@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 pub struct StretchParams {
     /// θ0 of eq. 4.2, degrees: the largest change of the dominant direction between consecutive steps that
     /// still counts as the same phase. Must lie in (0, 90).
-    #[serde(alias = "theta0_deg")]
+    #[serde(alias = "theta0")]
     pub theta0_deg: f64,
     /// A step whose absolute change |v| (eq. 4.1) is below `1 + isometry` is isometric: it neither starts nor
     /// breaks a phase (folds holding their shape for a frame or two, §4.3).

@@ -496,6 +496,6 @@ pub(super) mod tests {
         let e = solve3_lean(&problem.op, &b[1..], 1e-3, 1000).unwrap_err();
         assert!(e.to_string().contains("right-hand side"), "{e}");
         let e = solve3_lean(&problem.op, &b, 1e-3, 2).unwrap_err();
-        assert!(e.to_string().contains("cg-max-iter"), "{e}");
+        assert!(e.to_string().contains("deform.cg_max_iterations"), "{e}");
     }
 }

@@ -41,8 +41,12 @@
 //! [preview]
 //! frames = [5, 20]                         # default: four spread over the sequence
 //! size = 384
+//!
+//! [tuning]                                 # any tuning key (docs/tuning.md, `crease tuning`), set over
+//! deform.strain_limit = 0.03               # the tables above: the same keys `crease run --set` takes
 //! "#).unwrap();
 //! assert_eq!(job.params().anchor_block, 256);
+//! assert_eq!(job.deform.strain_limit, 0.03);
 //! ```
 //!
 //! Errors name the field: `job spec: \`partition.anchor_block\`: …`, `input /data/x: …`.

@@ -239,7 +239,10 @@ mod tests {
         // A TOML integer is a number.
         assert_eq!(k.check(&json!(0)).unwrap(), json!(0.0));
         assert!(k.parse("1").unwrap_err().contains("in [0, 1)"));
-        assert!(k.parse("nan").unwrap_err().contains("`nan` is not a finite number"));
+        assert!(k
+            .parse("nan")
+            .unwrap_err()
+            .contains("`nan` is not a finite number"));
         assert!(k.parse("x").unwrap_err().contains("`x`"));
         let c = Kind::Count { lo: 1, hi: 20 };
         assert_eq!(c.parse("3").unwrap(), json!(3));

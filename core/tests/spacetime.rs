@@ -3,14 +3,11 @@
 use crease_core::folds::{Anchor, AnchorSet};
 use crease_core::mesh::{MemorySink, Sequence};
 use crease_core::progress::NoProgress;
-use crease_core::spacetime::blend::CrossFade;
 use crease_core::spacetime::operator::SpaceTimeOperator;
 use crease_core::spacetime::per_anchor::LocalCg;
-use crease_core::spacetime::position::PositionSystem;
-use crease_core::spacetime::stages::position_frame;
 use crease_core::spacetime::stretch::StretchRotation;
 use crease_core::spacetime::weights::{solve_window, WindowProblem};
-use crease_core::spacetime::windows::{plan_windows, Window};
+use crease_core::spacetime::windows::Window;
 use crease_core::spacetime::{deform, so3, Coefficients, DeformParams, WeightMode};
 use crease_core::synth::{self, DemoSpec};
 use crease_core::vec3;

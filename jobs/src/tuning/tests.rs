@@ -129,7 +129,7 @@ fn set_and_the_tuning_table_give_the_same_spec() {
         other => panic!("{other:?}"),
     }
     // Nested tables are the same keys; JSON reads as TOML does.
-    let nested = spec(VIDEO, &format!("[tuning.deform]\nc_s = 0.8\nwindow = 12\n")).unwrap();
+    let nested = spec(VIDEO, "[tuning.deform]\nc_s = 0.8\nwindow = 12\n").unwrap();
     assert_eq!(nested.deform.window, 12);
     let json = JobSpec::from_json_str(
         r#"{"input": "/in", "output": "/out", "tuning": {"deform.c_s": 0.8, "deform": {"window": 12}}}"#,

@@ -6,7 +6,7 @@
 //!
 //! `cargo run --release --example position_solve_ab -- [triangles] [runs]`
 
-use crease_core::spacetime::factor_solve;
+use crease_core::spacetime::position::factor_solve;
 use crease_core::spacetime::position::PositionSystem;
 use crease_core::spacetime::DeformParams;
 use crease_core::synth::{self, DemoSpec};

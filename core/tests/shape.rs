@@ -8,7 +8,8 @@ use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::{geometry, MemorySink, Sequence};
 use crease_core::progress::NoProgress;
 use crease_core::shape::{ShapeAccumulator, TaubinFilter};
-use crease_core::spacetime::{deform, so3, DeformParams};
+use crease_core::spacetime::blend::so3;
+use crease_core::spacetime::{deform, DeformParams};
 use crease_core::vec3::{self, V3};
 use std::path::Path;
 

@@ -4,14 +4,15 @@ use crease_core::folds::{Anchor, AnchorSet};
 use crease_core::mesh::{MemorySink, Sequence};
 use crease_core::progress::NoProgress;
 use crease_core::spacetime::blend::CrossFade;
-use crease_core::spacetime::operator::SpaceTimeOperator;
-use crease_core::spacetime::per_anchor::LocalCg;
+use crease_core::spacetime::weights::operator::SpaceTimeOperator;
+use crease_core::spacetime::weights::per_anchor::LocalCg;
 use crease_core::spacetime::position::PositionSystem;
 use crease_core::spacetime::stages::position_frame;
-use crease_core::spacetime::stretch::StretchRotation;
+use crease_core::spacetime::position::stretch::StretchRotation;
 use crease_core::spacetime::weights::{solve_window, WindowProblem};
 use crease_core::spacetime::windows::{plan_windows, Window};
-use crease_core::spacetime::{deform, so3, Coefficients, DeformParams, WeightMode};
+use crease_core::spacetime::blend::so3;
+use crease_core::spacetime::{deform, Coefficients, DeformParams, WeightMode};
 use crease_core::synth::{self, DemoSpec};
 use crease_core::vec3;
 use std::sync::Arc;
@@ -397,7 +398,7 @@ fn local_cg_matches_whole_window_cg() {
     cg.solve(&op, node, 10.0, 1e-3, 1000).unwrap();
     let mut b = vec![[0.0; 3]; op.n_nodes()];
     b[node as usize] = [10.0, 0.0, 0.0];
-    let (x, _) = crease_core::spacetime::fused::solve3(&op, &b, 1e-3, 1000).unwrap();
+    let (x, _) = crease_core::spacetime::weights::fused::solve3(&op, &b, 1e-3, 1000).unwrap();
     let mut dense = vec![0.0; op.n_nodes()];
     for (g, w) in cg.column() {
         dense[g as usize] = w;

@@ -8,8 +8,8 @@
 use crease_core::folds::AnchorSet;
 use crease_core::mesh::io::open_sequence;
 use crease_core::progress::NoProgress;
-use crease_core::spacetime::per_anchor::BlockWorkspace;
-use crease_core::spacetime::stages;
+use crease_core::spacetime::weights::per_anchor::BlockWorkspace;
+use crease_core::spacetime::weights;
 use crease_core::spacetime::weights::WindowProblem;
 use crease_core::spacetime::windows::Window;
 use crease_core::synth::{self, DemoSpec};
@@ -71,7 +71,7 @@ async fn main() {
         },
         spec.params().coefficients,
     );
-    let ranges = stages::anchor_blocks(&problem, &spec.params());
+    let ranges = weights::anchor_blocks(&problem, &spec.params());
     let mut ws = BlockWorkspace::new(problem.op.n_nodes());
     println!(
         "{} triangles, one {frames}-frame window, {} anchors in {} blocks of <= {}; {} blocks per mode, {rounds} rounds",
@@ -99,7 +99,7 @@ async fn main() {
         }
         for r in ranges.iter().take(blocks.len()) {
             let t = Instant::now();
-            stages::anchor_block(&problem, r.clone(), &spec.params(), &mut ws).unwrap();
+            weights::anchor_block(&problem, r.clone(), &spec.params(), &mut ws).unwrap();
             direct.push(t.elapsed().as_secs_f64());
         }
     }

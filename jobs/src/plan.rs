@@ -26,7 +26,7 @@ use crate::inspect::InputInfo;
 use crate::keys;
 use crate::spec::JobSpec;
 use crate::task::{TaskDef, TaskOutput, TaskSpec};
-use crease_core::spacetime::per_anchor::plan_blocks;
+use crease_core::spacetime::weights::per_anchor::plan_blocks;
 use crease_core::spacetime::windows::{plan_windows, Window};
 use crease_core::spacetime::WeightMode;
 

@@ -13,7 +13,7 @@ use crease_core::mesh::{FrameSink, FrameSource};
 use crease_core::shape::{ShapeAccumulator, TaubinFilter};
 use crease_core::spacetime::position::{Pinning, PositionSystem};
 use crease_core::spacetime::stages::{self, PositionedFrame};
-use crease_core::spacetime::strain_limit::{StrainLimiter, StrainReference};
+use crease_core::spacetime::position::strain_limit::{StrainLimiter, StrainReference};
 use crease_core::spacetime::windows::Window;
 use crease_core::vec3::V3;
 use rayon::prelude::*;

@@ -4,8 +4,8 @@
 //!
 //! Module map: [`tensor`] §2.1/§4.2 (Jacobian, SVD, dominant direction), [`smooth`] §4.2 (outliers,
 //! smoothing), [`phases`] §4.3 (continuity eq. 4.2, integration against the phase's first frame), [`unfold`],
-//! [`lscm`] and [`trace`] §4.4 (parameterisation, seeds, axis, control lines, region of influence eq. 4.3,
-//! anchors §4.5).
+//! [`lscm`] and [`trace`] §4.4 (parameterisation, axis, control lines, region of influence eq. 4.3 of one
+//! seed), [`tracer`] §4.4 (the frame's seeds in order, seed memory), [`realise`] §4.5 (anchors).
 //!
 //! Memory is O(triangles) at any sequence length (§6.1): frames are streamed, each pass keeps one reference
 //! layout per triangle, and the backward pass's per-frame signal (8 bytes per triangle and frame) is spilled
@@ -22,11 +22,13 @@ pub mod split;
 pub mod symbolic;
 pub mod tensor;
 pub mod trace;
+pub mod tracer;
 pub mod unfold;
 mod wide_sweep;
 
 pub use params::{Flattening, StretchParams};
-pub use trace::{FrameFolds, TracedFold};
+pub use trace::TracedFold;
+pub use tracer::FrameFolds;
 
 use super::{Artifact, FoldDetector, FrameAnchors, Granularity};
 use crate::error::{Error, Result};
@@ -206,7 +208,7 @@ impl StretchDetector {
         let first = source.read_frame(0)?;
         let h = mean_edge_length(&topo, &first);
         let mut tracker = PhaseTracker::new(&topo, &first);
-        let mut tracer = trace::FoldTracer::new(&topo, levels);
+        let mut tracer = tracer::FoldTracer::new(&topo, levels);
         // Frame t's positions, geometry and forward signal (the tracker's step from frame t − 1).
         let forward = |t: usize,
                        prev: &[V3],

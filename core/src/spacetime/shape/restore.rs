@@ -35,7 +35,7 @@ use std::sync::{Arc, Mutex};
 /// detected fold is restored fully and only the fading edges of the deformation partly.
 pub const REFERENCE_TILT_DEG: f64 = 5.0;
 
-/// How the positioning ends: the shape projection ([`super::shape_projection`]), then the fold restoration.
+/// How the positioning ends: the shape projection ([`super::projection`]), then the fold restoration.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Restoration {
     /// Van Cittert steps of the deconvolution of the capture filter (fractional part: a last partial step);
@@ -46,7 +46,7 @@ pub struct Restoration {
     /// Fraction of the capture filter's low-pass of the displacement removed before restoring (0: none).
     pub projection: f64,
     /// Where the projection sits relative to the last stretch pass.
-    pub order: super::shape_projection::ProjectionOrder,
+    pub order: super::projection::ProjectionOrder,
 }
 
 /// The captured surface `c` deconvolved by `filter`: `steps` Van Cittert steps g ← g + (c − filter(g)) from
@@ -90,7 +90,7 @@ impl Restoration {
             return out.to_vec();
         }
         if !self.restores() {
-            return super::shape_projection::project(
+            return super::projection::project(
                 mesh.stencil.filter(),
                 rest,
                 out,
@@ -195,7 +195,7 @@ impl Restoration {
 /// stencil (its neighbour lists), every vertex's one-ring for the tilt smoothing, and the deconvolution's
 /// series for the last step count asked for. Building the lists takes a sorted neighbour list per vertex (one
 /// allocation each), as long as a good part of the deconvolution, so the deformation builds them once per
-/// sequence ([`super::position::PositionSystem::restore_mesh`]).
+/// sequence ([`crate::spacetime::position::PositionSystem::restore_mesh`]).
 pub struct RestoreMesh {
     stencil: CaptureStencil,
     ring_offsets: Vec<u32>,

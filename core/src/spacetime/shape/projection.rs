@@ -2,7 +2,7 @@
 //!
 //! The capture low-passed the cloth (the filter C that made the public data's `captured/`,
 //! [`TaubinFilter::capture`]): whatever it kept, the captured surface already has, and whatever a fold adds
-//! must lie in the band C removed. The shape screen of the positioning ([`super::position`]) holds long
+//! must lie in the band C removed. The shape screen of the positioning ([`crate::spacetime::position`]) holds long
 //! wavelengths back, but its roll-off 1 / (1 + (ℓ/ℓ_c)²) is gentle (a displacement twice the cutoff long keeps
 //! a fifth of itself), and an open rim is held only by its own side of the surface: on the public sleeve the
 //! cuffs flap by up to 0.7 edge lengths of low-frequency displacement, mostly along the surface normal, while

@@ -376,8 +376,8 @@ pub(super) fn true_residual(lean: &LeanOperator, x: &[V3f], b: &[[f64; 3]]) -> f
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-    use crate::spacetime::fused::solve3;
-    use crate::spacetime::operator::Coefficients;
+    use crate::spacetime::weights::fused::solve3;
+    use crate::spacetime::weights::operator::Coefficients;
     use crate::spacetime::weights::WindowProblem;
     use crate::spacetime::windows::Window;
     use crate::synth::{self, DemoSpec};

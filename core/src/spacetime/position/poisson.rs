@@ -39,7 +39,7 @@
 //! displacement is zero (the garment stays centred on the capture instead of hanging from an arbitrary
 //! vertex); [`Pinning::Vertex`] keeps the fixed vertex exactly in place instead.
 
-use super::restore::RestoreMesh;
+use crate::spacetime::shape::restore::RestoreMesh;
 use crate::error::{Error, Result};
 use crate::mesh::{Frame, Topology, NONE};
 use crate::vec3::{self, M3, V3};
@@ -598,7 +598,7 @@ mod tests {
             assert!(vec3::norm(vec3::sub(*g, *t)) < 1e-9, "{g:?} vs {t:?}");
         }
         let r: Vec<M3> = (0..topo.n_triangles())
-            .map(|t| crate::spacetime::so3::exp([0.0, 0.01 * (t % 7) as f64, 0.0]))
+            .map(|t| crate::spacetime::blend::so3::exp([0.0, 0.01 * (t % 7) as f64, 0.0]))
             .collect();
         assert_eq!(fp.solve_toward(&r, &p), fp.solve(&r));
         // Without the screen there is nothing to pull: the plain solve.
@@ -623,7 +623,7 @@ mod tests {
             .with_operator_block(4);
         assert_eq!(sys.operator_block(), 4);
         let r: Vec<M3> = (0..topo.n_triangles())
-            .map(|t| crate::spacetime::so3::exp([0.02 * (t % 5) as f64, 0.0, 0.01]))
+            .map(|t| crate::spacetime::blend::so3::exp([0.02 * (t % 5) as f64, 0.0, 0.01]))
             .collect();
         let reads = std::cell::Cell::new(0);
         let lead = sys

@@ -17,8 +17,8 @@
 //!   the alternating minimisation of Σ A (‖F − R‖² + ‖R − B‖²) with B the blend: the passes still lower the
 //!   stretch, but the folds stay pinned to what the anchors asked for (docs/fidelity.md, "Anchored passes").
 
-use super::position::FramePositioner;
-use super::so3;
+use crate::spacetime::position::FramePositioner;
+use crate::spacetime::blend::so3;
 use crate::mesh::{geometry, Frame};
 use crate::vec3::{self, M3, V3};
 use serde::{Deserialize, Serialize};

@@ -1,4 +1,4 @@
-//! The capture stencil's fused sweeps ([`super::deconvolve::CaptureStencil::detail_and_low_pass`]) one vertex's
+//! The capture stencil's fused sweeps ([`crate::spacetime::shape::deconvolve::CaptureStencil::detail_and_low_pass`]) one vertex's
 //! six values at a time with AVX2, bit for bit the scalar sweep (issue 14, item 5).
 //!
 //! **Why by hand.** The shape projection and the fold restoration spend most of the last stretch pass in
@@ -22,7 +22,7 @@
 /// steps, where the filter iterate is carried over) and the series term (its weight; `None` past the
 /// series, where the series iterate is carried over); `first` for the sweep that makes T_1 = A T_0.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Sweep {
+pub(in crate::spacetime) struct Sweep {
     pub filter: Option<f64>,
     pub term: Option<f64>,
     pub first: bool,
@@ -30,7 +30,7 @@ pub(super) struct Sweep {
 
 /// Whether this CPU runs the AVX2 sweep (and `CREASE_RESTORE_SCALAR_SWEEPS=1` does not ask for the scalar
 /// one, for measuring both with one binary; read once).
-pub(super) fn available() -> bool {
+pub(in crate::spacetime) fn available() -> bool {
     static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *ON.get_or_init(|| {
         let scalar = std::env::var("CREASE_RESTORE_SCALAR_SWEEPS").is_ok_and(|v| v.trim() == "1");
@@ -39,20 +39,20 @@ pub(super) fn available() -> bool {
 }
 
 #[cfg(target_arch = "x86_64")]
-pub(super) fn detected() -> bool {
+pub(in crate::spacetime) fn detected() -> bool {
     std::arch::is_x86_feature_detected!("avx2")
 }
 
 #[cfg(not(target_arch = "x86_64"))]
-pub(super) fn detected() -> bool {
+pub(in crate::spacetime) fn detected() -> bool {
     false
 }
 
 /// Bytes of one vertex's slot in the swept field ([f64; 6]).
-pub(super) const SLOT_BYTES: usize = 48;
+pub(in crate::spacetime) const SLOT_BYTES: usize = 48;
 
 #[cfg(target_arch = "x86_64")]
-pub(super) mod avx2 {
+pub(in crate::spacetime) mod avx2 {
     use super::Sweep;
     use crate::vec3::V3;
     use std::arch::x86_64::*;

@@ -20,7 +20,7 @@
 //! vanishes on constants (r(1) = 0: a filter step keeps a constant field), so the series is applied to c minus
 //! its mean: the result then does not depend on where the garment stands, to rounding.
 
-use super::stencil_sweep::{self, Sweep};
+use crate::spacetime::kernels::stencil_sweep::{self, Sweep};
 use crate::mesh::Topology;
 use crate::shape::TaubinFilter;
 use crate::vec3::{self, V3};
@@ -388,7 +388,7 @@ pub fn van_cittert_series(lambda: f64, mu: f64, iterations: usize, steps: f64) -
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spacetime::restore::deconvolve;
+    use crate::spacetime::shape::restore::deconvolve;
 
     /// An irregular sheet with a boundary: a grid of `nx` × `ny` vertices whose cells are split along either
     /// diagonal by a hash, heights from a few ripples, and one corner cell missing (a notch in the boundary).

@@ -231,10 +231,10 @@ pub(super) fn solve(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::spacetime::fused::solve3;
-    use crate::spacetime::lean_cg::tests::{problem_input, residual};
-    use crate::spacetime::lean_cg::{solve3_lean_with, Preconditioner};
-    use crate::spacetime::operator::Coefficients;
+    use crate::spacetime::weights::fused::solve3;
+    use crate::spacetime::weights::lean_cg::tests::{problem_input, residual};
+    use crate::spacetime::weights::lean_cg::{solve3_lean_with, Preconditioner};
+    use crate::spacetime::weights::operator::Coefficients;
     use crate::spacetime::weights::WindowProblem;
     use crate::spacetime::windows::Window;
 

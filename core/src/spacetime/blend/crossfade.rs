@@ -1,11 +1,11 @@
 //! Turning per-window rotation-vector fields into final per-frame rotations.
 //!
 //! Windows overlap; [`CrossFade`] receives window fields in order, mixes the overlapping frames with the
-//! linear ramp of [`super::windows::crossfade_weight`] (the weights are linear in the blend, so mixing the
+//! linear ramp of [`crate::spacetime::windows::crossfade_weight`] (the weights are linear in the blend, so mixing the
 //! rotation vectors is the same as mixing the weights), and releases every frame as soon as no later window
 //! can touch it. Only the overlap tail is kept between windows, so memory is bounded by one window.
 
-use super::windows::{crossfade_weight, Window};
+use crate::spacetime::windows::{crossfade_weight, Window};
 use crate::vec3::{M3, V3};
 
 /// Streaming cross-fade of window fields into per-frame rotation-vector fields.
@@ -63,7 +63,7 @@ impl CrossFade {
 }
 
 /// acc += a · src, component-wise: the one cross-fade step, shared by [`CrossFade`] and the cluster's
-/// per-frame cross-fade ([`super::stages::crossfade_frame`]) so both produce the same bits.
+/// per-frame cross-fade ([`crate::spacetime::stages::crossfade_frame`]) so both produce the same bits.
 pub fn fade_into(acc: &mut [V3], a: f64, src: &[V3]) {
     for (o, s) in acc.iter_mut().zip(src) {
         o[0] += a * s[0];

@@ -151,8 +151,7 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
     Ok((summary, vec![key]))
 }
 
-/// Runs `f` on one of the process's compute (rayon) threads, the caller waiting, unless
-/// `CREASE_BLOCKS_IN_POOL=0`.
+/// Runs `f` on one of the process's compute (rayon) threads, the caller waiting.
 ///
 /// Why: a block's solve is single-threaded, and a task runs on a blocking thread of its own. When several
 /// workers share a process (`crease run`'s local cluster, `crease bench --cluster`), a block beside a
@@ -161,10 +160,7 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
 /// `crease_core::spacetime::deform`. In the pool, the process never runs more compute threads than the pool
 /// has (`--threads`, default: the cores). The result does not depend on the thread it ran on.
 fn on_compute_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
-    static IN_POOL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    let in_pool = *IN_POOL
-        .get_or_init(|| !std::env::var("CREASE_BLOCKS_IN_POOL").is_ok_and(|v| v.trim() == "0"));
-    if in_pool && rayon::current_thread_index().is_none() {
+    if rayon::current_thread_index().is_none() {
         rayon::scope(|_| f())
     } else {
         f()

@@ -102,15 +102,6 @@ fn decode_record(b: &[u8]) -> (f32, f32) {
     )
 }
 
-/// Whether the forward pass steps frame t + 1 while frame t is traced (on unless `CREASE_STRETCH_OVERLAP=0`;
-/// read once). The output is the same either way (every stage reads only its own frames); the tracing leaves
-/// threads idle that the next frame's step can use: on a quiet 2-core machine 0.190 / 0.151 → 0.147 / 0.133
-/// s/frame at 100K triangles for 18–32 MiB more peak memory (docs/benchmarks.md, "Fifth quiet run").
-fn overlap_steps() -> bool {
-    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *ON.get_or_init(|| std::env::var("CREASE_STRETCH_OVERLAP").map_or(true, |v| v.trim() != "0"))
-}
-
 /// What [`StretchDetector::run_timed`] measured besides the folds.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RunTiming {
@@ -230,7 +221,6 @@ impl StretchDetector {
             };
             Ok((cur, geom, sig))
         };
-        let overlap = overlap_steps();
         let mut next = Some(forward(0, &first, &mut tracker)?);
         drop(first);
         let mut buf = vec![0u8; record];
@@ -266,9 +256,9 @@ impl StretchDetector {
                 let folds = tracer.trace(&field, params);
                 (folds, started.elapsed().as_secs_f64())
             };
-            // Tracing reads only frame t; the step to frame t + 1 only the two frames and the tracker: with
-            // `overlap`, the step runs beside the tracing on the threads its seeds leave idle.
-            let ((folds, seconds), stepped) = if overlap && t + 1 < n {
+            // Tracing reads only frame t; the step to frame t + 1 only the two frames and the tracker, so the
+            // step runs beside the tracing on the threads its seeds leave idle (the output is the same).
+            let ((folds, seconds), stepped) = if t + 1 < n {
                 let (traced, stepped) =
                     rayon::join(trace_timed, || forward(t + 1, &cur, &mut tracker));
                 (traced, Some(stepped))
@@ -277,14 +267,9 @@ impl StretchDetector {
             };
             timing.tracing += seconds;
             each(t, &cur, &sig.shrink, folds)?;
-            // Frame t's geometry and signal go before frame t + 1's are made (one set alive at a time, ~14 MB
-            // at 100K triangles, unless they overlapped).
             drop((geom, sig));
-            if t + 1 < n {
-                next = Some(match stepped {
-                    Some(stepped) => stepped?,
-                    None => forward(t + 1, &cur, &mut tracker)?,
-                });
+            if let Some(stepped) = stepped {
+                next = Some(stepped?);
             }
             progress.advance(STAGE, 1);
         }

@@ -41,28 +41,9 @@ fn entry_triangle(e: Entry) -> u32 {
 
 /// Queue entries looked at past the next seed when choosing seeds to trace ahead, and seeds traced together
 /// per thread. They decide only how much is traced ahead (and so how busy the threads are), never the
-/// result. `CREASE_TRACE_LOOKAHEAD` and `CREASE_TRACE_BATCH` (per thread) override them, read once, for
-/// measuring other settings with the same binary (`crease bench --stretch-folds-only`).
+/// result.
 const LOOKAHEAD: usize = 64;
 const BATCH_PER_THREAD: usize = 2;
-
-/// The look-ahead and the seeds per thread and batch in use (see [`LOOKAHEAD`]).
-fn tuning() -> (usize, usize) {
-    static TUNING: std::sync::OnceLock<(usize, usize)> = std::sync::OnceLock::new();
-    *TUNING.get_or_init(|| {
-        let read = |name: &str, default: usize| {
-            std::env::var(name)
-                .ok()
-                .and_then(|v| v.trim().parse::<usize>().ok())
-                .filter(|&v| (1..=4096).contains(&v))
-                .unwrap_or(default)
-        };
-        (
-            read("CREASE_TRACE_LOOKAHEAD", LOOKAHEAD),
-            read("CREASE_TRACE_BATCH", BATCH_PER_THREAD),
-        )
-    })
-}
 
 /// Patch patterns whose symbolic factorisation is kept ([`SymbolicCache`]), per generation.
 const PATTERNS_PER_GENERATION: usize = 1024;
@@ -151,8 +132,8 @@ impl SeedQueue {
             order: order.into_iter(),
             ahead: VecDeque::new(),
             ready: HashMap::new(),
-            batch: if threads > 1 { tuning().1 * threads } else { 1 },
-            lookahead: tuning().0,
+            batch: if threads > 1 { BATCH_PER_THREAD * threads } else { 1 },
+            lookahead: LOOKAHEAD,
             traced_ahead: 0,
             wasted: 0,
         }

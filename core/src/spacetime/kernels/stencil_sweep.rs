@@ -28,14 +28,10 @@ pub(in crate::spacetime) struct Sweep {
     pub first: bool,
 }
 
-/// Whether this CPU runs the AVX2 sweep (and `CREASE_RESTORE_SCALAR_SWEEPS=1` does not ask for the scalar
-/// one, for measuring both with one binary; read once).
+/// Whether this CPU runs the AVX2 sweep (detected once); the scalar sweep runs elsewhere, with the same bits.
 pub(in crate::spacetime) fn available() -> bool {
     static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *ON.get_or_init(|| {
-        let scalar = std::env::var("CREASE_RESTORE_SCALAR_SWEEPS").is_ok_and(|v| v.trim() == "1");
-        !scalar && detected()
-    })
+    *ON.get_or_init(detected)
 }
 
 #[cfg(target_arch = "x86_64")]

@@ -148,29 +148,7 @@ pub(super) fn to64(v: V3f) -> [f64; 3] {
     [v[0] as f64, v[1] as f64, v[2] as f64]
 }
 
-/// The preconditioner of the lean block CG.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Preconditioner {
-    /// D⁻¹: the default. About 17 iterations on a paper-scale window, each the cheapest there is.
-    Jacobi,
-    /// Symmetric Gauss–Seidel inside each fixed [`CHUNK`]-node chunk, block Jacobi across chunks
-    /// ([`super::chunk_sgs`]): 9 iterations instead of 17 on the 100K window, but each costs about twice a
-    /// Jacobi iteration, so it measured no faster (docs/benchmarks.md, "issue14-sgs"); opt-in.
-    ChunkSgs,
-}
-
-impl Preconditioner {
-    /// Jacobi, or chunk SGS with `CREASE_WEIGHT_PRECOND=sgs`. SGS changes the result within the tolerance, so
-    /// in a cluster every worker must see the same value (as with every other solver setting).
-    pub fn from_env() -> Self {
-        match std::env::var("CREASE_WEIGHT_PRECOND") {
-            Ok(v) if v.trim().eq_ignore_ascii_case("sgs") => Preconditioner::ChunkSgs,
-            _ => Preconditioner::Jacobi,
-        }
-    }
-}
-
-/// The error both preconditioned kernels return when `max_iter` iterations do not reach `tol`.
+/// The error the kernel returns when `max_iter` iterations do not reach `tol`.
 pub(super) fn no_convergence(tol: f64, max_iter: usize, reached: f64) -> Error {
     Error::numeric(
         "weights (fused CG)",
@@ -180,25 +158,14 @@ pub(super) fn no_convergence(tol: f64, max_iter: usize, reached: f64) -> Error {
     )
 }
 
-/// [`solve3_lean_with`] with the preconditioner chosen by [`Preconditioner::from_env`].
+/// Solves M X = B (rows × 3) to ‖B − M X‖_F ≤ tol ‖B‖_F, measured in f64 on the returned X; same stopping
+/// rule and error messages as [`super::fused::solve3`] (block CG on M ⊗ I₃), which it hands over to when `tol`
+/// is below [`F32_MIN_TOLERANCE`]; it is also the same algorithm (Jacobi-preconditioned).
 pub fn solve3_lean(
     op: &SpaceTimeOperator,
     b: &[[f64; 3]],
     tol: f64,
     max_iter: usize,
-) -> Result<(Vec<[f64; 3]>, CgStats)> {
-    solve3_lean_with(op, b, tol, max_iter, Preconditioner::from_env())
-}
-
-/// Solves M X = B (rows × 3) to ‖B − M X‖_F ≤ tol ‖B‖_F, measured in f64 on the returned X; same stopping
-/// rule and error messages as [`super::fused::solve3`] (block CG on M ⊗ I₃), which it hands over to when `tol`
-/// is below [`F32_MIN_TOLERANCE`]. With [`Preconditioner::Jacobi`] it is also the same algorithm.
-pub fn solve3_lean_with(
-    op: &SpaceTimeOperator,
-    b: &[[f64; 3]],
-    tol: f64,
-    max_iter: usize,
-    precond: Preconditioner,
 ) -> Result<(Vec<[f64; 3]>, CgStats)> {
     if b.len() != op.n_nodes() {
         return Err(Error::param(
@@ -232,9 +199,6 @@ pub fn solve3_lean_with(
     let bnorm = bnorm2.sqrt();
     if bnorm == 0.0 {
         return Ok((vec![[0.0; 3]; n], stats));
-    }
-    if precond == Preconditioner::ChunkSgs {
-        return super::chunk_sgs::solve(&lean, b, bnorm, tol, max_iter);
     }
     let mut x: Vec<V3f> = vec![[0.0; 3]; n];
     let mut r: Vec<V3f> = b.par_iter().map(|&v| to32(v)).collect();
@@ -374,7 +338,7 @@ pub(super) fn true_residual(lean: &LeanOperator, x: &[V3f], b: &[[f64; 3]]) -> f
 }
 
 #[cfg(test)]
-pub(super) mod tests {
+mod tests {
     use super::*;
     use crate::spacetime::weights::fused::solve3;
     use crate::spacetime::weights::operator::Coefficients;
@@ -382,9 +346,8 @@ pub(super) mod tests {
     use crate::spacetime::windows::Window;
     use crate::synth::{self, DemoSpec};
 
-    /// A synthetic garment and 150 random anchors per frame: the weight solvers' test problem, shared with
-    /// `chunk_sgs`'s tests.
-    pub(in crate::spacetime) fn problem_input(
+    /// A synthetic garment and 150 random anchors per frame: the weight solvers' test problem.
+    fn problem_input(
         triangles: usize,
         frames: usize,
     ) -> (crate::mesh::Sequence, crate::folds::AnchorSet) {
@@ -399,7 +362,7 @@ pub(super) mod tests {
     }
 
     /// ‖M x − b‖ / ‖b‖ over all three columns, with the operator's own f64 product.
-    pub(in crate::spacetime) fn residual(
+    fn residual(
         op: &SpaceTimeOperator,
         x: &[[f64; 3]],
         b: &[[f64; 3]],
@@ -424,8 +387,7 @@ pub(super) mod tests {
         let b = problem.fused_rhs();
         for tol in [1e-3, 1e-4] {
             let (xr, sr) = solve3(&problem.op, &b, tol, 1000).unwrap();
-            let (xl, sl) =
-                solve3_lean_with(&problem.op, &b, tol, 1000, Preconditioner::Jacobi).unwrap();
+            let (xl, sl) = solve3_lean(&problem.op, &b, tol, 1000).unwrap();
             let res = residual(&problem.op, &xl, &b);
             assert!(res <= tol, "tol {tol:e}: true residual {res:e}");
             assert!((res - sl.relative_residual).abs() < 1e-9 * tol.max(res));
@@ -462,16 +424,9 @@ pub(super) mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| {
-                    [Preconditioner::Jacobi, Preconditioner::ChunkSgs]
-                        .map(|pc| solve3_lean_with(&problem.op, &b, 1e-3, 1000, pc).unwrap().0)
-                })
+                .install(|| solve3_lean(&problem.op, &b, 1e-3, 1000).unwrap().0)
         };
-        let bits = |x: &[Vec<[f64; 3]>; 2]| -> Vec<u64> {
-            x.iter()
-                .flat_map(|x| x.iter().flat_map(|v| v.map(f64::to_bits)))
-                .collect()
-        };
+        let bits = |x: &[[f64; 3]]| -> Vec<u64> { x.iter().flat_map(|v| v.map(f64::to_bits)).collect() };
         assert_eq!(bits(&run(1)), bits(&run(3)));
     }
 

@@ -8,7 +8,6 @@
 //! - [`per_anchor`] — the paper's formulation, one CG column per anchor, in blocks a cluster distributes;
 //! - [`solve`] — one window's problem and its solve in either mode, as the stages a cluster task runs.
 
-mod chunk_sgs;
 pub mod fused;
 pub mod lean_cg;
 pub mod operator;

@@ -3,7 +3,7 @@
 //! same blocks solved directly on one prebuilt problem and workspace (the single-process cost). The three are
 //! interleaved round by round in one process, so their ratios hold on a loaded machine.
 //!
-//! `cargo run --release -p crease-jobs --example block_overhead -- [triangles] [anchors/frame] [blocks] [rounds]`
+//! `cargo run --release -p crease-research --example block_overhead -- [triangles] [anchors/frame] [blocks] [rounds]`
 
 use crease_core::folds::AnchorSet;
 use crease_core::mesh::io::open_sequence;

@@ -4,7 +4,7 @@
 //! [`factor_solve::solve3_supernodal`]. Alternates the contenders run by run so that machine load hits all
 //! of them alike; prints min / median seconds of thread CPU time and the largest difference to faer's solution.
 //!
-//! `cargo run --release --example position_solve_ab -- [triangles] [runs]`
+//! `cargo run --release -p crease-research --example position_solve_ab -- [triangles] [runs]`
 
 use crease_core::spacetime::position::factor_solve;
 use crease_core::spacetime::position::PositionSystem;

@@ -2,7 +2,7 @@
 //! seconds per task kind, next to the fixed cost every task pays (opening the input, reading the anchors,
 //! building the window's operator).
 //!
-//! `cargo run --release -p crease-jobs --example task_cost -- [triangles] [frames] [fold_scale]`
+//! `cargo run --release -p crease-research --example task_cost -- [triangles] [frames] [fold_scale]`
 
 use crease_core::folds::AnchorSet;
 use crease_core::mesh::io::open_sequence;

@@ -3,7 +3,7 @@
 //! compressed sleeve of `crease bench --stretch-folds-only`, back to back, checking the anchors are identical.
 //! No storage or network: the cluster adds its own transfer costs on top.
 //!
-//! `cargo run --release -p crease-core --example stretch_split_cost -- [triangles] [frames] [chunk] [warm-up]`
+//! `cargo run --release -p crease-research --example stretch_split_cost -- [triangles] [frames] [chunk] [warm-up]`
 
 use crease_core::folds::stretch::split::{
     reconcile, steps, trace_chunk, ChunkTracer, Pass, PhaseCode, Phases, StepRecord,

@@ -9,36 +9,7 @@ mod dashboard_support;
 
 use crease_e2e::*;
 use dashboard_support::*;
-use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf()
-}
-
-/// The venv's Python with Playwright, or a failure that says how to get it.
-fn playwright_python() -> PathBuf {
-    let chromium = Path::new("/usr/bin/chromium");
-    assert!(
-        chromium.exists(),
-        "/usr/bin/chromium is missing: run scripts/setup-tools (as root it installs Debian's chromium and \
-         chromium-driver packages)"
-    );
-    let python = workspace().join(".tools/venv/bin/python");
-    let ok = Command::new(&python)
-        .args(["-c", "import playwright.sync_api"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    assert!(
-        ok,
-        "{} cannot import playwright: run scripts/setup-tools",
-        python.display()
-    );
-    python
-}
 
 #[test]
 fn a_browser_watches_a_job_finish_sees_its_preview_and_cancels_another() {

@@ -7,6 +7,7 @@ use crease_e2e::*;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -239,4 +240,33 @@ pub fn job(d: &Path, name: &str) -> (PathBuf, PathBuf) {
     let out = d.join(format!("{name}-out"));
     let file = job_file(d, name, &fixture(), &anchors, &out, "per-anchor", "");
     (file, out)
+}
+
+/// The repository root (screenshots go under its `target/test-artifacts/`, the browser scripts are in it).
+pub fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
+}
+
+/// The venv's Python with Playwright, or a failure that says how to get it.
+pub fn playwright_python() -> PathBuf {
+    let chromium = Path::new("/usr/bin/chromium");
+    assert!(
+        chromium.exists(),
+        "/usr/bin/chromium is missing: run scripts/setup-tools (as root it installs Debian's chromium and \
+         chromium-driver packages)"
+    );
+    let python = workspace().join(".tools/venv/bin/python");
+    let ok = Command::new(&python)
+        .args(["-c", "import playwright.sync_api"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    assert!(
+        ok,
+        "{} cannot import playwright: run scripts/setup-tools",
+        python.display()
+    );
+    python
 }

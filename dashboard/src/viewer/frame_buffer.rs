@@ -264,15 +264,20 @@ mod tests {
         assert_eq!(d.line_points, [0.5, 0.0, 0.0, 0.5, 0.5, 0.0, 1.0, 1.0, 0.0]);
     }
 
-    #[test]
-    fn an_input_alone_has_no_output_sections() {
+    /// One triangle's input alone.
+    fn input_alone() -> Vec<u8> {
         let input = vec![[0.0; 3]; 3];
-        let bytes = encode(&FrameParts {
+        encode(&FrameParts {
             n_vertices: 3,
             n_triangles: 1,
             input: Some(&input),
             ..Default::default()
-        });
+        })
+    }
+
+    #[test]
+    fn an_input_alone_has_no_output_sections() {
+        let bytes = input_alone();
         assert_eq!(bytes.len(), HEADER_BYTES + 9 * 4);
         let d = decode(&bytes).unwrap();
         assert!(d.output.is_none() && d.stretch.is_none() && d.displacement.is_none());
@@ -280,13 +285,7 @@ mod tests {
 
     #[test]
     fn truncated_or_foreign_buffers_are_refused_with_the_field() {
-        let input = vec![[0.0; 3]; 3];
-        let bytes = encode(&FrameParts {
-            n_vertices: 3,
-            n_triangles: 1,
-            input: Some(&input),
-            ..Default::default()
-        });
+        let bytes = input_alone();
         let e = decode(&bytes[..bytes.len() - 4]).unwrap_err();
         assert!(e.contains("input positions"), "{e}");
         let e = decode(b"PNG\0").unwrap_err();

@@ -2,7 +2,7 @@
 //! is blocking file work and runs on the blocking pool, never on the server's own threads.
 
 use super::names::ViewFile;
-use super::scene::{Scene, SceneError};
+use super::scene::SceneError;
 use super::{LocateError, Located, Viewer};
 use crate::api::plausible_id;
 use crate::json::{error, reply};
@@ -33,6 +33,12 @@ fn scene_error(e: SceneError) -> Response {
     }
 }
 
+/// Why a request found nothing to show (kept small: it crosses from the blocking pool).
+enum Refused {
+    Locate(LocateError),
+    Scene(SceneError),
+}
+
 fn binary(bytes: Vec<u8>) -> Response {
     (
         [
@@ -60,14 +66,15 @@ pub async fn file(
     if let Some(key) = what.output_key() {
         return output_json(v, id, key).await;
     }
-    let work = tokio::task::spawn_blocking(move || -> Result<(Located, Arc<Scene>), Response> {
-        let loc = v.locate(&id).map_err(locate_error)?;
-        let scene = v.scenes.get(&loc).map_err(scene_error)?;
-        Ok((loc, scene))
+    let work = tokio::task::spawn_blocking(move || {
+        let loc = v.locate(&id).map_err(Refused::Locate)?;
+        let scene = v.scenes.get(&loc).map_err(Refused::Scene)?;
+        Ok::<_, Refused>((loc, scene))
     });
     let (loc, scene) = match work.await {
         Ok(Ok(found)) => found,
-        Ok(Err(refused)) => return refused,
+        Ok(Err(Refused::Locate(e))) => return locate_error(e),
+        Ok(Err(Refused::Scene(e))) => return scene_error(e),
         Err(e) => {
             return error(
                 StatusCode::INTERNAL_SERVER_ERROR,
@@ -145,32 +152,6 @@ async fn output_json(v: Arc<Viewer>, id: String, key: &'static str) -> Response 
             )
         }
     };
-    match store.exists(key).await {
-        Ok(true) => {}
-        Ok(false) => {
-            return error(
-                StatusCode::NOT_FOUND,
-                format!("{} has no {key} (yet)", store.describe("")),
-            )
-        }
-        Err(e) => return error(StatusCode::BAD_GATEWAY, e.to_string()),
-    }
-    match store.get(key).await {
-        Ok(bytes) if bytes.len() > MAX_JSON_BYTES => error(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            format!(
-                "{} is larger than {MAX_JSON_BYTES} bytes",
-                store.describe(key)
-            ),
-        ),
-        Ok(bytes) => (
-            [
-                (header::CONTENT_TYPE, "application/json"),
-                (header::CACHE_CONTROL, "private, no-cache"),
-            ],
-            bytes,
-        )
-            .into_response(),
-        Err(e) => error(StatusCode::BAD_GATEWAY, e.to_string()),
-    }
+    let missing = format!("{} has no {key} (yet)", store.describe(""));
+    crate::files::stored(&store, key, missing, MAX_JSON_BYTES, "application/json").await
 }

@@ -111,6 +111,9 @@ class MeshView {
   paint(values, lut, scale) {
     const c = this.colors.array;
     const n = c.length / 3;
+    // Plain colours do not change from frame to frame: paint (and upload) them once.
+    if (!values && this.plain) return;
+    this.plain = !values;
     if (!values) {
       for (let i = 0; i < n; i++) { c[3 * i] = this.base[0]; c[3 * i + 1] = this.base[1]; c[3 * i + 2] = this.base[2]; }
     } else {

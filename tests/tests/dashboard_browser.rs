@@ -25,8 +25,8 @@ fn a_browser_watches_a_job_finish_sees_its_preview_and_cancels_another() {
     let (job2, _) = job(d, "to-cancel");
     let artifacts = workspace().join("target/test-artifacts/dashboard");
     let _ = std::fs::remove_dir_all(&artifacts);
-    let out = Command::new(python)
-        .arg(workspace().join("tests/tests/browser/dashboard.py"))
+    let mut cmd = Command::new(python);
+    cmd.arg(workspace().join("tests/tests/browser/dashboard.py"))
         .args(["--url", &format!("http://127.0.0.1:{port}")])
         .args([
             "--coordinator",
@@ -38,18 +38,8 @@ fn a_browser_watches_a_job_finish_sees_its_preview_and_cancels_another() {
         .args(["--worker-token", WORKER_TOKEN])
         .args(["--job", job1.to_str().unwrap()])
         .args(["--job2", job2.to_str().unwrap()])
-        .args(["--out", artifacts.to_str().unwrap()])
-        .output()
-        .expect("run the browser script");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "browser script failed:\n{stdout}\n{}",
-        stderr(&out)
-    );
-    let result: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap_or_else(|e| {
-        panic!("browser script output is not its JSON summary ({e}): {stdout}")
-    });
+        .args(["--out", artifacts.to_str().unwrap()]);
+    let result = browser_script(cmd);
     assert!(result["preview_natural_width"].as_u64().unwrap() > 0);
     assert_eq!(c.status(result["job"].as_str().unwrap())["state"], "done");
     assert_eq!(

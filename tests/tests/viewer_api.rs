@@ -152,6 +152,49 @@ fn a_jobs_viewer_data_is_served_behind_the_dashboards_tokens() {
 }
 
 #[test]
+fn with_tls_the_viewer_is_served_over_https_behind_the_tokens() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let certs = d.join("certs");
+    let o = Command::new(bin())
+        .args(["certs", "--out", certs.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "crease certs: {}", stderr(&o));
+    let ca = certs.join("ca.pem");
+    let port = free_port();
+    let mut c = start(
+        d,
+        port,
+        &[
+            "--tls-cert",
+            certs.join("coordinator.pem").to_str().unwrap(),
+            "--tls-key",
+            certs.join("coordinator.key").to_str().unwrap(),
+        ],
+    );
+    c.scheme = "https";
+    c.client_args
+        .extend(["--tls-ca".to_string(), ca.display().to_string()]);
+    let (file, _) = job(d, "over-tls");
+    let id = c.submit(&file);
+    let https = Dash {
+        addr: format!("127.0.0.1:{port}"),
+        ca: Some(ca),
+    };
+    let base = format!("/api/jobs/{id}/view/");
+    let meta = https.get(&format!("{base}meta.json"), CLIENT);
+    assert_eq!(meta.status, 200, "{}", meta.text());
+    assert_eq!(meta.json()["frames"], 4);
+    let f = decode(&https.get(&format!("{base}frame-0.bin"), CLIENT).body).unwrap();
+    assert_eq!(f.input.unwrap().len(), 3 * f.n_vertices);
+    assert_eq!(
+        https.get(&format!("{base}frame-0.bin"), Auth::None).status,
+        401
+    );
+}
+
+#[test]
 fn crease_view_serves_an_output_folder_and_an_input_alone() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

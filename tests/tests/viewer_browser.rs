@@ -95,25 +95,15 @@ fn a_browser_sees_a_job_and_local_folders_in_the_viewer() {
 
     let artifacts = workspace().join("target/test-artifacts/viewer");
     let _ = std::fs::remove_dir_all(&artifacts);
-    let out = Command::new(python)
-        .arg(workspace().join("tests/tests/browser/viewer.py"))
+    let mut cmd = Command::new(python);
+    cmd.arg(workspace().join("tests/tests/browser/viewer.py"))
         .args(["--dashboard", &format!("http://127.0.0.1:{port}")])
         .args(["--token-file", &s(&d.join("client-tokens"))])
         .args(["--job", &id])
         .args(["--view", &view_out.url])
         .args(["--view-input", &view_input.url])
-        .args(["--out", &s(&artifacts)])
-        .output()
-        .expect("run the browser script");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "browser script failed:\n{stdout}\n{}",
-        stderr(&out)
-    );
-    let r: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap_or_else(|e| {
-        panic!("browser script output is not its JSON summary ({e}): {stdout}")
-    });
+        .args(["--out", &s(&artifacts)]);
+    let r = browser_script(cmd);
     eprintln!("viewer browser test: {r}");
     assert_eq!(r["job_frames"], 6);
     assert_eq!(r["input_alone_frames"], 6);

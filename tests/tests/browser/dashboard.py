@@ -13,18 +13,9 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import time
 
-from playwright.sync_api import sync_playwright
-
-CHROMIUM = "/usr/bin/chromium"
-# WebGL (the job page's viewer) without a GPU: ANGLE on SwiftShader.
-ARGS = [
-    "--headless", "--no-sandbox", "--disable-quic", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-    "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist",
-]
+import chromium
 
 
 def fail(msg):
@@ -55,14 +46,7 @@ def main():
     shot = lambda page, name: page.screenshot(path=os.path.join(a.out, name), full_page=True)
     token = open(a.token_file).read().strip()
 
-    with tempfile.TemporaryDirectory() as profile, sync_playwright() as pw:
-        # A persistent context on a fresh profile directory is how Playwright takes --user-data-dir.
-        browser = pw.chromium.launch_persistent_context(
-            profile, executable_path=CHROMIUM, args=ARGS, viewport={"width": 1280, "height": 800})
-        page = browser.pages[0] if browser.pages else browser.new_page()
-        page.set_default_timeout(60_000)
-        console_errors = []
-        page.on("console", lambda m: console_errors.append(m.text) if m.type == "error" else None)
+    with chromium.page(1280, 800) as (page, console_errors):
 
         # Signed out: the page sends the browser to the login form; a worker token is refused there.
         page.goto(a.url + "/")
@@ -169,7 +153,6 @@ def main():
 
         if console_errors:
             fail(f"console errors: {console_errors}")
-        browser.close()
     print(json.dumps({"job": job, "cancelled": job2, "progress_seen": dones, "preview_natural_width": nw,
                       "done_segment_width": width, "stages": stages}))
 

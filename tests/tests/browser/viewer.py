@@ -14,17 +14,9 @@ import argparse
 import json
 import os
 import sys
-import tempfile
 
-from playwright.sync_api import sync_playwright
+import chromium
 
-CHROMIUM = "/usr/bin/chromium"
-# WebGL without a GPU: ANGLE on SwiftShader, Chromium's CPU Vulkan/GL implementation.
-ARGS = [
-    "--headless", "--no-sandbox", "--disable-quic", "--no-first-run", "--disable-background-networking",
-    "--disable-component-update", "--disable-sync", "--use-gl=angle", "--use-angle=swiftshader",
-    "--enable-unsafe-swiftshader", "--ignore-gpu-blocklist",
-]
 BACKGROUND = (246, 247, 249)
 
 # Reads the viewer's canvas back as a small RGBA image (the renderer keeps its drawing buffer).
@@ -198,14 +190,7 @@ def main():
     token = open(a.token_file).read().strip()
     result = {}
 
-    with tempfile.TemporaryDirectory() as profile, sync_playwright() as pw:
-        browser = pw.chromium.launch_persistent_context(
-            profile, executable_path=CHROMIUM, args=ARGS, viewport={"width": 1280, "height": 900})
-        page = browser.pages[0] if browser.pages else browser.new_page()
-        page.set_default_timeout(60_000)
-        errors = []
-        page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-        page.on("pageerror", lambda e: errors.append(str(e)))
+    with chromium.page(1280, 900) as (page, errors):
         p = Page(page, a.out)
 
         # The dashboard, signed in, on the finished job's page.
@@ -247,7 +232,6 @@ def main():
 
         if errors:
             fail(f"console errors: {errors}")
-        browser.close()
     print(json.dumps(result))
 
 

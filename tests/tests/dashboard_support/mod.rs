@@ -270,3 +270,17 @@ pub fn playwright_python() -> PathBuf {
     );
     python
 }
+
+/// Runs a browser script (`cmd`, a Python with Playwright on a script of tests/tests/browser/) and returns the
+/// JSON summary it prints, failing the test with its output when it fails.
+pub fn browser_script(mut cmd: Command) -> serde_json::Value {
+    let out = cmd.output().expect("run the browser script");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "browser script failed:\n{stdout}\n{}",
+        stderr(&out)
+    );
+    serde_json::from_str(stdout.trim())
+        .unwrap_or_else(|e| panic!("browser script output is not its JSON summary ({e}): {stdout}"))
+}

@@ -330,7 +330,7 @@ impl Scene {
 mod tests {
     use super::*;
     use crate::viewer::frame_buffer::decode;
-    use crease_core::mesh::io::write_obj;
+    use crease_core::mesh::io::{write_obj, write_pc2, write_ply_frame};
     use crease_core::mesh::subdivide::Subdivision;
 
     /// A 3 × 3 vertex sheet in the xy plane (8 triangles).
@@ -432,6 +432,59 @@ mod tests {
         match scene.frame_bytes(3) {
             Err(SceneError::OutOfRange(m)) => assert!(m.contains("3 frames"), "{m}"),
             other => panic!("frame 3 of 3: {other:?}"),
+        }
+    }
+
+    #[test]
+    fn obj_ply_and_pc2_outputs_are_shown_alike() {
+        let d = tempfile::tempdir().unwrap();
+        let (topo, base) = sheet();
+        // Steps of a quarter: exact in the f32 of PLY and PC2 files, so every layout holds the same values.
+        let input: Vec<Frame> = (0..3)
+            .map(|t| {
+                base.iter()
+                    .map(|p| [p[0] + 0.25 * t as f64, p[1], p[2]])
+                    .collect()
+            })
+            .collect();
+        let output: Vec<Frame> = input
+            .iter()
+            .map(|f| f.iter().map(|p| [p[0], p[1], p[2] + 0.25 * p[0]]).collect())
+            .collect();
+        write_frames(&d.path().join("in"), &topo, &input);
+        write_frames(&d.path().join("obj"), &topo, &output);
+        let ply = d.path().join("ply");
+        std::fs::create_dir(&ply).unwrap();
+        for (t, f) in output.iter().enumerate() {
+            write_ply_frame(&ply.join(format!("frame_{:04}.ply", t + 1)), &topo, f, true).unwrap();
+        }
+        let pc2 = d.path().join("pc2");
+        std::fs::create_dir(&pc2).unwrap();
+        write_obj(&pc2.join("sheet.obj"), &topo, &output[0]).unwrap();
+        write_pc2(&pc2.join("sheet.pc2"), &output, 0.0, 1.0).unwrap();
+        let frames = |out: &str| {
+            let scene = Scene::open(&located(
+                Some(d.path().join("in")),
+                Some(d.path().join(out)),
+            ))
+            .unwrap();
+            assert!(scene.meta()["input"].is_object(), "{out}: {}", scene.meta());
+            let layout = scene.meta()["output"]["layout"]
+                .as_str()
+                .unwrap()
+                .to_string();
+            let frames: Vec<_> = (0..3)
+                .map(|t| decode(&scene.frame_bytes(t).unwrap()).unwrap())
+                .collect();
+            (layout, frames)
+        };
+        let (layout, obj) = frames("obj");
+        assert_eq!(layout, "obj-frames");
+        assert!(obj[2].stretch.as_ref().unwrap().iter().any(|&s| s > 0.0));
+        for (out, want) in [("ply", "ply-frames"), ("pc2", "obj+pc2")] {
+            let (layout, got) = frames(out);
+            assert_eq!(layout, want);
+            assert_eq!(got, obj, "{out}");
         }
     }
 

@@ -155,24 +155,8 @@ fn a_jobs_viewer_data_is_served_behind_the_dashboards_tokens() {
 fn with_tls_the_viewer_is_served_over_https_behind_the_tokens() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let certs = d.join("certs");
-    let o = Command::new(bin())
-        .args(["certs", "--out", certs.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "crease certs: {}", stderr(&o));
-    let ca = certs.join("ca.pem");
     let port = free_port();
-    let mut c = start(
-        d,
-        port,
-        &[
-            "--tls-cert",
-            certs.join("coordinator.pem").to_str().unwrap(),
-            "--tls-key",
-            certs.join("coordinator.key").to_str().unwrap(),
-        ],
-    );
+    let (mut c, ca) = start_tls(d, port);
     c.scheme = "https";
     c.client_args
         .extend(["--tls-ca".to_string(), ca.display().to_string()]);

@@ -284,3 +284,25 @@ pub fn browser_script(mut cmd: Command) -> serde_json::Value {
     serde_json::from_str(stdout.trim())
         .unwrap_or_else(|e| panic!("browser script output is not its JSON summary ({e}): {stdout}"))
 }
+
+/// A coordinator like [`start`] serving HTTPS with a certificate from `crease certs`; returns it and the CA
+/// to trust.
+pub fn start_tls(d: &Path, http_port: u16) -> (Coordinator, PathBuf) {
+    let certs = d.join("certs");
+    let o = Command::new(bin())
+        .args(["certs", "--out", certs.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "crease certs: {}", stderr(&o));
+    let c = start(
+        d,
+        http_port,
+        &[
+            "--tls-cert",
+            certs.join("coordinator.pem").to_str().unwrap(),
+            "--tls-key",
+            certs.join("coordinator.key").to_str().unwrap(),
+        ],
+    );
+    (c, certs.join("ca.pem"))
+}

@@ -27,6 +27,7 @@ mod run;
 mod security_args;
 mod threads;
 mod urls;
+mod view;
 mod watch;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
@@ -83,6 +84,8 @@ enum Command {
     Deep(deep::DeepArgs),
     /// Bake a detailed sequence into normal maps on its coarse input (DESIGN §7 output layout).
     Bake(deep::BakeArgs),
+    /// Show an output folder (or any sequence) in the browser: the dashboard's 3D viewer and report.
+    View(view::ViewArgs),
 }
 
 fn lossy(args: &[std::ffi::OsString]) -> Vec<String> {
@@ -137,6 +140,7 @@ fn main() {
         Command::Export(a) => export::export_cmd(a),
         Command::Deep(a) => deep::deep(a),
         Command::Bake(a) => deep::bake(a),
+        Command::View(a) => view::view(a),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_text::one_line(&e));

@@ -48,7 +48,7 @@ enum Command {
     Run(run::RunArgs),
     /// Write the procedural demo sequence (OBJ frames) and its anchors file.
     Demo(run::DemoArgs),
-    /// Fold fidelity of a result against ground truth (DESIGN.md §9), beside the captured baseline.
+    /// Fold fidelity of a result against ground truth, beside the captured baseline (docs/fidelity.md).
     Eval(eval::EvalArgs),
     /// Paper-scale benchmark: seconds per frame per stage, peak memory, both weight modes.
     Bench(bench::BenchArgs),
@@ -81,7 +81,7 @@ enum Command {
     Export(export::ExportArgs),
     /// DeepWrinkles (Lähner et al. 2018): register templates to scans, train, apply.
     Deep(deep::DeepArgs),
-    /// Bake a detailed sequence into normal maps on its coarse input (DESIGN §7 output layout).
+    /// Bake a detailed sequence into normal maps on its coarse input (the layout `crease deep apply` writes).
     Bake(deep::BakeArgs),
 }
 

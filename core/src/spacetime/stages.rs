@@ -1,7 +1,7 @@
 //! The deformation as separately callable stages, so the single-machine driver ([`super::deform`]) and a cluster
 //! of workers run the very same arithmetic (one implementation, bit-identical results):
 //!
-//! 1. **weights** of one window — fused: [`fused_window_field`] (3 right-hand sides, DESIGN §4); per-anchor:
+//! 1. **weights** of one window — fused: [`fused_window_field`] (3 right-hand sides); per-anchor:
 //!    [`anchor_block`] for each anchor-column block ([`anchor_blocks`]), the paper's formulation;
 //! 2. **reduce** of a per-anchor window — [`reduce_blocks`]: the partial blends summed in block order;
 //! 3. **cross-fade** of the windows covering a frame — [`crossfade_frame`] (Popa et al. 2009 §5.3);

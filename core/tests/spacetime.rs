@@ -182,8 +182,8 @@ fn single_anchor_rotates_its_triangle_and_decays() {
         window: n,
         shift: n,
         stretch_passes: 0,
-        // The positioning of one rotated triangle as such: the shape projection (on by default since issue 11)
-        // takes away the wide part of a lone anchor's turn, which a capture would have seen.
+        // The positioning of one rotated triangle as such: the shape projection (on by default) takes
+        // away the wide part of a lone anchor's turn, which a capture would have seen.
         shape_projection: 0.0,
         ..Default::default()
     };
@@ -476,8 +476,8 @@ fn stretch_passes_lower_max_stretch() {
     let params = DeformParams {
         stretch_passes: 2,
         stretch_rotation: StretchRotation::Polar,
-        // The passes as such: the shape projection (on by default since issue 11) ends the last pass and
-        // changes its figure (docs/fidelity.md, "The shape projection").
+        // The passes as such: the shape projection (on by default) ends the last pass and changes
+        // its figure (docs/fidelity.md).
         shape_projection: 0.0,
         ..Default::default()
     };
@@ -525,7 +525,7 @@ fn anchored_passes_keep_the_folds_that_polar_passes_erase() {
         let params = DeformParams {
             stretch_passes: passes,
             stretch_rotation: rotation,
-            // The passes as such, without the shape projection that ends the last one (issue 11).
+            // The passes as such, without the shape projection that ends the last one.
             shape_projection: 0.0,
             ..Default::default()
         };

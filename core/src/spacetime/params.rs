@@ -6,7 +6,8 @@ use super::position::stretch::StretchRotation;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
-/// How the weight solve is organised (DESIGN §4).
+/// How the weight solve is organised: `fused` (three right-hand sides) or `per-anchor` (one CG column per
+/// anchor, spread over tasks).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum WeightMode {
@@ -40,7 +41,7 @@ impl std::fmt::Display for WeightMode {
     }
 }
 
-/// Default cutoff wavelength of the shape screen, in mean edge lengths (DESIGN §4; docs/fidelity.md).
+/// Default cutoff wavelength of the shape screen, in mean edge lengths (docs/fidelity.md).
 pub const DEFAULT_SHAPE_CUTOFF: f64 = 10.0;
 
 /// Everything the deformation needs besides the sequence and the anchors.
@@ -90,7 +91,7 @@ pub struct DeformParams {
     /// (default) factorises every frame's own stiffness matrix, the exact least-squares fit; k > 1 positions
     /// each block of k frames (t − t mod k, …) with the factor of the block's first frame and the frame's own
     /// right-hand side, one numeric factorisation per k frames instead of one per frame. 7 keeps the four
-    /// public cases within the quality targets (docs/benchmarks.md, "issue14-fused (second stop)").
+    /// public cases within the quality targets (bench/results/2026-12-03-fused-positioning.md).
     pub operator_block: usize,
 
     /// Strain limit (see [`super::position::strain_limit`]): the last step of the positioning shortens every edge
@@ -107,9 +108,8 @@ pub struct DeformParams {
 /// at most 21, the inverse of a fold the capture kept 5% of; below that the residue is noise rather than cloth.
 pub const MAX_FOLD_RESTORE: f64 = 20.0;
 
-/// Default fold restoration steps (docs/fidelity-folds.md, "Restoring the folds the capture kept" and
-/// "The restoration undoes the capture filter"; docs/fidelity.md, "The shape projection": 8 since the
-/// projection, which took away the drift's share of the fold region and gave popping its headroom back).
+/// Default fold restoration steps (docs/fidelity.md): 8 with the shape projection, which takes away the drift's
+/// share of the fold region and leaves popping its headroom (bench/results/2026-12-02-shape-projection.md).
 pub const DEFAULT_FOLD_RESTORE: f64 = 8.0;
 
 impl Default for DeformParams {

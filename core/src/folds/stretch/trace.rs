@@ -749,8 +749,8 @@ impl Segments {
 /// triangles closing it fold over. Such a patch is flattened by LSCM instead: on the sleeve sample a fifth of
 /// the patches fold over, and there the overlapping triangles' centroids land beside the axis and inflate the
 /// region of influence (8 % more triangles than LSCM's, axes 3.6 % shorter), while on the patches that
-/// unfold cleanly the two flattenings trace regions, axes and anchors within 0.3 % (docs/benchmarks.md,
-/// "issue14-trace"). The flipped mesh gives the mirrored layout, so the verdict does not depend on the winding.
+/// unfold cleanly the two flattenings trace regions, axes and anchors within 0.3 %
+/// (bench/results/2026-12-02-stretch-tracing.md). The flipped mesh gives the mirrored layout, so the verdict does not depend on the winding.
 fn unfolds_without_overlap(corners: &[[u32; 3]], uv: &[[f64; 2]]) -> bool {
     corners.iter().all(|k| {
         let [a, b, c] = k.map(|k| uv[k as usize]);

@@ -15,7 +15,7 @@
 //!   rotation the folds asked for. Plain polar passes forget the anchors: the captured surface (d = 0) is a
 //!   fixed point of zero stretch, so every pass trades fold amplitude for stretch and the folds fade. This is
 //!   the alternating minimisation of Σ A (‖F − R‖² + ‖R − B‖²) with B the blend: the passes still lower the
-//!   stretch, but the folds stay pinned to what the anchors asked for (docs/fidelity.md, "Anchored passes").
+//!   stretch, but the folds stay pinned to what the anchors asked for (docs/fidelity.md).
 
 use crate::spacetime::position::FramePositioner;
 use crate::spacetime::blend::so3;

@@ -6,7 +6,7 @@
 //! wavelengths back, but its roll-off 1 / (1 + (ℓ/ℓ_c)²) is gentle (a displacement twice the cutoff long keeps
 //! a fifth of itself), and an open rim is held only by its own side of the surface: on the public sleeve the
 //! cuffs flap by up to 0.7 edge lengths of low-frequency displacement, mostly along the surface normal, while
-//! the real cloth's rims move by 0.05 (docs/fidelity.md, "Where the drift is"). The capture filter's own
+//! the real cloth's rims move by 0.05 (bench/results/2026-12-02-shape-projection.md). The capture filter's own
 //! transfer is far sharper (it keeps 84% of an 8-edge wave and all of a 10-edge one, 2% of a 4-edge one).
 //!
 //! So, after the stretch passes and before the fold restoration, the positioned displacement d = x − c is
@@ -34,11 +34,10 @@ use serde::{Deserialize, Serialize};
 /// Most of the capture band a projection may remove: all of it.
 pub const MAX_SHAPE_PROJECTION: f64 = 1.0;
 
-/// Default fraction removed (docs/fidelity.md, "The shape projection").
+/// Default fraction removed (docs/fidelity.md).
 pub const DEFAULT_SHAPE_PROJECTION: f64 = 1.0;
 
-/// Where the projection sits relative to the last stretch pass (docs/fidelity.md, "The projection and the
-/// last stretch pass"). The projection re-stretches triangles the passes had relaxed (it is linear in the
+/// Where the projection sits relative to the last stretch pass (bench/results/2026-12-03-rest-length-stretch.md). The projection re-stretches triangles the passes had relaxed (it is linear in the
 /// displacement and knows nothing of triangle shapes), so the order trades stretch against drift.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]

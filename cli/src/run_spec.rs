@@ -4,7 +4,7 @@
 
 use crate::run::{Folds, RunArgs};
 use anyhow::{anyhow, bail, Context, Result};
-use crease_core::spacetime::strain_limit::{StrainReference, REST_STATE_STRAIN_LIMIT};
+use crease_core::spacetime::position::strain_limit::{StrainReference, REST_STATE_STRAIN_LIMIT};
 use crease_jobs::tuning::{key_of_field, Tuning};
 use crease_jobs::{FoldSpec, JobError, JobSpec, PreviewOptions};
 use serde_json::Value;

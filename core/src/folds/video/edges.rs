@@ -86,7 +86,7 @@ fn to_byte(v: f32) -> f32 {
 /// Enlarging by `u` divides image gradients by `u`, so the thresholds are scaled to match. The same thresholds
 /// hold at every radius: a wider level asks for a contour that much more contrasted, which keeps the soft
 /// contours of wide folds out along with the noise (dividing them by the radius found those contours but as
-/// many false ones, docs/fidelity-folds.md).
+/// many false ones, bench/results/2026-12-02-sleeve-video-kappa.md).
 pub fn canny_thresholds(level: Level, factor: f64, params: &VideoParams) -> (f32, f32) {
     let k = level.scale / factor;
     let low = (params.canny_low * k) as f32;

@@ -71,7 +71,7 @@ pub struct VideoParams {
     pub lighting_residual: bool,
     /// Anchor the cloth beside each detected pair too, tilted by the angle its lighting residual gives
     /// ([`super::flanks`]; needs `lighting_residual`). On by default: sleeve video κ 0.314 → 0.368, drape
-    /// 0.473 → 0.505, normal error down on both (docs/fidelity-folds.md, "Flank tilts from the shading").
+    /// 0.473 → 0.505, normal error down on both (bench/results/2026-12-03-flank-tilts.md).
     pub flank_tilt: bool,
     /// How far beside a pair's edges flanks are anchored, in pair widths. Wider lifts κ further (5: sleeve
     /// 0.382) but raises the drape's popping towards its limit of 1.2 (1.12 at 5, 1.20 unbounded; 1.09 at 3).
@@ -101,7 +101,7 @@ pub struct VideoParams {
 pub enum Views {
     /// The front and back views, plus, greedily, the cameras that see squarely a part of the garment those see
     /// only obliquely; each added camera anchors only that part ([`super::cover`]). It lifts the tube-like
-    /// sleeve and leaves the sheet as it was (docs/fidelity-folds.md).
+    /// sleeve and leaves the sheet as it was (bench/results/2026-12-02-video-views.md).
     #[default]
     Cover,
     /// The front and back views only, as Popa et al. analyse them.

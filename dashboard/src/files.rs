@@ -3,7 +3,7 @@
 //! frame N, parsed as a number). The name is looked up, never joined into a path, so no request can reach
 //! anything else in storage (`..%2f..%2fetc%2fpasswd` is simply not a name).
 
-use crate::api::{api_error, plausible_id};
+use crate::errors::{api_error, plausible_id};
 use crate::json::error;
 use crate::AppState;
 use axum::extract::{Path, State};

@@ -2,12 +2,8 @@
 
 mod arg_errors;
 mod bench;
-mod bench_cluster;
-mod bench_deep;
-mod bench_dispatch;
-mod bench_jobs;
-mod bench_pipeline;
 mod certs;
+mod client;
 mod cluster;
 mod deep;
 mod error_text;

@@ -11,8 +11,9 @@
 //! so `files` runs beside the weight tasks and only finalize (which writes `report.json`) waits for it.
 
 use super::env::TaskEnv;
+use super::fold_chunks::{self, chunk_seconds, chunks};
 use super::phase_times::Lap;
-use crate::detect::{detection_chunks, detector, granularity};
+use crate::detect::detector;
 use crate::error::TaskError;
 use crate::keys;
 use crate::spec::FoldSpec;
@@ -36,13 +37,6 @@ fn job_detector(
                 env.job.folds.kind()
             ))
         })
-}
-
-/// The job's detection chunks over `n` frames.
-pub(super) fn chunks(env: &TaskEnv, n: usize) -> Vec<Range<usize>> {
-    granularity(&env.job.folds)
-        .map(|g| detection_chunks(g, n, env.job.partition.fold_frames_per_chunk))
-        .unwrap_or_default()
 }
 
 pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
@@ -254,22 +248,12 @@ fn gather_chunks(
     let label = format!("{} fold merge", d.name());
     let frames = if crate::settle_tasks::settle_radius(env.job, n).is_some() {
         // Settled by the job's `fold-settle` tasks, range by range, as `d.settle` would.
-        super::settle::settled(env, opened, frames, &[], &label)?
+        fold_chunks::settled(env, opened, frames, &[], &label)?
     } else {
         d.settle(opened.source.as_ref(), frames)
             .map_err(|e| TaskError::from_core(&label, e))?
     };
     Ok((frames, per_frame))
-}
-
-/// The detection seconds a chunk starting at frame `first` recorded beside its anchors.
-pub(super) fn chunk_seconds(env: &TaskEnv, first: usize) -> Result<f64, TaskError> {
-    let key = keys::fold_chunk_timing(first);
-    let timing: Value = env.get_json(&key)?;
-    timing
-        .get("seconds")
-        .and_then(Value::as_f64)
-        .ok_or_else(|| TaskError::fatal(format!("{}: no `seconds`", env.out.describe(&key))))
 }
 
 #[cfg(test)]

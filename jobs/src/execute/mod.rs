@@ -14,6 +14,7 @@ mod env;
 mod exact;
 mod export;
 mod finalize;
+mod fold_chunks;
 mod folds;
 pub mod frame_cache;
 mod partial_file;

@@ -143,7 +143,7 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
         let peak = super::measure::peak_rss().unwrap_or(0);
         let by_kind = run.work_by_kind();
         let anchors = AnchorSet::read(
-            &out.join(crease_jobs::keys::ANCHORS),
+            &out.join(crease_jobs::storage::keys::ANCHORS),
             frames,
             triangles_of(&input)?,
         )
@@ -249,7 +249,7 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
             "name": "pipeline-sequential-per-anchor",
             "input": path_str(&input),
             "output": path_str(&dir.join("out-sequential-per-anchor")),
-            "folds": { "kind": "anchors", "uri": path_str(&out.join(crease_jobs::keys::ANCHORS)) },
+            "folds": { "kind": "anchors", "uri": path_str(&out.join(crease_jobs::storage::keys::ANCHORS)) },
             "deform": { "mode": "per-anchor" },
             "preview": { "size": 64 },
         })

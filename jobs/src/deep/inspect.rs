@@ -5,9 +5,9 @@
 use super::keys;
 use super::spec::{ApplyFrom, DeepSpec};
 use crate::error::JobError;
-use crate::inspect::InputInfo;
+use crate::plan::input::InputInfo;
 use crate::spec::JobSpec;
-use crate::storage::fetch_input_to_cache;
+use crate::storage::store::fetch_input_to_cache;
 use crease_deep::apply::open_coarse;
 use crease_deep::model::{Model, RegressorKind};
 use crease_deep::pose::read_pose_file;

@@ -2,8 +2,7 @@
 //! with the same defaults, so a job and the command with the same values write the same model or frames.
 
 use crate::error::JobError;
-use crate::spec::{FoldSpec, JobSpec};
-use crate::storage::parse_location;
+use crate::storage::location::parse_location;
 use crease_deep::cgan::CganConfig;
 use crease_deep::lstm::LstmConfig;
 use crease_deep::model::RegressorKind;
@@ -201,27 +200,8 @@ impl DeepSpec {
         }
     }
 
-    /// Checks what can be checked without storage; the parts of a job spec that only deformations use must be
-    /// left at their defaults, so that nothing set there is silently ignored.
-    pub fn validate(&self, job: &JobSpec) -> Result<(), JobError> {
-        if job.folds != FoldSpec::None {
-            return Err(JobError::spec(
-                "folds",
-                "a [deep] job has no folds (it trains or applies a DeepWrinkles model); remove [folds]",
-            ));
-        }
-        if !job.export.formats.is_empty() {
-            return Err(JobError::spec(
-                "export",
-                "a [deep] job writes meshes and normal maps (DESIGN §7), not an exported sequence; remove [export]",
-            ));
-        }
-        if job.deform != crease_core::spacetime::DeformParams::default() {
-            return Err(JobError::spec(
-                "deform",
-                "a [deep] job does not deform its input; remove [deform]",
-            ));
-        }
+    /// Checks what can be checked without storage, naming the field at fault.
+    pub fn validate(&self) -> Result<(), JobError> {
         for (field, uri) in self.uris() {
             parse_location(uri, field)?;
         }

@@ -8,8 +8,8 @@ use super::phase_times::Lap;
 use super::position::FrameTimings;
 use super::weights::WindowRecord;
 use crate::error::{JobError, TaskError};
-use crate::inspect::{output_files, output_sink, writes_frames};
-use crate::keys;
+use crate::plan::inspect::{output_files, output_sink, writes_frames};
+use crate::storage::keys;
 use crate::spec::FoldSpec;
 use crease_core::mesh::{Frame, FrameSource};
 use crease_core::metrics::StretchAccumulator;
@@ -53,7 +53,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     } else {
         Some(output_sink(job, &opened.layout, &topo, n, &dir).map_err(core_err("output"))?)
     };
-    let keep = crate::detect::preview_frames(job, n);
+    let keep = crate::plan::detect::preview_frames(job, n);
     let mut timings = StageTimings {
         stretch_passes: vec![0.0; params.stretch_passes],
         ..Default::default()
@@ -211,7 +211,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         #[allow(unreachable_patterns)]
         other => json!({ "detected": other.kind(), "file": env.out.describe(keys::ANCHORS) }),
     };
-    let fold_detection: Value = if crate::detect::granularity(&job.folds).is_some() {
+    let fold_detection: Value = if crate::plan::detect::granularity(&job.folds).is_some() {
         env.get_json(keys::FOLD_SUMMARY)?
     } else {
         Value::Null
@@ -255,7 +255,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         "report": report,
     });
     // Every key this run owns (crease_jobs::stale): the next run on this output removes those it does not write.
-    let mut manifest = env.block_on(crate::stale::owned_now(&env.out));
+    let mut manifest = env.block_on(crate::plan::stale::owned_now(&env.out));
     if manifest.is_empty() {
         manifest = written.clone();
         manifest.push(keys::REPORT.into());

@@ -4,11 +4,11 @@
 
 use super::env::TaskEnv;
 use crate::error::TaskError;
-use crate::keys;
-use crate::detect::{detection_chunks, granularity};
-use crate::settle_tasks::{job_settle_chunks, settle_radius};
+use crate::storage::keys;
+use crate::plan::detect::{detection_chunks, granularity};
+use crate::plan::settle::{job_settle_chunks, settle_radius};
 use crate::spec::FoldSpec;
-use crate::stretch_tasks::trace_chunks;
+use crate::plan::chunks::trace_chunks;
 use crease_core::folds::anchors::binary;
 use crease_core::folds::stretch::split::{self, TracedChunk};
 use crease_core::folds::temporal::{settle_input, settle_range};

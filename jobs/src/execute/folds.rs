@@ -4,7 +4,7 @@
 //! later tasks read and whose per-frame anchor counts let the planner size the weight blocks); `files` writes
 //! the user-facing `anchors.json` and `folds/control_lines.obj` from it (a stretch job's `folds.png` has its
 //! own `fold-plot` task, [`super::stretch::plot`], which needs only the tracing chunks).
-//! The temporal coherence between them runs in `fold-settle` tasks ([`crate::settle_tasks`]).
+//! The temporal coherence between them runs in `fold-settle` tasks ([`crate::plan::settle`]).
 //!
 //! Why two tasks: `merge` is on every detection job's critical path (all deformation tasks wait for it), and
 //! the text of the two user files (tens of MB at paper scale) was the larger part of it. No task reads them,
@@ -13,9 +13,9 @@
 use super::env::TaskEnv;
 use super::fold_chunks::{self, chunk_seconds, chunks};
 use super::phase_times::Lap;
-use crate::detect::detector;
+use crate::plan::detect::detector;
 use crate::error::TaskError;
-use crate::keys;
+use crate::storage::keys;
 use crate::spec::FoldSpec;
 use crease_core::folds::anchors::binary;
 use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors};
@@ -246,7 +246,7 @@ fn gather_chunks(
         frames.extend(chunk);
     }
     let label = format!("{} fold merge", d.name());
-    let frames = if crate::settle_tasks::settle_radius(env.job, n).is_some() {
+    let frames = if crate::plan::settle::settle_radius(env.job, n).is_some() {
         // Settled by the job's `fold-settle` tasks, range by range, as `d.settle` would.
         fold_chunks::settled(env, opened, frames, &[], &label)?
     } else {

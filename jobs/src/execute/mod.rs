@@ -27,7 +27,7 @@ pub mod window_cache;
 
 use crate::error::TaskError;
 use crate::failure::FailureKind;
-use crate::task::{TaskOutput, TaskSpec};
+use crate::plan::task::{TaskOutput, TaskSpec};
 use crease_core::progress::Progress;
 use env::TaskEnv;
 use std::path::PathBuf;

@@ -1,4 +1,4 @@
-//! `fold-settle` tasks ([`crate::settle_tasks`]): the temporal coherence of one frame range, from the detected
+//! `fold-settle` tasks ([`crate::plan::settle`]): the temporal coherence of one frame range, from the detected
 //! anchors of that range widened by the settle radius, stored under [`keys::fold_settled`] in the binary anchors
 //! form (the merge reads them back through [`super::fold_chunks::settled`]).
 
@@ -6,8 +6,8 @@ use super::env::TaskEnv;
 use super::fold_chunks::{ranges, read_detected};
 use super::phase_times::Lap;
 use crate::error::TaskError;
-use crate::keys;
-use crate::settle_tasks::{inputs_of, settle_radius};
+use crate::storage::keys;
+use crate::plan::settle::{inputs_of, settle_radius};
 use crease_core::folds::anchors::binary;
 use crease_core::folds::temporal::{settle_input, settle_range};
 use crease_core::folds::FrameAnchors;

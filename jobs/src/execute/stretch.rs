@@ -1,4 +1,4 @@
-//! The stretch detector's tasks ([`crate::stretch_tasks`]): step records and phase codes go through storage as
+//! The stretch detector's tasks ([`crate::plan::stretch`]): step records and phase codes go through storage as
 //! `.npy`, traced chunks in the binary anchors form, under [`keys`]; the computation is
 //! [`crease_core::folds::stretch::split`], so these functions only move data and name what is missing.
 
@@ -6,8 +6,8 @@ use super::env::TaskEnv;
 use super::fold_chunks::{self, chunk_seconds, read_trace_chunk, traced_chunks, traced_size};
 use super::phase_times::Lap;
 use crate::error::TaskError;
-use crate::keys;
-use crate::stretch_tasks::{step_chunks, trace_chunks};
+use crate::storage::keys;
+use crate::plan::chunks::{step_chunks, trace_chunks};
 use crease_core::folds::stretch::overlay::OverlayFrame;
 use crease_core::folds::stretch::split::{
     self, ChunkTracer, Pass, PhaseCode, Phases, StepRecord, TracedChunk,
@@ -22,7 +22,7 @@ use std::cell::RefCell;
 use std::ops::Range;
 
 fn detector(env: &TaskEnv, n: usize) -> Result<StretchDetector, TaskError> {
-    crate::detect::stretch_detector(env.job, n).ok_or_else(|| {
+    crate::plan::detect::stretch_detector(env.job, n).ok_or_else(|| {
         TaskError::fatal(format!(
             "folds of kind `{}` have no stretch detection tasks",
             env.job.folds.kind()
@@ -409,7 +409,7 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
         Ok(())
     };
     let (frames, retraced) =
-        if chunks_are_exact(&det) && crate::settle_tasks::settle_radius(env.job, n).is_some() {
+        if chunks_are_exact(&det) && crate::plan::settle::settle_radius(env.job, n).is_some() {
             // The settled ranges are final as stored: no chunk to read back on the job's critical path (at 100K
             // triangles they are some 4 MB per frame, read here once more after the settle tasks read them).
             for r in &traced_chunks(env, opened).0 {

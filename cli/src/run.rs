@@ -355,9 +355,11 @@ pub fn run(a: RunArgs) -> Result<()> {
     if a.input.is_none() && a.deform.strain_reference.is_none() {
         // The demo's input is its own rest state in every frame: its stretch is measured against the input
         // frame's triangles, and so is its strain limit.
-        params.strain_reference = crease_core::spacetime::position::strain_limit::StrainReference::Frame;
+        params.strain_reference =
+            crease_core::spacetime::position::strain_limit::StrainReference::Frame;
         if a.deform.strain_limit.is_none() {
-            params.strain_limit = crease_core::spacetime::position::strain_limit::REST_STATE_STRAIN_LIMIT;
+            params.strain_limit =
+                crease_core::spacetime::position::strain_limit::REST_STATE_STRAIN_LIMIT;
         }
     }
     params.validate()?;

@@ -11,7 +11,6 @@ use crease_core::folds::video::VideoParams;
 use crease_core::spacetime::DeformParams;
 use serde::{Deserialize, Serialize};
 
-
 /// Frames each tracing task traces ahead of its chunk by default.
 pub const DEFAULT_WARM_UP: usize = 3;
 

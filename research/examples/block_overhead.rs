@@ -8,8 +8,8 @@
 use crease_core::folds::AnchorSet;
 use crease_core::mesh::io::open_sequence;
 use crease_core::progress::NoProgress;
-use crease_core::spacetime::weights::per_anchor::BlockWorkspace;
 use crease_core::spacetime::weights;
+use crease_core::spacetime::weights::per_anchor::BlockWorkspace;
 use crease_core::spacetime::weights::WindowProblem;
 use crease_core::spacetime::windows::Window;
 use crease_core::synth::{self, DemoSpec};

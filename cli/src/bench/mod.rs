@@ -6,7 +6,6 @@
 //! high-water mark is reset between cases). With `--export DIR` it also writes the matrices of one window and
 //! one frame as `.npy` together with our own timings of exactly those solves, for `bench/scipy_compare.py`.
 
-
 mod args;
 mod cluster;
 mod deep;
@@ -15,19 +14,19 @@ mod jobs;
 mod measure;
 mod pipeline;
 
-pub use args::BenchArgs;
-use measure::{case_input, median, peak_rss, reset_peak_rss, scratch_dir};
 use anyhow::{Context, Result};
+pub use args::BenchArgs;
 use crease_core::mesh::MemorySink;
 use crease_core::npy;
 use crease_core::progress::NoProgress;
-use crease_core::spacetime::weights::per_anchor::LocalCg;
+use crease_core::spacetime::blend::so3;
 use crease_core::spacetime::position::PositionSystem;
+use crease_core::spacetime::weights::per_anchor::LocalCg;
 use crease_core::spacetime::weights::{solve_window, WindowProblem};
 use crease_core::spacetime::windows::Window;
-use crease_core::spacetime::blend::so3;
 use crease_core::spacetime::{deform, DeformParams, WeightMode};
 use crease_core::synth::{self, DemoSpec};
+use measure::{case_input, median, peak_rss, reset_peak_rss, scratch_dir};
 use serde_json::json;
 use std::path::Path;
 use std::time::Instant;

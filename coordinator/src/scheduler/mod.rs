@@ -171,10 +171,13 @@ impl Scheduler {
                 .into());
             }
         }
-        let info =
-            crease_jobs::plan::limits::admit(&spec, &self.config.storage_roots, &self.config.limits)
-                .await
-                .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
+        let info = crease_jobs::plan::limits::admit(
+            &spec,
+            &self.config.storage_roots,
+            &self.config.limits,
+        )
+        .await
+        .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         let defs = crease_jobs::plan(&spec, &info)
             .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         // A report left by an earlier run must not vouch for this job while it runs, and files only an earlier

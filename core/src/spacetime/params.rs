@@ -1,8 +1,8 @@
 //! Parameters of the space-time deformation, with their paper defaults and validation.
 
-use super::weights::operator::Coefficients;
-use super::position::Pinning;
 use super::position::stretch::StretchRotation;
+use super::position::Pinning;
+use super::weights::operator::Coefficients;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 

@@ -2,10 +2,10 @@
 
 use super::keys;
 use super::spec::DeepSpec;
-use crate::plan::input::InputInfo;
 use crate::plan::chunks::chunk_ranges;
-use crate::spec::JobSpec;
+use crate::plan::input::InputInfo;
 use crate::plan::task::{TaskDef, TaskSpec};
+use crate::spec::JobSpec;
 
 pub fn plan(job: &JobSpec, deep: &DeepSpec, info: &InputInfo) -> Vec<TaskDef> {
     match deep {

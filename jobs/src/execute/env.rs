@@ -2,8 +2,8 @@
 
 use super::{frame_cache, ExecContext};
 use crate::error::{JobError, TaskError};
-use crate::storage::keys;
 use crate::spec::{FoldSpec, JobSpec};
+use crate::storage::keys;
 use crate::storage::store::{fetch_input_to_cache, Storage};
 use bytes::Bytes;
 use crease_core::folds::AnchorSet;

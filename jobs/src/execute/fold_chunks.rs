@@ -4,11 +4,11 @@
 
 use super::env::TaskEnv;
 use crate::error::TaskError;
-use crate::storage::keys;
+use crate::plan::chunks::trace_chunks;
 use crate::plan::detect::{detection_chunks, granularity};
 use crate::plan::settle::{job_settle_chunks, settle_radius};
 use crate::spec::FoldSpec;
-use crate::plan::chunks::trace_chunks;
+use crate::storage::keys;
 use crease_core::folds::anchors::binary;
 use crease_core::folds::stretch::split::{self, TracedChunk};
 use crease_core::folds::temporal::{settle_input, settle_range};
@@ -74,22 +74,25 @@ pub(super) fn is_stretch(env: &TaskEnv) -> bool {
 }
 
 /// The job's detection chunks (tracing chunks for stretch folds) and settle ranges over the input's frames.
-pub(super) fn ranges(env: &TaskEnv, opened: &OpenedSequence) -> (Vec<Range<usize>>, Vec<Range<usize>>) {
+pub(super) fn ranges(
+    env: &TaskEnv,
+    opened: &OpenedSequence,
+) -> (Vec<Range<usize>>, Vec<Range<usize>>) {
     let n = opened.source.n_frames();
     if is_stretch(env) {
         let (chunks, nt) = traced_chunks(env, opened);
         (chunks, job_settle_chunks(env.job, n, nt))
     } else {
-        (
-            chunks(env, n),
-            job_settle_chunks(env.job, n, 0),
-        )
+        (chunks(env, n), job_settle_chunks(env.job, n, 0))
     }
 }
 
 /// The detected anchors of detection chunk `r`, as its task stored them (a stretch tracing chunk's frames as
 /// traced, before the merge reconciles them).
-pub(super) fn read_detected(env: &TaskEnv, r: &Range<usize>) -> Result<Vec<FrameAnchors>, TaskError> {
+pub(super) fn read_detected(
+    env: &TaskEnv,
+    r: &Range<usize>,
+) -> Result<Vec<FrameAnchors>, TaskError> {
     if is_stretch(env) {
         let chunk = read_trace_chunk(env, r)?;
         return Ok(chunk.frames.into_iter().map(|f| f.anchors).collect());

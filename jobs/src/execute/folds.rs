@@ -13,10 +13,10 @@
 use super::env::TaskEnv;
 use super::fold_chunks::{self, chunk_seconds, chunks};
 use super::phase_times::Lap;
-use crate::plan::detect::detector;
 use crate::error::TaskError;
-use crate::storage::keys;
+use crate::plan::detect::detector;
 use crate::spec::FoldSpec;
+use crate::storage::keys;
 use crease_core::folds::anchors::binary;
 use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors};
 use crease_core::mesh::io::OpenedSequence;

@@ -6,8 +6,8 @@ use super::env::TaskEnv;
 use super::fold_chunks::{ranges, read_detected};
 use super::phase_times::Lap;
 use crate::error::TaskError;
-use crate::storage::keys;
 use crate::plan::settle::{inputs_of, settle_radius};
+use crate::storage::keys;
 use crease_core::folds::anchors::binary;
 use crease_core::folds::temporal::{settle_input, settle_range};
 use crease_core::folds::FrameAnchors;
@@ -62,4 +62,3 @@ pub fn settle(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>
     let counts: Vec<usize> = out.iter().map(|f| f.anchors.len()).collect();
     Ok((json!({ "anchors_per_frame": counts }), vec![key]))
 }
-

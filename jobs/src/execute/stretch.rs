@@ -6,8 +6,8 @@ use super::env::TaskEnv;
 use super::fold_chunks::{self, chunk_seconds, read_trace_chunk, traced_chunks, traced_size};
 use super::phase_times::Lap;
 use crate::error::TaskError;
-use crate::storage::keys;
 use crate::plan::chunks::{step_chunks, trace_chunks};
+use crate::storage::keys;
 use crease_core::folds::stretch::overlay::OverlayFrame;
 use crease_core::folds::stretch::split::{
     self, ChunkTracer, Pass, PhaseCode, Phases, StepRecord, TracedChunk,

@@ -8,13 +8,13 @@
 use super::graph::{farm_graph, parse_slot_key, Stage};
 use crate::error::{JobError, TaskError};
 use crate::execute::{execute, ExecContext};
+use crate::plan::graph::{expand, plan};
 use crate::plan::input::InputInfo;
 use crate::plan::inspect::inspect_input;
-use crate::storage::keys;
-use crate::plan::graph::{expand, plan};
-use crate::spec::JobSpec;
-use crate::storage::store::Storage;
 use crate::plan::task::{TaskDef, TaskOutput, TaskSpec};
+use crate::spec::JobSpec;
+use crate::storage::keys;
+use crate::storage::store::Storage;
 use crease_core::folds::AnchorSet;
 use serde_json::json;
 

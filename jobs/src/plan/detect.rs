@@ -215,10 +215,10 @@ mod tests {
     //! The generic fold-detection path: detection tasks (per frame chunk or whole sequence), the merge that
     //! expands the graph, then the deformation on the detected anchors, all run in process.
     use super::test_detector::GeometryDetector;
-    use crate::spec::JobSpec;
-    use crate::plan::task::TaskSpec;
     use crate::plan::graph::{expand, plan};
     use crate::plan::inspect::inspect_input;
+    use crate::plan::task::TaskSpec;
+    use crate::spec::JobSpec;
     use crate::storage::keys;
     use crate::{execute, ExecContext};
     use crease_core::folds::{AnchorSet, FoldDetector};

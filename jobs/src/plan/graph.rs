@@ -20,13 +20,13 @@
 //! `fold-files` task that writes the user-facing anchor files. Nothing but finalize waits for `fold-files`,
 //! so it runs beside the weight tasks instead of lengthening the chain every deformation task waits on.
 
+use crate::error::JobError;
 use crate::plan::chunks::{blocks_per_window, job_windows, position_chunks};
 use crate::plan::detect;
-use crate::error::JobError;
 use crate::plan::input::InputInfo;
-use crate::storage::keys;
-use crate::spec::JobSpec;
 use crate::plan::task::{TaskDef, TaskOutput, TaskSpec};
+use crate::spec::JobSpec;
+use crate::storage::keys;
 use crease_core::spacetime::WeightMode;
 
 /// The initial task graph of a job.

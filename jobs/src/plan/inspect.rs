@@ -4,8 +4,8 @@
 
 use super::input::InputInfo;
 use crate::error::JobError;
-use crate::storage::keys;
 use crate::spec::{FoldSpec, JobSpec};
+use crate::storage::keys;
 use crate::storage::location::{parse_location, Location};
 use crate::storage::store::{fetch_input_to_cache, Storage};
 use crease_core::folds::AnchorSet;

@@ -16,10 +16,10 @@
 //! traced; the merge reconciles as before and settles again, from the reconciled frames, only the ranges whose
 //! input window holds a frame it traced again, so the output stays exact either way.
 
-use crate::storage::keys;
 use crate::plan::chunks::chunk_ranges;
-use crate::spec::{FoldSpec, JobSpec};
 use crate::plan::task::{TaskDef, TaskSpec};
+use crate::spec::{FoldSpec, JobSpec};
+use crate::storage::keys;
 use crease_core::folds::temporal::settle_input;
 use std::ops::Range;
 

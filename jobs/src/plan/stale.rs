@@ -9,8 +9,8 @@
 
 use crate::error::JobError;
 use crate::plan::input::InputInfo;
-use crate::storage::keys;
 use crate::spec::{FoldSpec, JobSpec};
+use crate::storage::keys;
 use crate::storage::store::Storage;
 use std::collections::BTreeSet;
 
@@ -20,7 +20,9 @@ pub const OWNED: &str = ".crease-work/owned.json";
 /// Every key outside `.crease-work/` that a run of `job` may write: the final outputs and the detectors'
 /// inspection images.
 pub fn owned_keys(job: &JobSpec, info: &InputInfo) -> BTreeSet<String> {
-    let mut keys: BTreeSet<String> = crate::plan::graph::final_outputs(job, info).into_iter().collect();
+    let mut keys: BTreeSet<String> = crate::plan::graph::final_outputs(job, info)
+        .into_iter()
+        .collect();
     match &job.folds {
         FoldSpec::Stretch { .. } => {
             keys.insert("folds.png".to_string());

@@ -12,11 +12,11 @@
 //! tasks of some seconds each; step chunks do about a quarter of the work per frame, so they take four times
 //! as many frames (at most half the sequence, so that two workers share them).
 
-use crate::plan::input::InputInfo;
-use crate::storage::keys;
 use crate::plan::chunks::{step_chunks, trace_chunks};
-use crate::spec::JobSpec;
+use crate::plan::input::InputInfo;
 use crate::plan::task::{TaskDef, TaskSpec};
+use crate::spec::JobSpec;
+use crate::storage::keys;
 use std::ops::Range;
 
 /// The detection tasks and the merge (marked `expands`) of a stretch job. `n_triangles` is the traced

@@ -132,7 +132,11 @@ impl SeedQueue {
             order: order.into_iter(),
             ahead: VecDeque::new(),
             ready: HashMap::new(),
-            batch: if threads > 1 { BATCH_PER_THREAD * threads } else { 1 },
+            batch: if threads > 1 {
+                BATCH_PER_THREAD * threads
+            } else {
+                1
+            },
             lookahead: LOOKAHEAD,
             traced_ahead: 0,
             wasted: 0,

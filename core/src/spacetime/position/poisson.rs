@@ -39,9 +39,9 @@
 //! displacement is zero (the garment stays centred on the capture instead of hanging from an arbitrary
 //! vertex); [`Pinning::Vertex`] keeps the fixed vertex exactly in place instead.
 
-use crate::spacetime::shape::restore::RestoreMesh;
 use crate::error::{Error, Result};
 use crate::mesh::{Frame, Topology, NONE};
+use crate::spacetime::shape::restore::RestoreMesh;
 use crate::vec3::{self, M3, V3};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{

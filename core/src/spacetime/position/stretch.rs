@@ -17,9 +17,9 @@
 //!   the alternating minimisation of Σ A (‖F − R‖² + ‖R − B‖²) with B the blend: the passes still lower the
 //!   stretch, but the folds stay pinned to what the anchors asked for (docs/fidelity.md, "Anchored passes").
 
-use crate::spacetime::position::FramePositioner;
-use crate::spacetime::blend::so3;
 use crate::mesh::{geometry, Frame};
+use crate::spacetime::blend::so3;
+use crate::spacetime::position::FramePositioner;
 use crate::vec3::{self, M3, V3};
 use serde::{Deserialize, Serialize};
 

@@ -20,9 +20,9 @@
 //! vanishes on constants (r(1) = 0: a filter step keeps a constant field), so the series is applied to c minus
 //! its mean: the result then does not depend on where the garment stands, to rounding.
 
-use crate::spacetime::kernels::stencil_sweep::{self, Sweep};
 use crate::mesh::Topology;
 use crate::shape::TaubinFilter;
+use crate::spacetime::kernels::stencil_sweep::{self, Sweep};
 use crate::vec3::{self, V3};
 use rayon::prelude::*;
 use std::f64::consts::PI;

@@ -90,12 +90,7 @@ impl Restoration {
             return out.to_vec();
         }
         if !self.restores() {
-            return super::projection::project(
-                mesh.stencil.filter(),
-                rest,
-                out,
-                self.projection,
-            );
+            return super::projection::project(mesh.stencil.filter(), rest, out, self.projection);
         }
         if self.projection <= 0.0 {
             let detail = mesh.stencil.detail(&mesh.series(self.steps), rest);

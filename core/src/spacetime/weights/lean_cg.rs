@@ -362,11 +362,7 @@ mod tests {
     }
 
     /// ‖M x − b‖ / ‖b‖ over all three columns, with the operator's own f64 product.
-    fn residual(
-        op: &SpaceTimeOperator,
-        x: &[[f64; 3]],
-        b: &[[f64; 3]],
-    ) -> f64 {
+    fn residual(op: &SpaceTimeOperator, x: &[[f64; 3]], b: &[[f64; 3]]) -> f64 {
         let mut q = vec![[0.0; 3]; x.len()];
         op.apply3(x, &mut q);
         let (mut num, mut den) = (0.0, 0.0);
@@ -426,7 +422,8 @@ mod tests {
                 .unwrap()
                 .install(|| solve3_lean(&problem.op, &b, 1e-3, 1000).unwrap().0)
         };
-        let bits = |x: &[[f64; 3]]| -> Vec<u64> { x.iter().flat_map(|v| v.map(f64::to_bits)).collect() };
+        let bits =
+            |x: &[[f64; 3]]| -> Vec<u64> { x.iter().flat_map(|v| v.map(f64::to_bits)).collect() };
         assert_eq!(bits(&run(1)), bits(&run(3)));
     }
 

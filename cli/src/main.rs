@@ -5,6 +5,7 @@ mod bench;
 mod certs;
 mod client;
 mod cluster;
+#[cfg(feature = "deep")]
 mod deep;
 mod error_text;
 mod eval;
@@ -24,6 +25,10 @@ mod security_args;
 mod threads;
 mod urls;
 mod watch;
+#[cfg(not(feature = "deep"))]
+mod without_deep;
+#[cfg(not(feature = "deep"))]
+use without_deep as deep;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
@@ -113,7 +118,17 @@ fn main() {
             std::process::exit(2);
         }
     }
-    let result = match cli.command {
+    let result = run_command(cli.command);
+    if let Err(e) = result {
+        eprintln!("error: {}", error_text::one_line(&e));
+        let code = e.downcast_ref::<watch::Ended>().map_or(1, |end| end.code);
+        std::process::exit(code);
+    }
+}
+
+/// Runs one subcommand.
+fn run_command(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Run(a) => run::run(a),
         Command::Demo(a) => run::demo(a),
         Command::Eval(a) => eval::eval(a),
@@ -133,10 +148,5 @@ fn main() {
         Command::Export(a) => export::export_cmd(a),
         Command::Deep(a) => deep::deep(a),
         Command::Bake(a) => deep::bake(a),
-    };
-    if let Err(e) = result {
-        eprintln!("error: {}", error_text::one_line(&e));
-        let code = e.downcast_ref::<watch::Ended>().map_or(1, |end| end.code);
-        std::process::exit(code);
     }
 }

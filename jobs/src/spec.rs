@@ -281,6 +281,8 @@ impl JobSpec {
         if let Some(deep) = &self.deep {
             self.validate_deep_only()?;
             deep.validate()?;
+            #[cfg(feature = "deep")]
+            crate::deep::library::check_params(deep)?;
         }
         // The detectors name parameters as their CLI flags do (`fold-width`, `theta0`); the spec names fields.
         let param_err = |e: crease_core::Error| match e {

@@ -8,6 +8,7 @@
 
 mod args;
 mod cluster;
+#[cfg(feature = "deep")]
 mod deep;
 mod dispatch;
 mod jobs;
@@ -42,7 +43,10 @@ pub fn bench(a: BenchArgs) -> Result<()> {
         return dispatch::bench_dispatch(&a);
     }
     if a.deep {
+        #[cfg(feature = "deep")]
         return deep::bench_deep(&a);
+        #[cfg(not(feature = "deep"))]
+        anyhow::bail!(crate::without_deep::HOW_TO_GET_IT);
     }
     if a.edges_only {
         let edges = edges_stage(&a)?;

@@ -41,8 +41,12 @@
 //! [preview]
 //! frames = [5, 20]                         # default: four spread over the sequence
 //! size = 384
+//!
+//! [tuning]                                 # any tuning key (docs/tuning.md, `crease tuning`), set over
+//! deform.strain_limit = 0.03               # the tables above: the same keys `crease run --set` takes
 //! "#).unwrap();
 //! assert_eq!(job.params().anchor_block, 256);
+//! assert_eq!(job.deform.strain_limit, 0.03);
 //! ```
 //!
 //! Errors name the field: `job spec: \`partition.anchor_block\`: …`, `input /data/x: …`.
@@ -124,8 +128,10 @@ pub mod export_spec;
 pub mod failure;
 pub mod farm;
 pub mod plan;
+pub mod report;
 pub mod spec;
 pub mod storage;
+pub mod tuning;
 
 pub use error::{JobError, TaskError};
 pub use execute::{execute, frame_cache, phase_times, window_cache, ExecContext};

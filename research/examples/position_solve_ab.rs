@@ -190,7 +190,7 @@ fn max_diff(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
     w
 }
 
-/// The column-by-column interleaved sweep before issue 14's second pass (one update of each pattern row per
+/// The column-by-column interleaved sweep that preceded the grouped row sweep (one update of each pattern row per
 /// supernode column), kept as the "before" of this A/B.
 fn old_solve3(symbolic: &SymbolicCholesky<usize>, l_values: &[f64], rhs: &mut Mat<f64>) -> bool {
     let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {

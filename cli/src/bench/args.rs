@@ -45,9 +45,6 @@ pub struct BenchArgs {
     /// Run only the stretch-folds stage (geometric fold estimation, Chen 2011).
     #[arg(long)]
     pub stretch_folds_only: bool,
-    /// Patch flattening of the stretch-folds stage's tracing (`unfold` or `lscm`; default: the detector's).
-    #[arg(long, value_parser = ["unfold", "lscm"])]
-    pub stretch_flattening: Option<String>,
     /// Image for the video edge stage (default: a 640x480 render of the demo's folded ground truth with the
     /// synthetic-video shading, which has folds to pair).
     #[arg(long)]

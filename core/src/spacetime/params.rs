@@ -6,7 +6,8 @@ use super::weights::operator::Coefficients;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
-/// How the weight solve is organised (DESIGN §4).
+/// How the weight solve is organised: `fused` (three right-hand sides) or `per-anchor` (one CG column per
+/// anchor, spread over tasks).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum WeightMode {
@@ -40,13 +41,13 @@ impl std::fmt::Display for WeightMode {
     }
 }
 
-/// Default cutoff wavelength of the shape screen, in mean edge lengths (DESIGN §4; docs/fidelity.md).
+/// Default cutoff wavelength of the shape screen, in mean edge lengths (docs/fidelity.md).
 pub const DEFAULT_SHAPE_CUTOFF: f64 = 10.0;
 
 /// Everything the deformation needs besides the sequence and the anchors.
 ///
-/// Read from a job spec's `[deform]` table through [`DeformFields`], which also accepts each `crease run`
-/// flag's own name (`c_s`, `cg_tol`, `cg_max_iter`), so a flag and its spec field are spelled the same.
+/// Read from a job spec's `[deform]` table through [`DeformFields`], which takes the coefficients flat (`c_s`,
+/// as their tuning keys `deform.c_s` name them) or nested, and the older names `cg_tol` and `cg_max_iter`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "DeformFields")]
 pub struct DeformParams {
@@ -83,15 +84,6 @@ pub struct DeformParams {
     /// it off; it acts only with the shape screen on (`shape_cutoff` > 0: `off` is the paper's unconstrained
     /// system).
     pub shape_projection: f64,
-    /// Where the shape projection sits relative to the last stretch pass (see
-    /// [`super::shape::projection::ProjectionOrder`]).
-    pub projection_order: super::shape::projection::ProjectionOrder,
-    /// Frames per positioning operator (see [`super::position::PositionSystem::with_operator_block`]): 1
-    /// (default) factorises every frame's own stiffness matrix, the exact least-squares fit; k > 1 positions
-    /// each block of k frames (t − t mod k, …) with the factor of the block's first frame and the frame's own
-    /// right-hand side, one numeric factorisation per k frames instead of one per frame. 7 keeps the four
-    /// public cases within the quality targets (docs/benchmarks.md, "issue14-fused (second stop)").
-    pub operator_block: usize,
 
     /// Strain limit (see [`super::position::strain_limit`]): the last step of the positioning shortens every edge
     /// longer than (1 + this) times its reference length back to it; a fraction, 0 turns it off.
@@ -107,9 +99,8 @@ pub struct DeformParams {
 /// at most 21, the inverse of a fold the capture kept 5% of; below that the residue is noise rather than cloth.
 pub const MAX_FOLD_RESTORE: f64 = 20.0;
 
-/// Default fold restoration steps (docs/fidelity-folds.md, "Restoring the folds the capture kept" and
-/// "The restoration undoes the capture filter"; docs/fidelity.md, "The shape projection": 8 since the
-/// projection, which took away the drift's share of the fold region and gave popping its headroom back).
+/// Default fold restoration steps (docs/fidelity.md): 8 with the shape projection, which takes away the drift's
+/// share of the fold region and leaves popping its headroom (bench/results/2026-12-02-shape-projection.md).
 pub const DEFAULT_FOLD_RESTORE: f64 = 8.0;
 
 impl Default for DeformParams {
@@ -128,8 +119,6 @@ impl Default for DeformParams {
             pinning: Pinning::Centroid,
             fold_restore: DEFAULT_FOLD_RESTORE,
             shape_projection: super::shape::projection::DEFAULT_SHAPE_PROJECTION,
-            projection_order: Default::default(),
-            operator_block: 1,
 
             strain_limit: super::position::strain_limit::DEFAULT_STRAIN_LIMIT,
             strain_limit_sweeps: super::position::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS,
@@ -138,9 +127,9 @@ impl Default for DeformParams {
     }
 }
 
-/// The `[deform]` table as written: every field optional (paper defaults), each under the name of its
-/// `crease run` flag (`--c-s` → `c_s`, `--cg-max-iter` → `cg_max_iter`) or its longer struct name
-/// (`coefficients.c_s`, `cg_max_iterations`).
+/// The `[deform]` table as written: every field optional (paper defaults), each under the name of its tuning
+/// key (`c_s`, `cg_max_iterations`), its place in the struct (`coefficients.c_s`) or its older name
+/// (`cg_max_iter`).
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct DeformFields {
@@ -163,8 +152,6 @@ struct DeformFields {
     pinning: Option<Pinning>,
     fold_restore: Option<f64>,
     shape_projection: Option<f64>,
-    projection_order: Option<super::shape::projection::ProjectionOrder>,
-    operator_block: Option<usize>,
 
     strain_limit: Option<f64>,
     strain_limit_sweeps: Option<usize>,
@@ -212,8 +199,6 @@ impl TryFrom<DeformFields> for DeformParams {
             pinning: f.pinning.unwrap_or(d.pinning),
             fold_restore: f.fold_restore.unwrap_or(d.fold_restore),
             shape_projection: f.shape_projection.unwrap_or(d.shape_projection),
-            projection_order: f.projection_order.unwrap_or(d.projection_order),
-            operator_block: f.operator_block.unwrap_or(d.operator_block),
 
             strain_limit: f.strain_limit.unwrap_or(d.strain_limit),
             strain_limit_sweeps: f.strain_limit_sweeps.unwrap_or(d.strain_limit_sweeps),
@@ -239,7 +224,6 @@ impl DeformParams {
             } else {
                 0.0
             },
-            order: self.projection_order,
         }
     }
 
@@ -259,12 +243,6 @@ impl DeformParams {
 
     /// Rejects values the solver cannot honour, naming the parameter.
     pub fn validate(&self) -> Result<()> {
-        if self.operator_block == 0 {
-            return Err(Error::param(
-                "operator_block",
-                "must be at least 1 frame (1: every frame its own operator)",
-            ));
-        }
         let c = &self.coefficients;
         let finite_nonneg = |name: &str, v: f64| {
             if !v.is_finite() || v < 0.0 {

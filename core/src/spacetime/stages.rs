@@ -15,7 +15,6 @@ use super::blend::{self, fade_into};
 use super::position::strain_limit::StrainLimiter;
 use super::position::stretch::StretchRotation;
 use super::position::PositionSystem;
-use super::shape::projection::{self, ProjectionOrder};
 use super::shape::restore::Restoration;
 use super::windows::{crossfade_weight, Window};
 use crate::error::{Error, Result};
@@ -99,15 +98,13 @@ pub fn position_frame(
     let read = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let fp = system
-        .factor_frame_at(&rest, t, |r| source.read_frame(r))
-        .map_err(|e| match e {
-            Error::Numeric { stage, msg } => Error::numeric(
-                stage,
-                format!("frame {t} ({}): {msg}", source.describe_frame(t)),
-            ),
-            e => e.at(None, Some(t)),
-        })?;
+    let fp = system.factor_frame(&rest).map_err(|e| match e {
+        Error::Numeric { stage, msg } => Error::numeric(
+            stage,
+            format!("frame {t} ({}): {msg}", source.describe_frame(t)),
+        ),
+        e => e.at(None, Some(t)),
+    })?;
     let factor = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
@@ -154,28 +151,7 @@ pub fn position_frame(
         let clock = Instant::now();
         let last = k + 1 == passes;
         if moved {
-            // Before the last pass, the orders other than `Last` project once more (docs/fidelity.md).
-            let projected = (restoring && last && restore.projection > 0.0)
-                .then(|| match restore.order {
-                    ProjectionOrder::Last => None,
-                    order => Some((
-                        order,
-                        projection::project(
-                            system.restore_mesh().capture_filter(),
-                            &rest,
-                            &out,
-                            restore.projection,
-                        ),
-                    )),
-                })
-                .flatten();
-            out = match projected {
-                Some((ProjectionOrder::ScreenToProjected, p)) => {
-                    super::position::stretch::pass_toward(&fp, &out, rotation, &rotations, &p)
-                }
-                Some((_, p)) => super::position::stretch::pass(&fp, &p, rotation, &rotations),
-                None => super::position::stretch::pass(&fp, &out, rotation, &rotations),
-            };
+            out = super::position::stretch::pass(&fp, &out, rotation, &rotations);
         }
         if restoring && last {
             out = restore.finish(system.topology(), system.restore_mesh(), &rest, &out);

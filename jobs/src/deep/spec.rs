@@ -10,7 +10,7 @@ use crate::storage::location::parse_location;
 use serde::{Deserialize, Serialize};
 
 /// What a deep job does. `input` is the first training directory (`train`), or the pose file or coarse
-/// sequence the model runs on (`apply`); `output` receives the model or the DESIGN §7 frames.
+/// sequence the model runs on (`apply`); `output` receives the model or the applied frames (meshes and normal maps).
 // A spec is parsed once per job and moved rarely: the training parameters' size does not matter here.
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -1,4 +1,4 @@
-//! The planner: a job becomes a graph of tasks (DESIGN §8).
+//! The planner: a job becomes a graph of tasks.
 //!
 //! ```text
 //!   fold-detect (per frame chunk, or one) ─► fold-settle ─► fold-merge ─┐   (only when folds are detected;

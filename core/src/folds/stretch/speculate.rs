@@ -1,4 +1,4 @@
-//! Tracing several seeds of one frame at once, with the sequential result (issue 14).
+//! Tracing several seeds of one frame at once, with the sequential result.
 //!
 //! Seeds are taken from the priority queue one at a time, and a fold consumes the seeds in its region of
 //! influence, so which seeds are tried depends on the folds before them. But what one seed gives — its patch,

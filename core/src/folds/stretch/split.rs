@@ -1,5 +1,5 @@
 //! The stretch detector cut into stages that can run on different machines, with the single-run result bit
-//! for bit (issue 14).
+//! for bit.
 //!
 //! [`StretchDetector::run`] streams the sequence twice in one process. Its work splits along what depends on
 //! what:

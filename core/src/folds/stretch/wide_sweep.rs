@@ -1,5 +1,5 @@
 //! The smoothing's Jacobi sweeps ([`super::smooth`]) four triangles at a time with AVX2, bit for bit the scalar
-//! sweeps (issue 14).
+//! sweeps.
 //!
 //! **Why by hand.** The sweeps are a quarter of the stretch detector's time: per triangle and sweep, four
 //! doubled angles (two divisions each), a half-angle direction (three square roots, one division), the means

@@ -1,5 +1,5 @@
 //! The capture stencil's fused sweeps ([`crate::spacetime::shape::deconvolve::CaptureStencil::detail_and_low_pass`]) one vertex's
-//! six values at a time with AVX2, bit for bit the scalar sweep (issue 14, item 5).
+//! six values at a time with AVX2, bit for bit the scalar sweep.
 //!
 //! **Why by hand.** The shape projection and the fold restoration spend most of the last stretch pass in
 //! these ~90 sweeps, and per vertex a sweep is a sum of its neighbours' six values. Compiled for the baseline

@@ -5,7 +5,7 @@
 //! two) the solve spreads the conflict as stretch; the stretch passes relax most of it, and the shape
 //! projection, linear in the displacement and blind to triangle shapes, puts some back. What is left is a thin
 //! tail: on the demo a hundred interior triangles (0.03% of the samples) in the frames of one fold go above
-//! 10% while p99 is 2% (docs/fidelity.md, "Where the stretch maximum comes from"). Cloth does not stretch that
+//! 10% while p99 is 2% (bench/results/2026-12-03-strain-limiting.md). Cloth does not stretch that
 //! far, so the tail is an artefact, and reshaping the whole frame to remove it (another pass, another
 //! projection order) trades it against the drift and the folds everywhere else.
 //!
@@ -37,9 +37,10 @@ use crate::rest_stretch::{self, RestLengths};
 use crate::vec3::{self, V3};
 use serde::{Deserialize, Serialize};
 
-/// Default cap: edges more than 5% longer than their reference are shortened back to it (docs/fidelity.md,
-/// "Strain limiting"): cloth stretches a few percent at most, the tail above it is the solve's, and on the
-/// public cases the figures of the folds do not move (10% leaves the demo's triangles at 12.1%).
+/// Default cap: edges more than 5% longer than their reference are shortened back to it (docs/fidelity.md):
+/// cloth stretches a few percent at most, the tail above it is the solve's, and on the public cases the figures
+/// of the folds do not move (10% leaves the demo's triangles at 12.1%;
+/// bench/results/2026-12-03-strain-limiting.md).
 pub const DEFAULT_STRAIN_LIMIT: f64 = 0.05;
 
 /// Cap against a true rest state (an input that is its own rest state in every frame, like the built-in demo):

@@ -15,7 +15,7 @@
 //!   rotation the folds asked for. Plain polar passes forget the anchors: the captured surface (d = 0) is a
 //!   fixed point of zero stretch, so every pass trades fold amplitude for stretch and the folds fade. This is
 //!   the alternating minimisation of Σ A (‖F − R‖² + ‖R − B‖²) with B the blend: the passes still lower the
-//!   stretch, but the folds stay pinned to what the anchors asked for (docs/fidelity.md, "Anchored passes").
+//!   stretch, but the folds stay pinned to what the anchors asked for (docs/fidelity.md).
 
 use crate::mesh::{geometry, Frame};
 use crate::spacetime::blend::so3;
@@ -157,18 +157,6 @@ fn closest_rotation(r: [V3; 3], n0: V3, o: [V3; 3]) -> Option<M3> {
 /// the first positioning was given (read by [`StretchRotation::Anchored`] only).
 pub fn pass(fp: &FramePositioner, current: &[V3], kind: StretchRotation, blended: &[M3]) -> Frame {
     fp.solve(&pass_rotations(fp, current, kind, blended))
-}
-
-/// [`pass`] with the shape screen pulling toward `target` instead of the original frame
-/// ([`FramePositioner::solve_toward`]).
-pub fn pass_toward(
-    fp: &FramePositioner,
-    current: &[V3],
-    kind: StretchRotation,
-    blended: &[M3],
-    target: &[V3],
-) -> Frame {
-    fp.solve_toward(&pass_rotations(fp, current, kind, blended), target)
 }
 
 fn pass_rotations(

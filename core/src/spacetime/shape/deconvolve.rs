@@ -1,5 +1,5 @@
 //! The fold restoration's deconvolution of the capture filter as one Chebyshev series in the filter's
-//! averaging operator: about 75 neighbour sweeps per frame instead of `steps` × 80 (issue 14, item 5).
+//! averaging operator: about 75 neighbour sweeps per frame instead of `steps` × 80.
 //!
 //! Every step of the capture filter ([`TaubinFilter::capture`]) is x ← x + f (A x − x) with one and the same
 //! averaging operator A (uniform weights over the one-ring; a boundary vertex averages its boundary
@@ -117,7 +117,7 @@ impl CaptureStencil {
     /// bit for bit, in one set of sweeps: the shape projection and the fold restoration of a frame apply the
     /// same averaging operator, 80 filter steps and ~90 series terms, so sweeping both fields together reads
     /// each vertex's neighbour list once instead of twice, and its two 3-vectors from one 48-byte slot
-    /// (issue 14, item 5). Every value is computed with the operations, in the order, of the two separate
+    /// Every value is computed with the operations, in the order, of the two separate
     /// evaluations; the sweeps run in parallel over vertex chunks (no thread-count dependence).
     pub fn detail_and_low_pass(&self, series: &[f64], c: &[V3], d: &[V3]) -> (Vec<V3>, Vec<V3>) {
         self.detail_and_low_pass_with(series, c, d, stencil_sweep::available())

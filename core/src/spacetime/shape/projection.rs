@@ -6,7 +6,7 @@
 //! wavelengths back, but its roll-off 1 / (1 + (ℓ/ℓ_c)²) is gentle (a displacement twice the cutoff long keeps
 //! a fifth of itself), and an open rim is held only by its own side of the surface: on the public sleeve the
 //! cuffs flap by up to 0.7 edge lengths of low-frequency displacement, mostly along the surface normal, while
-//! the real cloth's rims move by 0.05 (docs/fidelity.md, "Where the drift is"). The capture filter's own
+//! the real cloth's rims move by 0.05 (bench/results/2026-12-02-shape-projection.md). The capture filter's own
 //! transfer is far sharper (it keeps 84% of an 8-edge wave and all of a 10-edge one, 2% of a 4-edge one).
 //!
 //! So, after the stretch passes and before the fold restoration, the positioned displacement d = x − c is
@@ -29,45 +29,12 @@
 
 use crate::shape::TaubinFilter;
 use crate::vec3::{self, V3};
-use serde::{Deserialize, Serialize};
 
 /// Most of the capture band a projection may remove: all of it.
 pub const MAX_SHAPE_PROJECTION: f64 = 1.0;
 
-/// Default fraction removed (docs/fidelity.md, "The shape projection").
+/// Default fraction removed (docs/fidelity.md).
 pub const DEFAULT_SHAPE_PROJECTION: f64 = 1.0;
-
-/// Where the projection sits relative to the last stretch pass (docs/fidelity.md, "The projection and the
-/// last stretch pass"). The projection re-stretches triangles the passes had relaxed (it is linear in the
-/// displacement and knows nothing of triangle shapes), so the order trades stretch against drift.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum ProjectionOrder {
-    /// After the last pass only (default): the drift is what the projection leaves, the stretch what it makes.
-    #[default]
-    Last,
-    /// Before and after the last pass (project, pass, project): the pass relaxes the projected shape, the
-    /// second projection removes the drift the pass brought back.
-    Around,
-    /// The last pass's shape screen pulls toward the projected shape instead of the captured one, then the
-    /// projection: the pass may not move the band the projection guards.
-    ScreenToProjected,
-}
-
-impl std::str::FromStr for ProjectionOrder {
-    type Err = crate::Error;
-    fn from_str(s: &str) -> crate::Result<Self> {
-        match s {
-            "last" => Ok(ProjectionOrder::Last),
-            "around" => Ok(ProjectionOrder::Around),
-            "screen-to-projected" => Ok(ProjectionOrder::ScreenToProjected),
-            _ => Err(crate::Error::param(
-                "projection_order",
-                format!("`{s}` is not one of: last, around, screen-to-projected"),
-            )),
-        }
-    }
-}
 
 /// `out` minus `fraction` times the capture filter's low-pass of its displacement from `rest`. Returns `out`
 /// unchanged (bit for bit) when `fraction` is 0 or `out` equals `rest`.
@@ -164,19 +131,6 @@ mod tests {
         let p: DeformParams = serde_json::from_str(r#"{"shape_projection": 0.25}"#).unwrap();
         assert_eq!(p.shape_projection, 0.25);
         assert_eq!(p.restoration().projection, 0.25);
-        assert_eq!(d.projection_order, ProjectionOrder::Last);
-        let p: DeformParams =
-            serde_json::from_str(r#"{"projection_order": "screen-to-projected"}"#).unwrap();
-        assert_eq!(p.restoration().order, ProjectionOrder::ScreenToProjected);
-        let err = "sideways"
-            .parse::<ProjectionOrder>()
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("projection_order"), "{err}");
-        assert_eq!(
-            "around".parse::<ProjectionOrder>().unwrap(),
-            ProjectionOrder::Around
-        );
         let unscreened = DeformParams {
             shape_cutoff: 0.0,
             ..DeformParams::default()

@@ -45,8 +45,6 @@ pub struct Restoration {
     pub reference_tilt: f64,
     /// Fraction of the capture filter's low-pass of the displacement removed before restoring (0: none).
     pub projection: f64,
-    /// Where the projection sits relative to the last stretch pass.
-    pub order: super::projection::ProjectionOrder,
 }
 
 /// The captured surface `c` deconvolved by `filter`: `steps` Van Cittert steps g ← g + (c − filter(g)) from
@@ -280,7 +278,6 @@ mod tests {
             steps: 2.0,
             reference_tilt: 0.1,
             projection: 0.0,
-            order: Default::default(),
         };
         assert_eq!(r.apply(&topo, &p, &p), p);
     }
@@ -306,7 +303,6 @@ mod tests {
             steps: 2.0,
             reference_tilt: 1e-3,
             projection: 0.0,
-            order: Default::default(),
         };
         let got = r.apply(&topo, &rest, &out);
         let mut checked = 0;
@@ -341,13 +337,11 @@ mod tests {
                 steps: 0.0,
                 reference_tilt: 0.1,
                 projection: 0.0,
-                order: Default::default(),
             },
             Restoration {
                 steps: 2.0,
                 reference_tilt: 0.0,
                 projection: 0.0,
-                order: Default::default(),
             },
         ] {
             assert_eq!(r.apply(&topo, &rest, &out), out);

@@ -1,7 +1,7 @@
 //! `fused` mode: the blended rotation field of a window from three right-hand sides.
 //!
 //! The blend exp(Σ_a w_a φ_a) needs only X = W Φ (one rotation vector per node), and because the weights
-//! solve M W = c_a E, X solves M X = c_a E Φ: three right-hand sides instead of one per anchor (DESIGN §4).
+//! solve M W = c_a E, X solves M X = c_a E Φ: three right-hand sides instead of one per anchor.
 //! Solved with Jacobi-preconditioned conjugate gradient on all three columns at once (see [`solve3`]), with
 //! rows × 3 storage so one sweep over the mesh adjacency serves all three columns. [`solve3`] is the plain f64
 //! statement of the algorithm (the reference the per-anchor solver's iterates are checked against); the
@@ -125,7 +125,7 @@ pub fn solve3(
     Err(Error::numeric(
         "weights (fused CG)",
         format!(
-            "did not reach relative residual {tol:e} in {max_iter} iterations (at {:.3e}); raise --cg-max-iter (cg_max_iter in a job spec) or --cg-tol",
+            "did not reach relative residual {tol:e} in {max_iter} iterations (at {:.3e}); raise the tuning key deform.cg_max_iterations or deform.cg_tolerance",
             stats.relative_residual
         ),
     ))

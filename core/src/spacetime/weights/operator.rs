@@ -1,7 +1,7 @@
 //! The space-time weight matrix M of one window, applied matrix-free.
 //!
 //! Unknowns are the weights of every (frame, triangle) node of the window, ordered frame-major
-//! (node = local_frame · n_triangles + triangle). From Popa et al. 2009 §5.3 / DESIGN §4:
+//! (node = local_frame · n_triangles + triangle). From Popa et al. 2009 §5.3:
 //!
 //! ```text
 //!   M = c_s L_space + c_t L_time + c_i D_free + c_a D_anchor

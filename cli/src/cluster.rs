@@ -2,23 +2,15 @@
 //! `crease watch`, `crease cancel`, `crease jobs`. The client commands are written once against
 //! [`JobClient`], so they behave the same against a remote coordinator and in single-node mode.
 
+use crate::client::{runtime, ClientArgs, DEFAULT_COORDINATOR};
 use crate::progress::CliProgress;
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use crease_coordinator::{CoordinatorConfig, JobClient, RemoteClient, Scheduler};
+use crease_coordinator::{CoordinatorConfig, JobClient, Scheduler};
 use crease_proto as pb;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
-
-const DEFAULT_COORDINATOR: &str = "http://127.0.0.1:7070";
-
-pub(crate) fn runtime() -> Result<tokio::runtime::Runtime> {
-    tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()
-        .context("starting the async runtime")
-}
 
 /// Resolves on SIGTERM or Ctrl-C.
 pub async fn shutdown_signal() {
@@ -239,22 +231,6 @@ pub fn worker(a: WorkerArgs) -> Result<()> {
 }
 
 #[derive(Args, Debug)]
-pub struct ClientArgs {
-    /// Coordinator URL (http:// or https://).
-    #[arg(long, env = "CREASE_COORDINATOR", default_value = DEFAULT_COORDINATOR, value_parser = crate::urls::parse)]
-    pub coordinator: String,
-    #[command(flatten)]
-    pub security: crate::security_args::ClientSecurityArgs,
-}
-
-impl ClientArgs {
-    /// Connects with the TLS and token flags.
-    pub async fn connect(&self) -> Result<RemoteClient> {
-        Ok(RemoteClient::connect_with(&self.coordinator, &self.security.load()?).await?)
-    }
-}
-
-#[derive(Args, Debug)]
 pub struct SubmitArgs {
     /// Job spec (TOML, or JSON when the name ends in .json). Or give --input and --output instead.
     pub job: Option<PathBuf>,
@@ -436,8 +412,6 @@ pub fn jobs(a: JobsArgs) -> Result<()> {
         print_jobs(&client.list().await?, a.json)
     })
 }
-
-pub use crate::watch::follow;
 
 fn status_json(s: &pb::JobStatus) -> serde_json::Value {
     serde_json::json!({

@@ -1,7 +1,7 @@
 //! `crease task run` (one planned task on a farm node, no coordinator) and `crease export-job` (the job's task
 //! graph as an OpenJD template, a Flamenco job type or an OpenCue job spec). See docs/farms.md.
 
-use crate::cluster::runtime;
+use crate::client::runtime;
 use crate::progress::CliProgress;
 use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};

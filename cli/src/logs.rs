@@ -1,7 +1,7 @@
 //! `crease logs JOB [TASK]`: the log tail of a job's task attempts as the coordinator keeps it (its own lines
 //! about dispatch, outcome and retries, and the tail each worker sent back), per task and attempt.
 
-use crate::cluster::{runtime, ClientArgs};
+use crate::client::{runtime, ClientArgs};
 use anyhow::Result;
 use clap::Args;
 use crease_coordinator::JobClient;

@@ -2,13 +2,10 @@
 
 mod arg_errors;
 mod bench;
-mod bench_cluster;
-mod bench_deep;
-mod bench_dispatch;
-mod bench_jobs;
-mod bench_pipeline;
 mod certs;
+mod client;
 mod cluster;
+#[cfg(feature = "deep")]
 mod deep;
 mod error_text;
 mod eval;
@@ -29,6 +26,10 @@ mod tuning;
 mod urls;
 mod view;
 mod watch;
+#[cfg(not(feature = "deep"))]
+mod without_deep;
+#[cfg(not(feature = "deep"))]
+use without_deep as deep;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
@@ -122,7 +123,17 @@ fn main() {
             std::process::exit(2);
         }
     }
-    let result = match cli.command {
+    let result = run_command(cli.command);
+    if let Err(e) = result {
+        eprintln!("error: {}", error_text::one_line(&e));
+        let code = e.downcast_ref::<watch::Ended>().map_or(1, |end| end.code);
+        std::process::exit(code);
+    }
+}
+
+/// Runs one subcommand.
+fn run_command(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Run(a) => run::run(a),
         Command::Tuning(a) => tuning::tuning(a),
         Command::Demo(a) => run::demo(a),
@@ -144,10 +155,5 @@ fn main() {
         Command::Deep(a) => deep::deep(a),
         Command::Bake(a) => deep::bake(a),
         Command::View(a) => view::view(a),
-    };
-    if let Err(e) = result {
-        eprintln!("error: {}", error_text::one_line(&e));
-        let code = e.downcast_ref::<watch::Ended>().map_or(1, |end| end.code);
-        std::process::exit(code);
     }
 }

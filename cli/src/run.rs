@@ -327,7 +327,7 @@ pub fn run(a: RunArgs) -> Result<()> {
         let cluster = LocalCluster::start(a.local_workers, a.local_capacity, cache.clone()).await?;
         let result = async {
             let (id, _) = cluster.client.submit(spec_json, "json").await?;
-            crate::cluster::follow(&cluster.client, &id, (!a.quiet).then_some(&progress)).await
+            crate::watch::follow(&cluster.client, &id, (!a.quiet).then_some(&progress)).await
         }
         .await;
         cluster.stop().await;

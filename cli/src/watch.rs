@@ -8,7 +8,7 @@
 //! stderr. It gives up after `--reconnect-secs` and exits with its own code, so a script can tell "the job
 //! failed" from "I lost sight of it".
 
-use crate::cluster::ClientArgs;
+use crate::client::{runtime, ClientArgs};
 use crate::progress::CliProgress;
 use anyhow::Result;
 use clap::Args;
@@ -78,7 +78,7 @@ pub struct WatchArgs {
 }
 
 pub fn watch(a: WatchArgs) -> Result<()> {
-    crate::cluster::runtime()?.block_on(async move {
+    runtime()?.block_on(async move {
         let progress = CliProgress::new(false);
         let status = follow_remote(&a.client, &a.reconnect, &a.job, &progress).await?;
         finish(&status)

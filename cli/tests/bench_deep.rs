@@ -1,6 +1,7 @@
 //! `crease bench --deep` at a tiny size: it runs, reports the inference steps (the default model's detail
 //! filter, the rasterised map, the generator at each size), the writing and the training step, and refuses
 //! nonsense. Timings are only checked to be measured (positive, finite), never against a bound.
+#![cfg(feature = "deep")]
 
 use std::process::Command;
 

@@ -1,5 +1,6 @@
 //! `crease deep train|apply` and `crease bake` end to end on tiny synthetic sleeves: the output layout
 //! (meshes and normal maps), determinism, and bad inputs.
+#![cfg(feature = "deep")]
 
 use crease_core::mesh::io::write_obj;
 use crease_core::mesh::Topology;

@@ -2,12 +2,12 @@
 //! `POST /api/jobs/{id}/cancel`, `POST /api/jobs/{id}/resubmit`. Scheduler errors keep their meaning: an
 //! unknown job is 404, a refused spec 400, anything else 500 with the scheduler's message.
 
+use crate::errors::{api_error, plausible_id};
 use crate::json::{self, error, reply};
 use crate::AppState;
 use axum::extract::{Path, RawQuery, State};
 use axum::http::StatusCode;
 use axum::response::Response;
-use crease_coordinator::ApiError;
 use serde_json::{json, Value};
 
 /// The states a job can be in, for the `state` filter (anything else is a 400 naming these).
@@ -19,24 +19,6 @@ const JOB_STATES: [&str; 6] = [
     "failed",
     "cancelled",
 ];
-
-pub fn api_error(e: ApiError) -> Response {
-    match e {
-        ApiError::NotFound(m) => error(StatusCode::NOT_FOUND, m),
-        ApiError::Invalid(m) => error(StatusCode::BAD_REQUEST, m),
-        ApiError::Internal(m) => error(StatusCode::INTERNAL_SERVER_ERROR, m),
-    }
-}
-
-/// Job ids are what the store hands out; anything longer or with other characters cannot name a job, so it
-/// is answered 404 before the store is asked.
-pub fn plausible_id(id: &str) -> bool {
-    !id.is_empty()
-        && id.len() <= 64
-        && id
-            .bytes()
-            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
-}
 
 fn no_such_job(id: &str) -> Response {
     error(StatusCode::NOT_FOUND, format!("job {id} not found"))
@@ -173,15 +155,6 @@ pub async fn not_found() -> Response {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn only_id_shaped_strings_reach_the_store() {
-        assert!(plausible_id("j1"));
-        assert!(plausible_id("0f3a-b_c"));
-        for bad in ["", "..", "../etc", "a/b", "a%2fb", "a b", &"x".repeat(65)] {
-            assert!(!plausible_id(bad), "{bad}");
-        }
-    }
 
     #[test]
     fn query_values_are_found_by_name() {

@@ -3,7 +3,7 @@
 //! frame N, parsed as a number). The name is looked up, never joined into a path, so no request can reach
 //! anything else in storage (`..%2f..%2fetc%2fpasswd` is simply not a name).
 
-use crate::api::{api_error, plausible_id};
+use crate::errors::{api_error, plausible_id};
 use crate::json::error;
 use crate::AppState;
 use axum::extract::{Path, State};
@@ -142,8 +142,8 @@ pub async fn outputs(id: &str, output: &str) -> (Value, Value) {
         let label = format!("fold overlay, frame {frame}");
         files.push(json!({ "name": name, "label": label, "url": url(&name) }));
     }
-    let report = match store.exists(crease_jobs::keys::REPORT).await {
-        Ok(true) => match store.get(crease_jobs::keys::REPORT).await {
+    let report = match store.exists(crease_jobs::storage::keys::REPORT).await {
+        Ok(true) => match store.get(crease_jobs::storage::keys::REPORT).await {
             Ok(bytes) => match serde_json::from_slice::<Value>(&bytes) {
                 Ok(doc) => json!({
                     "complete": doc["complete"],
@@ -152,7 +152,7 @@ pub async fn outputs(id: &str, output: &str) -> (Value, Value) {
                     "input": doc["input"],
                 }),
                 Err(e) => {
-                    json!({ "error": format!("{}: {e}", store.describe(crease_jobs::keys::REPORT)) })
+                    json!({ "error": format!("{}: {e}", store.describe(crease_jobs::storage::keys::REPORT)) })
                 }
             },
             Err(e) => json!({ "error": e.to_string() }),

@@ -13,6 +13,7 @@
 pub mod api;
 pub mod assets;
 pub mod auth;
+pub mod errors;
 pub mod events;
 pub mod files;
 pub mod json;

@@ -4,6 +4,7 @@
 //! (Ballista style: bad data is not retryable, I/O is).
 
 use crate::failure::FailureKind;
+use crate::storage::errors::{self, Kind};
 use serde::{Deserialize, Serialize};
 
 /// A job that cannot be accepted or planned. The message always names the field, URI or file at fault.
@@ -35,10 +36,32 @@ pub enum JobError {
 }
 
 impl JobError {
-    /// A storage failure at `uri`, classified (see [`crate::storage_errors::classify`]): full, unreachable,
-    /// or a plain storage error.
+    /// A failure of the storage at `uri`, classified by its source chain ([`errors::kind`]): `Full`,
+    /// `Unreachable` (naming the endpoint of a network store), or `Storage`.
     pub fn storage_failure(uri: impl Into<String>, e: &(dyn std::error::Error + 'static)) -> Self {
-        crate::storage_errors::classify(&uri.into(), e)
+        let uri = uri.into();
+        match errors::kind(e) {
+            Kind::Full => JobError::Full {
+                msg: e.to_string(),
+                uri,
+            },
+            Kind::Unreachable => JobError::Unreachable {
+                uri: match errors::endpoint_of(&uri) {
+                    Some(ep) => format!("{uri} (endpoint {ep})"),
+                    None => uri,
+                },
+                msg: e.to_string(),
+            },
+            Kind::Other => JobError::storage(uri, e),
+        }
+    }
+    /// Like [`JobError::storage_failure`], but an unclassified failure is an input error (reading an input,
+    /// an anchors file).
+    pub fn input_failure(uri: &str, e: &(dyn std::error::Error + 'static)) -> Self {
+        match errors::kind(e) {
+            Kind::Other => JobError::input(uri, e),
+            _ => JobError::storage_failure(uri, e),
+        }
     }
     pub fn spec(field: impl Into<String>, msg: impl Into<String>) -> Self {
         JobError::Spec {
@@ -112,7 +135,7 @@ impl TaskError {
         use crease_core::Error as E;
         match e {
             E::Cancelled => TaskError::cancelled(),
-            E::Io { path, source } if crate::storage_errors::is_full_io(&source) => {
+            E::Io { path, source } if errors::is_full_io(&source) => {
                 TaskError::from_job(&JobError::Full {
                     uri: path.display().to_string(),
                     msg: format!("{context}: {source}"),
@@ -143,5 +166,40 @@ impl TaskError {
             location,
             ..TaskError::new(kind, e.to_string())
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::ErrorKind;
+
+    #[test]
+    fn a_full_volume_is_named_storage_full() {
+        let e = std::io::Error::from_raw_os_error(28);
+        let msg = JobError::storage_failure("/data/out", &e).to_string();
+        assert!(msg.starts_with("storage full at /data/out: "), "{msg}");
+    }
+
+    #[test]
+    fn a_request_that_was_never_answered_is_unreachable() {
+        let e = std::io::Error::other(
+            "Error performing PUT http://127.0.0.1:9/b/k after 2 retries - HTTP error: error sending request",
+        );
+        let msg = JobError::storage_failure("s3://b/out", &e).to_string();
+        assert!(
+            msg.starts_with("storage unreachable at s3://b/out"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn unreachable_names_the_uri() {
+        let refused = std::io::Error::new(ErrorKind::ConnectionRefused, "refused");
+        let msg = JobError::storage_failure("memory://x/out", &refused).to_string();
+        assert!(
+            msg.starts_with("storage unreachable at memory://x/out: "),
+            "{msg}"
+        );
     }
 }

@@ -53,14 +53,14 @@
 //!
 //! URIs: plain paths (relative ones resolve against the current directory of the process that reads the
 //! spec), `file://…`, `s3://bucket/prefix` (S3 or any S3-compatible server, configured by the `AWS_*`
-//! environment, see [`s3`]), plus `memory://<name>/…` for process-wide in-memory stores (in-process runs and
+//! environment, see [`storage::s3`]), plus `memory://<name>/…` for process-wide in-memory stores (in-process runs and
 //! tests of the remote path). Remote URIs with `..`, `.`, empty or percent-encoded separator segments are
-//! refused (see [`confine`]).
+//! refused (see [`storage::confine`]).
 //! Remote inputs are fetched once into the worker's cache; remote outputs are staged there and uploaded.
 //!
 //! # Task graph
 //!
-//! See [`plan`](crate::plan()): per-anchor mode plans one `weight-block` task per (window, anchor block) and a
+//! See [`plan()`]: per-anchor mode plans one `weight-block` task per (window, anchor block) and a
 //! `reduce` per window that sums the blocks' partial blends in block order; fused mode plans one
 //! `weight-window` task per window. Each `position` task (a chunk of frames) depends on every window covering
 //! its frames; `finalize` depends on all positioning tasks. When folds are detected, `fold-detect` tasks (one per
@@ -68,7 +68,7 @@
 //! says) and a `fold-merge` task come first; `fold-merge` is marked `expands` and [`expand`] adds the rest once
 //! the anchor counts are known, with a `fold-files` task that writes the user-facing anchor files beside the
 //! weight tasks (finalize waits for it); a stretch job's `folds.png` is drawn by a `fold-plot` task that waits
-//! only for the tracing chunks. Adding a detector is one match arm in [`detect::detector`].
+//! only for the tracing chunks. Adding a detector is one match arm in [`plan::detect::detector`].
 //!
 //! # Storage layout (all keys relative to the job's `output`)
 //!
@@ -100,7 +100,7 @@
 //!
 //! # Failures
 //!
-//! Storage failures are classified ([`storage_errors`]): a full volume or quota (ENOSPC, EDQUOT, S3 `507`) is
+//! Storage failures are classified ([`storage::errors`]): a full volume or quota (ENOSPC, EDQUOT, S3 `507`) is
 //! "storage full at <uri>" and not retryable (the worker's own cache or staging disk excepted: another worker
 //! may have room); an endpoint that cannot be reached within the configured retries is "storage unreachable
 //! at <uri> (endpoint …)" and retryable. Either way `finalize` never runs or fails before its report, so a
@@ -121,36 +121,24 @@
 //! partition sizes (the anchor block size is part of the arithmetic in per-anchor mode, as it is for `deform`).
 //! `jobs/tests/pipeline.rs` checks this.
 
-pub mod confine;
 pub mod deep;
-pub mod detect;
 pub mod error;
 pub mod execute;
 pub mod export_spec;
 pub mod failure;
 pub mod farm;
-pub mod inspect;
-pub mod keys;
-pub mod limits;
 pub mod plan;
 pub mod report;
-pub mod s3;
-pub mod settle_tasks;
 pub mod spec;
-pub mod stale;
 pub mod storage;
-pub mod storage_errors;
-pub mod stretch_tasks;
-pub mod task;
 pub mod tuning;
 
-pub use confine::StorageRoots;
 pub use error::{JobError, TaskError};
 pub use execute::{execute, frame_cache, phase_times, window_cache, ExecContext};
 pub use failure::{FailureKind, Policy};
-pub use inspect::{inspect_input, InputInfo};
-pub use limits::JobLimits;
-pub use plan::{expand, final_outputs, plan};
+pub use plan::limits::JobLimits;
+pub use plan::task::{TaskDef, TaskOutput, TaskSpec};
+pub use plan::{expand, final_outputs, inspect_input, plan, InputInfo};
 pub use spec::{FoldSpec, JobSpec, Partition, PreviewOptions};
+pub use storage::confine::StorageRoots;
 pub use storage::{fetch_input_to_cache, Storage};
-pub use task::{TaskDef, TaskOutput, TaskSpec};

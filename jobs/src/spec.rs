@@ -5,12 +5,15 @@
 //! that `crease run` uses, so a two-line job file deforms a sequence exactly as `crease run` would.
 
 use crate::error::JobError;
-use crate::storage::parse_location;
+use crate::storage::location::parse_location;
 use crate::tuning::Tuning;
 use crease_core::folds::stretch::StretchParams;
 use crease_core::folds::video::VideoParams;
 use crease_core::spacetime::DeformParams;
 use serde::{Deserialize, Serialize};
+
+/// Frames each tracing task traces ahead of its chunk by default.
+pub const DEFAULT_WARM_UP: usize = 3;
 
 /// A job as submitted. See the crate documentation for an example `job.toml`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -151,12 +154,12 @@ pub struct Partition {
     /// Anchor columns per weight block in per-anchor mode (overrides `deform.anchor_block` when set).
     pub anchor_block: usize,
     /// Frames per positioning task (at most: chunks also end where a window releases its frames, see
-    /// [`crate::plan::position_chunks`]).
+    /// [`crate::plan::chunks::position_chunks`]).
     pub frames_per_chunk: usize,
     /// Frames per fold-detection task (per-frame detectors only).
     pub fold_frames_per_chunk: usize,
     /// Stretch detector: frames per tracing task (step tasks take four times as many); 0 = from the frame and
-    /// triangle counts ([`crate::stretch_tasks::trace_frames_per_chunk`]).
+    /// triangle counts ([`crate::plan::chunks::trace_frames_per_chunk`]).
     pub stretch_frames_per_chunk: usize,
     /// Stretch detector: frames a tracing task traces before its first one to warm its seed memory up
     /// (any value gives the same output; more costs each task more, fewer leaves more to the merge).
@@ -173,7 +176,7 @@ impl Default for Partition {
             frames_per_chunk: 4,
             fold_frames_per_chunk: 8,
             stretch_frames_per_chunk: 0,
-            stretch_warm_up: crate::stretch_tasks::DEFAULT_WARM_UP,
+            stretch_warm_up: DEFAULT_WARM_UP,
             settle_frames_per_chunk: 0,
         }
     }
@@ -251,6 +254,54 @@ impl JobSpec {
         Ok(self)
     }
 
+    /// Every storage location of a job, with the spec field that names it.
+    pub fn uris(&self) -> Vec<(&'static str, &str)> {
+        let mut v = vec![
+            ("input", self.input.as_str()),
+            ("output", self.output.as_str()),
+        ];
+        match &self.folds {
+            FoldSpec::Anchors { uri } => v.push(("folds.uri", uri)),
+            FoldSpec::Video {
+                cameras, images, ..
+            } => {
+                v.push(("folds.cameras", cameras));
+                if let Some(images) = images {
+                    v.push(("folds.images", images));
+                }
+            }
+            _ => {}
+        }
+        if let Some(deep) = &self.deep {
+            v.extend(deep.uris());
+        }
+        v
+    }
+
+    /// A `[deep]` job trains or applies a model and does not deform its input: the parts of a job spec that
+    /// only deformations use must be left at their defaults, so that nothing set there is silently ignored.
+    fn validate_deep_only(&self) -> Result<(), JobError> {
+        if self.folds != FoldSpec::None {
+            return Err(JobError::spec(
+                "folds",
+                "a [deep] job has no folds (it trains or applies a DeepWrinkles model); remove [folds]",
+            ));
+        }
+        if !self.export.formats.is_empty() {
+            return Err(JobError::spec(
+                "export",
+                "a [deep] job writes meshes and normal maps, not an exported sequence; remove [export]",
+            ));
+        }
+        if self.deform != crease_core::spacetime::DeformParams::default() {
+            return Err(JobError::spec(
+                "deform",
+                "a [deep] job does not deform its input; remove [deform]",
+            ));
+        }
+        Ok(())
+    }
+
     /// Checks everything that can be checked without touching storage, naming the field at fault.
     pub fn validate(&self) -> Result<(), JobError> {
         if let Some((key, _)) = self.tuning.iter().next() {
@@ -261,11 +312,14 @@ impl JobSpec {
         }
         parse_location(&self.input, "input")?;
         parse_location(&self.output, "output")?;
-        for (field, uri) in crate::confine::spec_uris(self) {
-            crate::confine::check_remote_uri(field, uri)?;
+        for (field, uri) in self.uris() {
+            crate::storage::confine::check_remote_uri(field, uri)?;
         }
         if let Some(deep) = &self.deep {
-            deep.validate(self)?;
+            self.validate_deep_only()?;
+            deep.validate()?;
+            #[cfg(feature = "deep")]
+            crate::deep::library::check_params(deep)?;
         }
         let param_err = |e: crease_core::Error| match e {
             crease_core::Error::Param { name, msg } => {

@@ -1,7 +1,8 @@
 //! The `[deep]` job kind without storage: parsing, validation naming the field, the task graph, and the farm
-//! export refusing it (the cluster run itself is in tests/tests/deep.rs).
+//! export refusing it, and the inspection a coordinator without the learning library makes (the cluster run
+//! itself is in tests/tests/deep.rs).
 
-use crease_jobs::deep::DeepSpec;
+use crease_jobs::deep::{DeepSpec, Regressor};
 use crease_jobs::farm::farm_graph;
 use crease_jobs::{final_outputs, plan, InputInfo, JobError, JobSpec, TaskSpec};
 
@@ -43,7 +44,7 @@ fn train_and_apply_specs_parse_with_the_cli_defaults() {
             assert_eq!(params.cgan_epochs, 2);
             assert_eq!(params.resolution, 256, "crease deep train's default");
             assert_eq!(params.cgan_filters, 64);
-            assert_eq!(params.regressor, crease_deep::model::RegressorKind::Blend);
+            assert_eq!(params.regressor, Regressor::Blend);
             assert_eq!((params.ar_state, params.ar_rollout_iters), (10, 20));
             assert_eq!((params.blend_weight, params.blend_fit), (0.5, false));
             assert!(params.lags.is_empty());
@@ -66,7 +67,10 @@ fn train_and_apply_specs_parse_with_the_cli_defaults() {
 
 #[test]
 fn bad_deep_specs_name_the_field() {
-    let cases = [
+    // Only the learning library knows the ranges of the training parameters (checked at submit where the
+    // coordinator has it, by the training task otherwise).
+    #[cfg(feature = "deep")]
+    let library_cases = [
         (
             spec("task = \"train\"\n[deep.params]\nresolution = 8\n", ""),
             "deep.params.resolution",
@@ -86,6 +90,10 @@ fn bad_deep_specs_name_the_field() {
             spec("task = \"train\"\n[deep.params]\nar_state = 0\n", ""),
             "deep.params.ar_state",
         ),
+    ];
+    #[cfg(not(feature = "deep"))]
+    let library_cases = [];
+    let cases = [
         (spec("task = \"apply\"\nfrom = \"pose\"\n", ""), "model"),
         (
             spec("task = \"apply\"\nmodel = \"/m\"\nfrom = \"scan\"\n", ""),
@@ -121,7 +129,7 @@ fn bad_deep_specs_name_the_field() {
             "deep.model",
         ),
     ];
-    for (i, (result, want)) in cases.into_iter().enumerate() {
+    for (i, (result, want)) in cases.into_iter().chain(library_cases).enumerate() {
         let err = result.expect_err(&format!("case {i} should be refused"));
         let text = err.to_string();
         let field = field_of(err);
@@ -193,4 +201,95 @@ fn the_farm_export_refuses_deep_jobs_with_a_clear_error() {
             "{err}"
         );
     }
+}
+
+/// A coordinator built without the learning library still inspects and plans deep jobs: frame counts from the
+/// training data's `gt/` sequences, the pose file and the model's manifest; what only the library checks is the
+/// training task's to refuse.
+#[cfg(not(feature = "deep"))]
+#[tokio::test]
+async fn without_the_library_deep_jobs_are_inspected_and_planned() {
+    use crease_core::synth::{demo, write_frames, DemoSpec};
+    let d = tempfile::tempdir().unwrap();
+    let d = d.path();
+    let (seq, _) = demo(&DemoSpec {
+        triangles: 200,
+        frames: 5,
+        ..Default::default()
+    })
+    .unwrap();
+    for name in ["a", "b"] {
+        write_frames(&d.join(name).join("gt"), &seq).unwrap();
+    }
+    let s = |p: &std::path::Path| p.display().to_string();
+    let train = JobSpec::from_toml_str(&format!(
+        "input = \"{}\"\noutput = \"{}\"\n[deep]\ntask = \"train\"\ndata = [\"{}\"]\n",
+        s(&d.join("a")),
+        s(&d.join("out-train")),
+        s(&d.join("b"))
+    ))
+    .unwrap();
+    let info = crease_jobs::inspect_input(&train).await.unwrap();
+    let topo = &seq.topology;
+    assert_eq!(
+        (info.n_frames, info.n_vertices, info.n_triangles),
+        (10, topo.n_vertices(), topo.n_triangles())
+    );
+    assert!(info.output_files.last().unwrap().ends_with("manifest.json"));
+    assert_eq!(plan(&train, &info).unwrap().len(), 1);
+
+    let model = d.join("model");
+    std::fs::create_dir_all(&model).unwrap();
+    let pose = d.join("pose.json");
+    std::fs::write(
+        &pose,
+        r#"{"pose_vectors": [[0.1], [0.2], [0.3], [0.4], [0.5], [0.6], [0.7]]}"#,
+    )
+    .unwrap();
+    let apply = JobSpec::from_toml_str(&format!(
+        "input = \"{}\"\noutput = \"{}\"\n[partition]\nframes_per_chunk = 3\n[deep]\ntask = \"apply\"\nmodel = \"{}\"\nfrom = \"pose\"\n",
+        s(&pose),
+        s(&d.join("out-apply")),
+        s(&model)
+    ))
+    .unwrap();
+    // A model without its manifest is refused at submit, naming it.
+    let err = crease_jobs::inspect_input(&apply)
+        .await
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("manifest.json"), "{err}");
+    std::fs::write(
+        model.join("manifest.json"),
+        r#"{"vertices": 12, "triangles": 20}"#,
+    )
+    .unwrap();
+    let info = crease_jobs::inspect_input(&apply).await.unwrap();
+    assert_eq!(
+        (info.n_frames, info.n_vertices, info.n_triangles),
+        (7, 12, 20)
+    );
+    let tasks = plan(&apply, &info).unwrap();
+    assert_eq!(tasks.len(), 4, "three frame chunks and the finish");
+}
+
+/// A worker built without the learning library refuses a deep task with the way to one that runs it, and the
+/// refusal is not retried (every such worker would refuse it).
+#[cfg(not(feature = "deep"))]
+#[tokio::test]
+async fn without_the_library_a_worker_refuses_deep_tasks() {
+    let d = tempfile::tempdir().unwrap();
+    let job = spec("task = \"train\"\n", "").unwrap();
+    let ctx = crease_jobs::ExecContext {
+        progress: std::sync::Arc::new(crease_core::progress::NoProgress),
+        cache_dir: d.path().to_path_buf(),
+    };
+    let err = crease_jobs::execute(&TaskSpec::DeepTrain { job }, &ctx)
+        .await
+        .unwrap_err();
+    assert!(!err.retryable(), "{err}");
+    assert!(
+        err.reason.contains("--features deep") && err.reason.starts_with("deep-train"),
+        "{err}"
+    );
 }

@@ -4,7 +4,8 @@
 mod common;
 
 use common::*;
-use crease_jobs::{execute, inspect_input, keys, JobError, JobSpec, Storage, TaskSpec};
+use crease_jobs::storage::keys;
+use crease_jobs::{execute, inspect_input, JobError, JobSpec, Storage, TaskSpec};
 use std::path::Path;
 use std::sync::Arc;
 

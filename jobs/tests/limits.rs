@@ -7,7 +7,7 @@
 mod common;
 
 use common::*;
-use crease_jobs::limits::admit;
+use crease_jobs::plan::limits::admit;
 use crease_jobs::{plan, JobLimits, Storage, StorageRoots, TaskError};
 use std::path::Path;
 use std::process::Command;

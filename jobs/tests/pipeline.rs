@@ -7,7 +7,8 @@ mod common;
 use common::*;
 use crease_core::mesh::io::{open_sequence, write_obj, write_pc2};
 use crease_core::mesh::Sequence;
-use crease_jobs::{final_outputs, keys, Storage, TaskSpec};
+use crease_jobs::storage::keys;
+use crease_jobs::{final_outputs, Storage, TaskSpec};
 use serde_json::Value;
 use std::path::Path;
 

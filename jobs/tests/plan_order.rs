@@ -3,7 +3,8 @@
 //! the next windows' weight tasks, not after all of them), `fold-files` right after the first weight task, and
 //! a stretch job's `fold-plot` after its settle ranges and merge.
 
-use crease_jobs::{expand, keys, plan, InputInfo, JobSpec, TaskDef, TaskOutput, TaskSpec};
+use crease_jobs::storage::keys;
+use crease_jobs::{expand, plan, InputInfo, JobSpec, TaskDef, TaskOutput, TaskSpec};
 use serde_json::json;
 
 fn job(folds: &str, mode: &str) -> JobSpec {
@@ -135,7 +136,7 @@ fn detected_folds_files_after_the_first_weight_task_and_plot_after_the_merge() {
 #[test]
 fn positioning_chunks_end_at_the_windows_release_points() {
     use crease_core::spacetime::windows::plan_windows;
-    use crease_jobs::plan::position_chunks;
+    use crease_jobs::plan::chunks::position_chunks;
     let w = plan_windows(20, 10, 7);
     let got = position_chunks(20, &w, 4);
     assert_eq!(got, [0..4, 4..7, 7..11, 11..14, 14..18, 18..20]);

@@ -58,7 +58,7 @@ async fn split_is_single(seed_memory: bool) {
     let opened = open_sequence(&input).unwrap();
     let source = opened.source.as_ref();
     let probe = spec(&input, &root.join("probe"), "");
-    let det: StretchDetector = crease_jobs::detect::stretch_detector(&probe, 11).unwrap();
+    let det: StretchDetector = crease_jobs::plan::detect::stretch_detector(&probe, 11).unwrap();
     let (direct, artifacts) = det
         .detect_with_artifacts(source, 0..11, &NoProgress)
         .unwrap();
@@ -120,10 +120,10 @@ async fn split_is_single(seed_memory: bool) {
         let traces = count(|t| matches!(t, TaskSpec::FoldDetect { .. }));
         assert_eq!(count(|t| matches!(t, TaskSpec::FoldPhases { .. })), 1);
         assert!(count(|t| matches!(t, TaskSpec::FoldSteps { .. })) >= 1);
-        let expected = crease_jobs::stretch_tasks::trace_chunks(&s, 11, 900).len();
+        let expected = crease_jobs::plan::chunks::trace_chunks(&s, 11, 900).len();
         assert_eq!(traces, expected, "{partition}: tracing tasks");
         // The settle runs in its own tasks, one per range; the merge waits for them all.
-        let settles = crease_jobs::settle_tasks::job_settle_chunks(&s, 11, 900);
+        let settles = crease_jobs::plan::settle::job_settle_chunks(&s, 11, 900);
         assert_eq!(
             count(|t| matches!(t, TaskSpec::FoldSettle { .. })),
             settles.len(),
@@ -142,7 +142,7 @@ async fn split_is_single(seed_memory: bool) {
             .find(|t| matches!(t.spec, TaskSpec::FoldMerge { .. }))
             .unwrap();
         for r in &settles {
-            let key = crease_jobs::keys::fold_settle_task(r.start);
+            let key = crease_jobs::storage::keys::fold_settle_task(r.start);
             assert!(
                 merge.deps.contains(&key),
                 "{partition}: merge waits for {key}"
@@ -154,11 +154,11 @@ async fn split_is_single(seed_memory: bool) {
             let waits = t
                 .deps
                 .iter()
-                .any(|d| d == crease_jobs::keys::FOLD_FILES_TASK);
+                .any(|d| d == crease_jobs::storage::keys::FOLD_FILES_TASK);
             let is_finalize = matches!(t.spec, TaskSpec::Finalize { .. });
             assert_eq!(waits, is_finalize, "{partition}: {} and fold-files", t.key);
             if matches!(t.spec, TaskSpec::FoldFiles { .. }) {
-                assert_eq!(t.deps, [crease_jobs::keys::FOLD_MERGE_TASK]);
+                assert_eq!(t.deps, [crease_jobs::storage::keys::FOLD_MERGE_TASK]);
             }
         }
         // `folds.png` is drawn by its own task from the tracing chunks alone (not the settled anchors, not
@@ -175,7 +175,7 @@ async fn split_is_single(seed_memory: bool) {
             let waits = t
                 .deps
                 .iter()
-                .any(|d| d == crease_jobs::keys::FOLD_PLOT_TASK);
+                .any(|d| d == crease_jobs::storage::keys::FOLD_PLOT_TASK);
             let is_finalize = matches!(t.spec, TaskSpec::Finalize { .. });
             assert_eq!(waits, is_finalize, "{partition}: {} and fold-plot", t.key);
             if matches!(t.spec, TaskSpec::FoldPlot { .. }) {
@@ -241,7 +241,7 @@ async fn split_is_single(seed_memory: bool) {
 fn chunk_size_follows_the_mesh_and_the_sequence() {
     let s = |p: &str| spec(Path::new("/in"), Path::new("/out"), p);
     let auto = s("");
-    use crease_jobs::stretch_tasks::trace_frames_per_chunk as k;
+    use crease_jobs::plan::chunks::trace_frames_per_chunk as k;
     assert_eq!(k(&auto, 1000, 100_000), 20);
     assert_eq!(k(&auto, 1000, 10_000), 64);
     assert_eq!(k(&auto, 1000, 2_000_000), 4);

@@ -3,7 +3,8 @@
 //! `crease` in the test executable's own `target/<profile>/`. `cargo test --workspace` builds it in the same
 //! run; when it is missing or older than any source of the crates it is built from (a lone
 //! `cargo test -p crease-e2e` after an edit), the kit runs `cargo build -p crease --bin crease` into that
-//! directory once per test process, so a test never runs a stale binary. `CREASE_BIN` overrides all this with
+//! directory once per test process (with `--features deep` when this crate's `deep` feature is on, as
+//! `--all-features` turns it on), so a test never runs a stale binary. `CREASE_BIN` overrides all this with
 //! a given executable (an installed build, a CI artifact).
 
 use std::path::{Path, PathBuf};
@@ -54,6 +55,11 @@ fn build(profile_dir: &Path) {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
     let status = Command::new(&cargo)
         .args(["build", "--quiet", "-p", "crease", "--bin", "crease"])
+        .args(if cfg!(feature = "deep") {
+            &["--features", "deep"][..]
+        } else {
+            &[]
+        })
         .args(["--profile", &profile])
         .arg("--manifest-path")
         .arg(&manifest)
@@ -70,7 +76,7 @@ fn build(profile_dir: &Path) {
 }
 
 /// The crates the `crease` binary is built from, relative to the workspace root.
-const SOURCES: [&str; 9] = [
+const SOURCES: [&str; 11] = [
     "cli",
     "core",
     "jobs",
@@ -79,6 +85,8 @@ const SOURCES: [&str; 9] = [
     "net",
     "proto",
     "telemetry",
+    "dashboard",
+    "deep",
     "Cargo.lock",
 ];
 

@@ -1,6 +1,7 @@
 //! DeepWrinkles jobs (`[deep]`) on a real coordinator and two workers on 127.0.0.1: a training job publishes
 //! the same model files as `crease deep train`, an apply job split into frame chunks across both workers writes
 //! the same bytes as `crease deep apply`, and bad deep inputs are refused at submit with the file named.
+#![cfg(feature = "deep")]
 
 use crease_core::mesh::io::write_obj;
 use crease_core::mesh::Topology;

@@ -284,11 +284,11 @@ impl Scheduler {
         }
         // A finalize that raced with a cancel or a failure must not leave a report vouching for the output.
         let job = lock(&self.store).job(job_id)?;
-        if key == crease_jobs::keys::FINALIZE_TASK
+        if key == crease_jobs::storage::keys::FINALIZE_TASK
             && matches!(job.state, JobState::Cancelled | JobState::Failed)
         {
             if let Ok(out) = Storage::open(&job.output) {
-                let _ = out.delete(crease_jobs::keys::REPORT).await;
+                let _ = out.delete(crease_jobs::storage::keys::REPORT).await;
             }
         }
         Ok(())

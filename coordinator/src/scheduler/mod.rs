@@ -171,17 +171,20 @@ impl Scheduler {
                 .into());
             }
         }
-        let info =
-            crease_jobs::limits::admit(&spec, &self.config.storage_roots, &self.config.limits)
-                .await
-                .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
+        let info = crease_jobs::plan::limits::admit(
+            &spec,
+            &self.config.storage_roots,
+            &self.config.limits,
+        )
+        .await
+        .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         let defs = crease_jobs::plan(&spec, &info)
             .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         // A report left by an earlier run must not vouch for this job while it runs, and files only an earlier
-        // run wrote must not stand beside this one's result (crease_jobs::stale).
+        // run wrote must not stand beside this one's result (crease_jobs::plan::stale).
         let out =
             Storage::open(&spec.output).map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
-        crease_jobs::stale::claim_output(&out, &spec, &info)
+        crease_jobs::plan::stale::claim_output(&out, &spec, &info)
             .await
             .map_err(|e| ApiError::Invalid(format!("rejected: {e}")))?;
         let name = if spec.name.is_empty() {

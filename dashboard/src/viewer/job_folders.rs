@@ -65,7 +65,7 @@ impl Locate for JobFolders {
         // The output counts once its report is written (finalize writes it last); before that the input is
         // shown alone.
         let output = local(&status.output, "output", &mut notes).filter(|dir| {
-            let done = dir.join(crease_jobs::keys::REPORT).is_file();
+            let done = dir.join(crease_jobs::storage::keys::REPORT).is_file();
             if !done {
                 notes.push(format!(
                     "the output is not complete yet (job {}): the input is shown alone",

@@ -4,7 +4,7 @@
 use super::names::ViewFile;
 use super::scene::SceneError;
 use super::{LocateError, Located, Viewer};
-use crate::api::plausible_id;
+use crate::errors::plausible_id;
 use crate::json::{error, reply};
 use axum::extract::{Path, State};
 use axum::http::{header, StatusCode};

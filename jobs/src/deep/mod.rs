@@ -10,10 +10,12 @@
 //! and `report.json`.
 
 pub mod inspect;
+#[cfg(feature = "deep")]
+pub mod library;
 pub mod plan;
 pub mod spec;
 
-pub use spec::{ApplyFrom, DeepSpec, DeepTrainParams};
+pub use spec::{ApplyFrom, DeepSpec, DeepTrainParams, MapSpace, Mirror, PoseFeatures, Regressor};
 
 /// Task keys and storage keys of deep jobs (all relative to the job's output).
 pub mod keys {

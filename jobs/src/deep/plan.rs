@@ -2,10 +2,10 @@
 
 use super::keys;
 use super::spec::DeepSpec;
-use crate::inspect::InputInfo;
-use crate::plan::chunk_ranges;
+use crate::plan::chunks::chunk_ranges;
+use crate::plan::input::InputInfo;
+use crate::plan::task::{TaskDef, TaskSpec};
 use crate::spec::JobSpec;
-use crate::task::{TaskDef, TaskSpec};
 
 pub fn plan(job: &JobSpec, deep: &DeepSpec, info: &InputInfo) -> Vec<TaskDef> {
     match deep {
@@ -47,6 +47,6 @@ pub fn plan(job: &JobSpec, deep: &DeepSpec, info: &InputInfo) -> Vec<TaskDef> {
 /// `report.json`.
 pub fn final_outputs(info: &InputInfo) -> Vec<String> {
     let mut out = info.output_files.clone();
-    out.push(crate::keys::REPORT.to_string());
+    out.push(crate::storage::keys::REPORT.to_string());
     out
 }

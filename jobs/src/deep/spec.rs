@@ -1,16 +1,13 @@
 //! The `[deep]` section of a job spec. Its fields are the flags of `crease deep train` and `crease deep apply`
 //! with the same defaults, so a job and the command with the same values write the same model or frames.
+//!
+//! The types are this crate's own, not the learning library's, so that a coordinator built without the
+//! `deep` feature parses, checks and plans deep jobs; with the feature, `super::library` turns them into
+//! the library's parameters, and its tests hold the defaults here to the library's.
 
 use crate::error::JobError;
-use crate::spec::{FoldSpec, JobSpec};
-use crate::storage::parse_location;
-use crease_deep::cgan::CganConfig;
-use crease_deep::lstm::LstmConfig;
-use crease_deep::model::RegressorKind;
-use crease_deep::normal_map::Space;
-use crease_deep::train::TrainParams;
+use crate::storage::location::parse_location;
 use serde::{Deserialize, Serialize};
-use std::path::PathBuf;
 
 /// What a deep job does. `input` is the first training directory (`train`), or the pose file or coarse
 /// sequence the model runs on (`apply`); `output` receives the model or the applied frames (meshes and normal maps).
@@ -35,18 +32,62 @@ pub enum DeepSpec {
         from: ApplyFrom,
         /// Normal map space: `world` (default) or `tangent`.
         #[serde(default = "world")]
-        space: Space,
+        space: MapSpace,
         /// Overrides the model's regressor (`from = "pose"` only).
         #[serde(default)]
-        regressor: Option<RegressorKind>,
+        regressor: Option<Regressor>,
         /// Write the coarse maps without the cGAN.
         #[serde(default)]
         no_cgan: bool,
     },
 }
 
-fn world() -> Space {
-    Space::World
+fn world() -> MapSpace {
+    MapSpace::World
+}
+
+/// The pose-to-shape regressor (`--regressor`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Regressor {
+    /// Pose (+ velocity, acceleration, lags) only.
+    Linear,
+    /// Pose and the model's own previous shape coefficients, rolled out from the first frame.
+    Autoregressive,
+    Lstm,
+    /// Weighted mean of the linear map and the autoregressive rollout.
+    Blend,
+}
+
+/// What the pose numbers become before the regression (`--pose-features`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PoseFeatures {
+    /// Rigid when the pose file names its numbers as location/rotation_euler blocks, raw otherwise.
+    Auto,
+    Raw,
+    /// Rigid, and an error when the pose file's names do not have that layout.
+    Rigid,
+}
+
+/// Which reflection augments the training data (`--mirror`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mirror {
+    /// The coordinate plane in which the first training frame is most symmetric, if any; otherwise none.
+    Auto,
+    None,
+    X,
+    Y,
+    Z,
+}
+
+/// The frame the stored normals are expressed in (`--space`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MapSpace {
+    World,
+    Tangent,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -61,7 +102,7 @@ pub enum ApplyFrom {
 #[serde(deny_unknown_fields, default)]
 pub struct DeepTrainParams {
     pub k: usize,
-    pub regressor: RegressorKind,
+    pub regressor: Regressor,
     pub ar_state: usize,
     pub ar_rollout_iters: usize,
     pub blend_weight: f64,
@@ -69,8 +110,8 @@ pub struct DeepTrainParams {
     pub lags: Vec<usize>,
     pub pose_history: Vec<f64>,
     pub ridge: f64,
-    pub pose_features: crease_deep::pose_features::PoseFeatureMode,
-    pub mirror: crease_deep::mirror::MirrorMode,
+    pub pose_features: PoseFeatures,
+    pub mirror: Mirror,
     pub lstm_layers: usize,
     pub lstm_hidden: usize,
     pub lstm_seq: usize,
@@ -90,91 +131,37 @@ pub struct DeepTrainParams {
 }
 
 impl Default for DeepTrainParams {
+    /// `crease deep train`'s defaults (the library's `TrainParams`, `LstmConfig` and `CganConfig` defaults,
+    /// which the `deep` feature's tests compare them with), with no cGAN and seed 1.
     fn default() -> Self {
-        let t = TrainParams::default();
-        let c = CganConfig::default();
         DeepTrainParams {
-            k: t.k,
-            regressor: t.regressor,
-            ar_state: t.ar_state,
-            ar_rollout_iters: t.ar_rollout_iters,
-            blend_weight: t.blend_weight,
-            blend_fit: t.blend_fit,
-            lags: t.lags,
-            pose_history: t.pose_history,
-            ridge: t.ridge,
-            pose_features: t.pose_features,
-            mirror: t.mirror,
-            lstm_layers: t.lstm.layers,
-            lstm_hidden: t.lstm.hidden,
-            lstm_seq: t.lstm.seq_len,
-            lstm_epochs: t.lstm.epochs,
-            lstm_lr: t.lstm.lr,
-            pose_components: t.pose_components,
-            pose_smoothing: t.pose_smoothing,
+            k: 200,
+            regressor: Regressor::Blend,
+            ar_state: 10,
+            ar_rollout_iters: 20,
+            blend_weight: 0.5,
+            blend_fit: false,
+            lags: vec![],
+            pose_history: vec![],
+            ridge: 1e-3,
+            pose_features: PoseFeatures::Auto,
+            mirror: Mirror::Auto,
+            lstm_layers: 4,
+            lstm_hidden: 256,
+            lstm_seq: 3,
+            lstm_epochs: 300,
+            lstm_lr: 1e-3,
+            pose_components: 0,
+            pose_smoothing: 160,
             seed: 1,
-            resolution: t.resolution,
+            resolution: 256,
             uv: None,
             cgan_epochs: 0,
-            cgan_filters: c.filters,
-            cgan_disc_filters: c.disc_filters,
-            cgan_w_temporal: c.w_temporal,
+            cgan_filters: 64,
+            cgan_disc_filters: 64,
+            cgan_w_temporal: 50.0,
         }
     }
-}
-
-impl DeepTrainParams {
-    /// The library's parameters, with the UV template at `uv` (already fetched) when the spec names one.
-    pub fn train_params(&self, uv: Option<PathBuf>) -> TrainParams {
-        TrainParams {
-            k: self.k,
-            lags: self.lags.clone(),
-            pose_history: self.pose_history.clone(),
-            ridge: self.ridge,
-            pose_features: self.pose_features,
-            mirror: self.mirror,
-            regressor: self.regressor,
-            ar_state: self.ar_state,
-            ar_rollout_iters: self.ar_rollout_iters,
-            blend_weight: self.blend_weight,
-            blend_fit: self.blend_fit,
-            lstm: LstmConfig {
-                layers: self.lstm_layers,
-                hidden: self.lstm_hidden,
-                seq_len: self.lstm_seq,
-                epochs: self.lstm_epochs,
-                batch: 32,
-                lr: self.lstm_lr,
-                seed: self.seed,
-                // Residual of the blend, cross-fitted, early stopping: as `crease deep train`.
-                ..LstmConfig::default()
-            },
-            pose_components: self.pose_components,
-            pose_smoothing: self.pose_smoothing,
-            resolution: self.resolution,
-            uv,
-            cgan: (self.cgan_epochs > 0).then(|| CganConfig {
-                resolution: self.resolution,
-                filters: self.cgan_filters,
-                disc_filters: self.cgan_disc_filters,
-                w_temporal: self.cgan_w_temporal,
-                epochs: self.cgan_epochs,
-                seed: self.seed,
-                ..Default::default()
-            }),
-            checkpoint: None,
-        }
-    }
-}
-
-/// The spec field a library parameter error is about (`lstm.layers` → `deep.params.lstm_layers`).
-fn param_field(name: &str) -> String {
-    let field = match name {
-        "cgan.resolution" => "resolution".to_string(),
-        "cgan" => "cgan_filters".to_string(),
-        n => n.replace('.', "_"),
-    };
-    format!("deep.params.{field}")
 }
 
 impl DeepSpec {
@@ -201,44 +188,14 @@ impl DeepSpec {
         }
     }
 
-    /// Checks what can be checked without storage; the parts of a job spec that only deformations use must be
-    /// left at their defaults, so that nothing set there is silently ignored.
-    pub fn validate(&self, job: &JobSpec) -> Result<(), JobError> {
-        if job.folds != FoldSpec::None {
-            return Err(JobError::spec(
-                "folds",
-                "a [deep] job has no folds (it trains or applies a DeepWrinkles model); remove [folds]",
-            ));
-        }
-        if !job.export.formats.is_empty() {
-            return Err(JobError::spec(
-                "export",
-                "a [deep] job writes meshes and normal maps, not an exported sequence; remove [export]",
-            ));
-        }
-        if job.deform != crease_core::spacetime::DeformParams::default() {
-            return Err(JobError::spec(
-                "deform",
-                "a [deep] job does not deform its input; remove [deform]",
-            ));
-        }
+    /// Checks what can be checked without storage and without the learning library, naming the field at
+    /// fault (with the `deep` feature, the training parameters are checked against the library too).
+    pub fn validate(&self) -> Result<(), JobError> {
         for (field, uri) in self.uris() {
             parse_location(uri, field)?;
         }
         match self {
-            DeepSpec::Train { params, .. } => {
-                let p = params.train_params(None);
-                let lib = |e: crease_core::Error| match e {
-                    crease_core::Error::Param { name, msg } => {
-                        JobError::spec(param_field(&name), msg)
-                    }
-                    e => JobError::spec("deep.params", e.to_string()),
-                };
-                p.validate().map_err(lib)?;
-                if let Some(c) = &p.cgan {
-                    c.validate().map_err(lib)?;
-                }
-            }
+            DeepSpec::Train { .. } => {}
             DeepSpec::Apply {
                 from, regressor, ..
             } => {

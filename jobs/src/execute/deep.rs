@@ -5,10 +5,11 @@
 use super::env::{storage_err, TaskEnv};
 use crate::deep::inspect::{fetch_training_dirs, model_files};
 use crate::deep::keys as dk;
+use crate::deep::library::train_params;
 use crate::deep::spec::{ApplyFrom, DeepSpec};
 use crate::error::TaskError;
-use crate::keys;
-use crate::storage::fetch_input_to_cache;
+use crate::storage::keys;
+use crate::storage::store::fetch_input_to_cache;
 use crease_deep::apply::{apply as deep_apply, ApplyInput, ApplyParams};
 use crease_deep::model::{Manifest, Model};
 use crease_deep::train::{load_training_dir, train as deep_train};
@@ -87,7 +88,7 @@ pub fn train(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     }
     let staging = Staging::new(&env.ctx.cache_dir, "train")?;
     let local = staging.0.join("model");
-    deep_train(&seqs, &params.train_params(uv), &local, env.progress())
+    deep_train(&seqs, &train_params(params, uv), &local, env.progress())
         .map_err(|e| TaskError::from_core("deep-train", e))?;
     let seconds = clock.elapsed().as_secs_f64();
     env.check_cancelled()?;
@@ -147,8 +148,8 @@ fn open_apply(env: &TaskEnv) -> Result<(Model, ApplyInput, ApplyParams), TaskErr
         ApplyFrom::Coarse => ApplyInput::Coarse(input),
     };
     let params = ApplyParams {
-        space: *space,
-        regressor: *regressor,
+        space: (*space).into(),
+        regressor: regressor.map(Into::into),
         frames: None,
         no_cgan: *no_cgan,
     };

@@ -2,9 +2,9 @@
 
 use super::{frame_cache, ExecContext};
 use crate::error::{JobError, TaskError};
-use crate::keys;
 use crate::spec::{FoldSpec, JobSpec};
-use crate::storage::{fetch_input_to_cache, Storage};
+use crate::storage::keys;
+use crate::storage::store::{fetch_input_to_cache, Storage};
 use bytes::Bytes;
 use crease_core::folds::AnchorSet;
 use crease_core::mesh::io::{detect_layout, open_layout, OpenedSequence};
@@ -151,8 +151,8 @@ impl<'a> TaskEnv<'a> {
     }
 
     /// Local copies of the detector's own input files (cameras, images), fetched once into the cache.
-    pub fn fold_inputs(&self) -> Result<crate::detect::FoldInputs, TaskError> {
-        self.block_on(crate::detect::fetch_fold_inputs(
+    pub fn fold_inputs(&self) -> Result<crate::plan::detect::FoldInputs, TaskError> {
+        self.block_on(crate::plan::detect::fetch_fold_inputs(
             &self.job.folds,
             &self.ctx.cache_dir,
         ))
@@ -267,7 +267,7 @@ impl<'a> TaskEnv<'a> {
 
     /// The job's time windows over `n` frames.
     pub fn windows(&self, n: usize) -> Vec<Window> {
-        crate::plan::job_windows(self.job, n)
+        crate::plan::chunks::job_windows(self.job, n)
     }
 
     /// Window `k` of `n` frames, or a fatal error naming it.
@@ -352,7 +352,7 @@ fn upload_dir(env: &TaskEnv, dir: &Path) -> Result<(), TaskError> {
 /// A failure of the worker's local staging area: retryable (another worker may have room), named as full
 /// storage when it is.
 fn staging_err(path: &Path, e: std::io::Error) -> TaskError {
-    if crate::storage_errors::is_full_io(&e) {
+    if crate::storage::errors::is_full_io(&e) {
         TaskError {
             location: Some(path.display().to_string()),
             ..TaskError::new(

@@ -4,7 +4,7 @@
 use super::env::{storage_err, TaskEnv};
 use crate::error::TaskError;
 use crate::export_spec::export_key;
-use crate::keys;
+use crate::storage::keys;
 use crease_core::export::export;
 use crease_core::mesh::{Frame, FrameSource, Topology};
 use std::sync::Arc;

@@ -8,10 +8,10 @@ use super::phase_times::Lap;
 use super::position::FrameTimings;
 use super::weights::WindowRecord;
 use crate::error::{JobError, TaskError};
-use crate::inspect::{output_files, output_sink, writes_frames};
-use crate::keys;
+use crate::plan::inspect::{output_files, output_sink, writes_frames};
 use crate::report::{AnchorsSource, FoldDetection, JobReport, SecondsPerFrame, Summary, VsRest};
 use crate::spec::FoldSpec;
+use crate::storage::keys;
 use crease_core::mesh::{Frame, FrameSource};
 use crease_core::metrics::StretchAccumulator;
 use crease_core::rest_stretch::{self, RestLengths, RestStretchAccumulator};
@@ -54,7 +54,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     } else {
         Some(output_sink(job, &opened.layout, &topo, n, &dir).map_err(core_err("output"))?)
     };
-    let keep = crate::detect::preview_frames(job, n);
+    let keep = crate::plan::detect::preview_frames(job, n);
     let mut timings = StageTimings {
         stretch_passes: vec![0.0; params.stretch_passes],
         ..Default::default()
@@ -215,14 +215,14 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             file: env.out.describe(keys::ANCHORS),
         }),
     };
-    let fold_detection: Option<FoldDetection> = if crate::detect::granularity(&job.folds).is_some()
-    {
-        Some(env.get_json(keys::FOLD_SUMMARY)?)
-    } else {
-        None
-    };
-    // Every key this run owns (crease_jobs::stale): the next run on this output removes those it does not write.
-    let mut manifest = env.block_on(crate::stale::owned_now(&env.out));
+    let fold_detection: Option<FoldDetection> =
+        if crate::plan::detect::granularity(&job.folds).is_some() {
+            Some(env.get_json(keys::FOLD_SUMMARY)?)
+        } else {
+            None
+        };
+    // Every key this run owns (crate::plan::stale): the next run on this output removes those it does not write.
+    let mut manifest = env.block_on(crate::plan::stale::owned_now(&env.out));
     if manifest.is_empty() {
         manifest = written.clone();
         manifest.push(keys::REPORT.into());

@@ -4,19 +4,20 @@
 //! later tasks read and whose per-frame anchor counts let the planner size the weight blocks); `files` writes
 //! the user-facing `anchors.json` and `folds/control_lines.obj` from it (a stretch job's `folds.png` has its
 //! own `fold-plot` task, [`super::stretch::plot`], which needs only the tracing chunks).
-//! The temporal coherence between them runs in `fold-settle` tasks ([`crate::settle_tasks`]).
+//! The temporal coherence between them runs in `fold-settle` tasks ([`crate::plan::settle`]).
 //!
 //! Why two tasks: `merge` is on every detection job's critical path (all deformation tasks wait for it), and
 //! the text of the two user files (tens of MB at paper scale) was the larger part of it. No task reads them,
 //! so `files` runs beside the weight tasks and only finalize (which writes `report.json`) waits for it.
 
 use super::env::TaskEnv;
+use super::fold_chunks::{self, chunk_seconds, chunks};
 use super::phase_times::Lap;
-use crate::detect::{detection_chunks, detector, granularity};
 use crate::error::TaskError;
-use crate::keys;
+use crate::plan::detect::detector;
 use crate::report::FoldDetection;
 use crate::spec::FoldSpec;
+use crate::storage::keys;
 use crease_core::folds::anchors::binary;
 use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors};
 use crease_core::mesh::io::OpenedSequence;
@@ -37,13 +38,6 @@ fn job_detector(
                 env.job.folds.kind()
             ))
         })
-}
-
-/// The job's detection chunks over `n` frames.
-pub(super) fn chunks(env: &TaskEnv, n: usize) -> Vec<Range<usize>> {
-    granularity(&env.job.folds)
-        .map(|g| detection_chunks(g, n, env.job.partition.fold_frames_per_chunk))
-        .unwrap_or_default()
 }
 
 pub fn detect(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
@@ -258,24 +252,14 @@ fn gather_chunks(
         frames.extend(chunk);
     }
     let label = format!("{} fold merge", d.name());
-    let frames = if crate::settle_tasks::settle_radius(env.job, n).is_some() {
+    let frames = if crate::plan::settle::settle_radius(env.job, n).is_some() {
         // Settled by the job's `fold-settle` tasks, range by range, as `d.settle` would.
-        super::settle::settled(env, opened, frames, &[], &label)?
+        fold_chunks::settled(env, opened, frames, &[], &label)?
     } else {
         d.settle(opened.source.as_ref(), frames)
             .map_err(|e| TaskError::from_core(&label, e))?
     };
     Ok((frames, per_frame))
-}
-
-/// The detection seconds a chunk starting at frame `first` recorded beside its anchors.
-pub(super) fn chunk_seconds(env: &TaskEnv, first: usize) -> Result<f64, TaskError> {
-    let key = keys::fold_chunk_timing(first);
-    let timing: Value = env.get_json(&key)?;
-    timing
-        .get("seconds")
-        .and_then(Value::as_f64)
-        .ok_or_else(|| TaskError::fatal(format!("{}: no `seconds`", env.out.describe(&key))))
 }
 
 #[cfg(test)]

@@ -9,11 +9,13 @@
 //! [`crease_core::spacetime::stages`] functions in a fixed order, so what it writes does not depend on the
 //! worker, the number of workers, or how many times it ran.
 
+#[cfg(feature = "deep")]
 mod deep;
 mod env;
 mod exact;
 mod export;
 mod finalize;
+mod fold_chunks;
 mod folds;
 pub mod frame_cache;
 mod partial_file;
@@ -26,12 +28,26 @@ pub mod window_cache;
 
 use crate::error::TaskError;
 use crate::failure::FailureKind;
-use crate::task::{TaskOutput, TaskSpec};
+use crate::plan::task::{TaskOutput, TaskSpec};
 use crease_core::progress::Progress;
 use env::TaskEnv;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
+
+/// The refusal of a deep task by a worker built without the learning stack: the same on every such worker,
+/// so it is not retried; the job fails with the way to a worker that runs it.
+#[cfg(not(feature = "deep"))]
+fn without_deep(task: &TaskSpec) -> TaskError {
+    TaskError::new(
+        FailureKind::InvalidInput,
+        format!(
+            "{}: this worker was built without DeepWrinkles (the `deep` feature); run deep jobs on workers \
+             built with `cargo build --release --features deep`",
+            task.kind()
+        ),
+    )
+}
 
 /// What a worker provides to every task.
 #[derive(Clone)]
@@ -101,9 +117,16 @@ fn run_kind(
         TaskSpec::Reduce { window, .. } => weights::reduce(&env, *window)?,
         TaskSpec::Position { frames, .. } => position::position(&env, frames.clone())?,
         TaskSpec::Finalize { .. } => finalize::finalize(&env)?,
+        #[cfg(feature = "deep")]
         TaskSpec::DeepTrain { .. } => deep::train(&env)?,
+        #[cfg(feature = "deep")]
         TaskSpec::DeepApply { frames, .. } => deep::apply(&env, frames.clone())?,
+        #[cfg(feature = "deep")]
         TaskSpec::DeepFinish { frames, .. } => deep::finish(&env, *frames)?,
+        #[cfg(not(feature = "deep"))]
+        TaskSpec::DeepTrain { .. } | TaskSpec::DeepApply { .. } | TaskSpec::DeepFinish { .. } => {
+            return Err(without_deep(task));
+        }
     };
     Ok(TaskOutput {
         summary,

@@ -1,12 +1,13 @@
-//! The stretch detector's tasks ([`crate::stretch_tasks`]): step records and phase codes go through storage as
+//! The stretch detector's tasks ([`crate::plan::stretch`]): step records and phase codes go through storage as
 //! `.npy`, traced chunks in the binary anchors form, under [`keys`]; the computation is
 //! [`crease_core::folds::stretch::split`], so these functions only move data and name what is missing.
 
 use super::env::TaskEnv;
+use super::fold_chunks::{self, chunk_seconds, read_trace_chunk, traced_chunks, traced_size};
 use super::phase_times::Lap;
 use crate::error::TaskError;
-use crate::keys;
-use crate::stretch_tasks::{step_chunks, trace_chunks};
+use crate::plan::chunks::{step_chunks, trace_chunks};
+use crate::storage::keys;
 use crease_core::folds::stretch::overlay::OverlayFrame;
 use crease_core::folds::stretch::split::{
     self, ChunkTracer, Pass, PhaseCode, Phases, StepRecord, TracedChunk,
@@ -19,21 +20,14 @@ use crease_core::progress::Progress;
 use serde_json::{json, Value};
 use std::cell::RefCell;
 use std::ops::Range;
-use std::path::Path;
 
 fn detector(env: &TaskEnv, n: usize) -> Result<StretchDetector, TaskError> {
-    crate::detect::stretch_detector(env.job, n).ok_or_else(|| {
+    crate::plan::detect::stretch_detector(env.job, n).ok_or_else(|| {
         TaskError::fatal(format!(
             "folds of kind `{}` have no stretch detection tasks",
             env.job.folds.kind()
         ))
     })
-}
-
-/// Frames and triangles of the traced (input) mesh.
-fn traced_size(opened: &OpenedSequence) -> (usize, usize) {
-    let (source, _) = split::traced_source(opened.source.as_ref());
-    (source.n_frames(), source.topology().n_triangles())
 }
 
 /// Storage reads inside core's callbacks: the first storage error is kept here (core sees a cancellation and
@@ -351,33 +345,6 @@ fn read_overlay(env: &TaskEnv, t: usize, nv: usize, nt: usize) -> Result<Overlay
     })
 }
 
-/// The tracing chunk `r` as its `fold-detect` task stored it, checked to hold exactly the frames `r`.
-pub(super) fn read_trace_chunk(env: &TaskEnv, r: &Range<usize>) -> Result<TracedChunk, TaskError> {
-    env.check_cancelled()?;
-    let key = keys::fold_trace_chunk(r.start);
-    let bytes = env.get(&key)?;
-    let chunk = TracedChunk::from_binary(&bytes, Path::new(&env.out.describe(&key)))
-        .map_err(|e| TaskError::fatal(e.to_string()))?;
-    let frames: Vec<usize> = chunk.frames.iter().map(|f| f.anchors.frame).collect();
-    if chunk.first != r.start || frames != r.clone().collect::<Vec<_>>() {
-        return Err(TaskError::fatal(format!(
-            "{}: holds {} frames from {}, expected frames {}..{}",
-            env.out.describe(&key),
-            chunk.frames.len(),
-            chunk.first,
-            r.start,
-            r.end
-        )));
-    }
-    Ok(chunk)
-}
-
-/// The stretch job's tracing chunks and frame count as its settle tasks see them.
-pub(super) fn traced_chunks(env: &TaskEnv, opened: &OpenedSequence) -> (Vec<Range<usize>>, usize) {
-    let (n, nt) = traced_size(opened);
-    (trace_chunks(env.job, n, nt), nt)
-}
-
 /// The frames of every tracing chunk as the whole-sequence detector traced them: the chunks reconciled
 /// ([`split::reconcile`]), tracing again (with a tracer made on first need) the frames whose chunk's warm-up
 /// missed the true seed memory. Also returns the frames traced again, in order.
@@ -434,7 +401,7 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
     let label = "stretch fold merge";
     let mut per_frame_seconds: Vec<f64> = Vec::with_capacity(n);
     let mut spread = |r: &Range<usize>| -> Result<(), TaskError> {
-        let seconds = super::folds::chunk_seconds(env, r.start)?;
+        let seconds = chunk_seconds(env, r.start)?;
         per_frame_seconds.extend(std::iter::repeat_n(
             seconds / r.len().max(1) as f64,
             r.len(),
@@ -442,20 +409,20 @@ pub fn gather(env: &TaskEnv, opened: &OpenedSequence) -> Result<Gathered, TaskEr
         Ok(())
     };
     let (frames, retraced) =
-        if chunks_are_exact(&det) && crate::settle_tasks::settle_radius(env.job, n).is_some() {
+        if chunks_are_exact(&det) && crate::plan::settle::settle_radius(env.job, n).is_some() {
             // The settled ranges are final as stored: no chunk to read back on the job's critical path (at 100K
             // triangles they are some 4 MB per frame, read here once more after the settle tasks read them).
             for r in &traced_chunks(env, opened).0 {
                 spread(r)?;
             }
-            let frames = super::settle::stored_settled(env, opened, n, label)?;
+            let frames = fold_chunks::stored_settled(env, opened, n, label)?;
             lap.lap("fold-merge: settled ranges read (chunks exact, not read)");
             (frames, 0)
         } else {
             let (frames, again) = reconciled(env, opened, &det, label, spread)?;
             lap.lap("fold-merge: read and reconcile chunks");
             let frames: Vec<FrameAnchors> = frames.into_iter().map(|f| f.anchors).collect();
-            let frames = super::settle::settled(env, opened, frames, &again, label)?;
+            let frames = fold_chunks::settled(env, opened, frames, &again, label)?;
             lap.lap("fold-merge: settled ranges (read, or settled again where traced again)");
             (frames, again.len())
         };

@@ -8,7 +8,7 @@ use super::partial_file::{self, BlockStats};
 use super::phase_times::Lap;
 use super::window_cache::{self, WindowEntry};
 use crate::error::TaskError;
-use crate::keys;
+use crate::storage::keys;
 use crease_core::spacetime::weights;
 use crease_core::spacetime::weights::fused::CgStats;
 use crease_core::spacetime::weights::per_anchor::plan_blocks;

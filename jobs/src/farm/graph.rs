@@ -10,11 +10,11 @@
 //! the coordinator's, byte for byte.
 
 use crate::error::JobError;
-use crate::inspect::InputInfo;
-use crate::keys;
-use crate::plan::{expand, plan};
+use crate::plan::graph::{expand, plan};
+use crate::plan::input::InputInfo;
+use crate::plan::task::{TaskDef, TaskOutput, TaskSpec};
 use crate::spec::JobSpec;
-use crate::task::{TaskDef, TaskOutput, TaskSpec};
+use crate::storage::keys;
 use serde_json::json;
 
 /// Block slots per window when folds are detected in per-anchor mode (`crease export-job --block-slots`).

@@ -87,7 +87,7 @@ pub fn export_job(
 /// Farm tasks run in directories of the farm's choosing, where a relative path means something else: every
 /// local path of the job must be absolute (URIs are fine).
 pub fn check_farm_paths(job: &JobSpec) -> Result<(), JobError> {
-    for (field, uri) in crate::confine::spec_uris(job) {
+    for (field, uri) in job.uris() {
         if !uri.contains("://") && !std::path::Path::new(uri).is_absolute() {
             return Err(JobError::spec(
                 field,

@@ -8,12 +8,13 @@
 use super::graph::{farm_graph, parse_slot_key, Stage};
 use crate::error::{JobError, TaskError};
 use crate::execute::{execute, ExecContext};
-use crate::inspect::{inspect_input, InputInfo};
-use crate::keys;
-use crate::plan::{expand, plan};
+use crate::plan::graph::{expand, plan};
+use crate::plan::input::InputInfo;
+use crate::plan::inspect::inspect_input;
+use crate::plan::task::{TaskDef, TaskOutput, TaskSpec};
 use crate::spec::JobSpec;
-use crate::storage::Storage;
-use crate::task::{TaskDef, TaskOutput, TaskSpec};
+use crate::storage::keys;
+use crate::storage::store::Storage;
 use crease_core::folds::AnchorSet;
 use serde_json::json;
 

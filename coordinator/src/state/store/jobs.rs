@@ -2,9 +2,9 @@
 //! waiting) and the queries `status`, `jobs` and the metrics read.
 
 use super::events::event;
-use super::tasks::insert_tasks;
+use super::rows::{fail_job_tx, insert_tasks, job_from_row, job_row, JOB_COLS};
 use super::{now, Counts, JobRow, JobState, NewJob, QueueGauges, Result, Store, StoreError};
-use rusqlite::{params, Connection, OptionalExtension, Transaction};
+use rusqlite::{params, OptionalExtension};
 
 impl Store {
     /// The job submitted earlier with `token`, if any (idempotent submit).
@@ -259,54 +259,6 @@ impl Store {
             .collect::<rusqlite::Result<Vec<_>>>()?;
         Ok(g)
     }
-}
-
-pub(super) const JOB_COLS: &str =
-    "id, name, spec, info, output, priority, state, message, max_task_attempts, \
-                        max_failures, failures, submitted, finished";
-
-pub(super) fn job_from_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<JobRow> {
-    Ok(JobRow {
-        id: r.get(0)?,
-        name: r.get(1)?,
-        spec_json: r.get(2)?,
-        info_json: r.get(3)?,
-        output: r.get(4)?,
-        priority: r.get(5)?,
-        state: JobState::parse(&r.get::<_, String>(6)?),
-        message: r.get(7)?,
-        max_task_attempts: r.get(8)?,
-        max_failures: r.get(9)?,
-        failures: r.get(10)?,
-        submitted: r.get(11)?,
-        finished: r.get(12)?,
-    })
-}
-
-pub(super) fn job_row(conn: &Connection, job_id: &str) -> Result<JobRow> {
-    conn.query_row(
-        &format!("SELECT {JOB_COLS} FROM jobs WHERE id = ?1"),
-        params![job_id],
-        job_from_row,
-    )
-    .optional()?
-    .ok_or_else(|| StoreError::NoSuchJob(job_id.to_string()))
-}
-
-pub(super) fn fail_job_tx(tx: &Transaction<'_>, job_id: &str, message: &str) -> Result<bool> {
-    let n = tx.execute(
-        "UPDATE jobs SET state = 'failed', message = ?2, finished = ?3
-         WHERE id = ?1 AND state IN ('queued', 'running', 'waiting')",
-        params![job_id, message, now()],
-    )?;
-    if n > 0 {
-        tx.execute(
-            "UPDATE tasks SET state = 'cancelled' WHERE job_id = ?1 AND state = 'queued'",
-            params![job_id],
-        )?;
-        event(tx, job_id, "job_failed", "", message)?;
-    }
-    Ok(n > 0)
 }
 
 /// A stable hash of a job's canonical spec (its JSON as the coordinator stores it): FNV-1a, 64 bits, as hex.

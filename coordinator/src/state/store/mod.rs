@@ -8,6 +8,7 @@
 mod blocklist;
 mod events;
 mod jobs;
+mod rows;
 mod schema;
 mod tasks;
 #[cfg(test)]

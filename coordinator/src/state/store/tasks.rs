@@ -1,7 +1,7 @@
 //! Tasks and their attempts: readiness, claims, results, and the retry policy applied to a failed attempt.
 
 use super::events::event;
-use super::jobs::{fail_job_tx, job_row};
+use super::rows::{fail_job_tx, insert_tasks, job_row};
 use super::{now, Claim, Failure, NewTask, Outcome, Result, Store, TaskRow, TaskState};
 use crease_jobs::FailureKind;
 use rusqlite::{params, OptionalExtension, Transaction};
@@ -380,22 +380,6 @@ pub(super) fn task_row(r: &rusqlite::Row<'_>) -> rusqlite::Result<TaskRow> {
         work_seconds: r.get(9)?,
         wall_seconds: r.get(10)?,
     })
-}
-
-pub(super) fn insert_tasks(tx: &Transaction<'_>, job_id: &str, tasks: &[NewTask]) -> Result<()> {
-    for t in tasks {
-        tx.execute(
-            "INSERT OR IGNORE INTO tasks (job_id, key, kind, payload, expands, state) VALUES (?1, ?2, ?3, ?4, ?5, 'queued')",
-            params![job_id, t.key, t.kind, t.payload, t.expands],
-        )?;
-        for d in &t.deps {
-            tx.execute(
-                "INSERT OR IGNORE INTO deps (job_id, key, dep) VALUES (?1, ?2, ?3)",
-                params![job_id, t.key, d],
-            )?;
-        }
-    }
-    Ok(())
 }
 
 /// Records that a report of an attempt the queue has moved past (a worker already given up on) was dropped.

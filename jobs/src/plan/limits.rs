@@ -3,7 +3,7 @@
 //! instead of occupying the queue for days or filling the workers' caches.
 
 use crate::error::JobError;
-use crate::inspect::InputInfo;
+use crate::plan::input::InputInfo;
 
 /// Limits checked at submit; `None` = unlimited.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -68,7 +68,7 @@ impl JobLimits {
 }
 
 /// Submit-time admission of a job: its locations under the storage roots, its input's size (from metadata,
-/// before anything is fetched), the inspection of the input ([`crate::inspect_input`]), then its frame and
+/// before anything is fetched), the inspection of the input ([`crate::plan::inspect::inspect_input`]), then its frame and
 /// vertex counts. The first failure is the error, naming the field or the limit.
 pub async fn admit(
     spec: &crate::JobSpec,
@@ -76,12 +76,12 @@ pub async fn admit(
     limits: &JobLimits,
 ) -> Result<InputInfo, JobError> {
     spec.validate()?;
-    roots.check_spec(spec)?;
+    roots.check_all(spec.uris())?;
     if limits.max_input_bytes.is_some() {
-        let bytes = crate::storage::input_size(&spec.input).await?;
+        let bytes = crate::storage::store::input_size(&spec.input).await?;
         limits.check_input_size(&spec.input, bytes)?;
     }
-    let info = crate::inspect_input(spec).await?;
+    let info = crate::plan::inspect::inspect_input(spec).await?;
     limits.check_info(&info)?;
     Ok(info)
 }

@@ -2,31 +2,18 @@
 //! The coordinator calls [`inspect_input`] before accepting a job, so a bad spec or an unreachable input is
 //! rejected at submit with a message naming the field, URI or file, rather than failing tasks later.
 
+use super::input::InputInfo;
 use crate::error::JobError;
-use crate::keys;
 use crate::spec::{FoldSpec, JobSpec};
-use crate::storage::{fetch_input_to_cache, parse_location, Location, Storage};
+use crate::storage::keys;
+use crate::storage::location::{parse_location, Location};
+use crate::storage::store::{fetch_input_to_cache, Storage};
 use crease_core::folds::AnchorSet;
 use crease_core::mesh::io::{create_sink, open_sequence, ObjFramesSink, SequenceLayout};
 use crease_core::mesh::subdivide::Subdivision;
 use crease_core::mesh::{FrameSink, Topology};
-use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-/// What submit-time inspection learned about a job's input; stored with the job and passed to the planner.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct InputInfo {
-    /// `obj-frames`, `ply-frames` or `obj+pc2`.
-    pub layout: String,
-    pub n_frames: usize,
-    pub n_vertices: usize,
-    pub n_triangles: usize,
-    /// Keys (relative to the output) of the output sequence's files, in the input's layout and names.
-    pub output_files: Vec<String>,
-    /// Anchors per frame when known at submit (anchors file, or none); `None` when folds are detected.
-    pub anchors_per_frame: Option<Vec<usize>>,
-}
 
 /// Checks the job spec, opens the input and validates frame 0, parses the anchors file against the input, and
 /// checks that the output location is writable and is not the input directory.
@@ -71,7 +58,7 @@ async fn inspect_deformation(spec: &JobSpec, cache: &Path) -> Result<InputInfo, 
         FoldSpec::Anchors { uri } => Some((uri.clone(), fetch_input_to_cache(uri, cache).await?)),
         _ => None,
     };
-    let fold_inputs = crate::detect::fetch_fold_inputs(&spec.folds, cache).await?;
+    let fold_inputs = crate::plan::detect::fetch_fold_inputs(&spec.folds, cache).await?;
     let spec2 = spec.clone();
     tokio::task::spawn_blocking(move || inspect_local(&spec2, &input, anchors, &fold_inputs))
         .await
@@ -89,7 +76,7 @@ fn inspect_local(
     spec: &JobSpec,
     input: &Path,
     anchors: Option<(String, PathBuf)>,
-    fold_inputs: &crate::detect::FoldInputs,
+    fold_inputs: &crate::plan::detect::FoldInputs,
 ) -> Result<InputInfo, JobError> {
     let opened = open_sequence(input).map_err(|e| JobError::input(&spec.input, e))?;
     let source = opened.source.as_ref();
@@ -140,7 +127,7 @@ fn inspect_local(
 fn check_detector_inputs(
     spec: &JobSpec,
     opened: &crease_core::mesh::io::OpenedSequence,
-    fold_inputs: &crate::detect::FoldInputs,
+    fold_inputs: &crate::plan::detect::FoldInputs,
 ) -> Result<(), JobError> {
     let FoldSpec::Video {
         cameras,
@@ -189,7 +176,7 @@ fn check_detector_inputs(
     let path = fold_inputs.cameras.as_deref().unwrap_or(Path::new(cameras));
     let rig = crease_core::folds::video::CameraRig::read(path, fold_inputs.images.as_deref())
         .map_err(|e| JobError::input(cameras, e))?;
-    let numbers = crate::detect::image_numbers(&opened.layout, n, first_image_number(spec));
+    let numbers = crate::plan::detect::image_numbers(&opened.layout, n, first_image_number(spec));
     let frames: Vec<(usize, u64)> = numbers.into_iter().enumerate().collect();
     rig.check_images(&frames)
         .map_err(|e| JobError::input(images.as_deref().unwrap_or(cameras), e))

@@ -13,7 +13,6 @@
 //!   paths, component by component, so a symlink inside a root that points out of it does not pass.
 
 use crate::error::JobError;
-use crate::spec::{FoldSpec, JobSpec};
 use std::path::{Component, Path, PathBuf};
 
 /// Why `key` is not a safe relative object key, if it is not.
@@ -147,30 +146,6 @@ pub fn check_remote_uri(field: &str, uri: &str) -> Result<(), JobError> {
         .map_err(|e| JobError::spec(field, e))
 }
 
-/// Every storage location of a job, with the spec field that names it.
-pub fn spec_uris(spec: &JobSpec) -> Vec<(&'static str, &str)> {
-    let mut v = vec![
-        ("input", spec.input.as_str()),
-        ("output", spec.output.as_str()),
-    ];
-    match &spec.folds {
-        FoldSpec::Anchors { uri } => v.push(("folds.uri", uri)),
-        FoldSpec::Video {
-            cameras, images, ..
-        } => {
-            v.push(("folds.cameras", cameras));
-            if let Some(images) = images {
-                v.push(("folds.images", images));
-            }
-        }
-        _ => {}
-    }
-    if let Some(deep) = &spec.deep {
-        v.extend(deep.uris());
-    }
-    v
-}
-
 #[derive(Debug, Clone, PartialEq, Eq)]
 enum Root {
     /// Canonical path of a local root.
@@ -197,9 +172,9 @@ impl StorageRoots {
             let root = if uri.contains("://") && !uri.starts_with("file://") {
                 Root::Remote(split_remote(uri).map_err(|e| format!("storage root {e}"))?)
             } else {
-                let path = match crate::storage::parse_location(uri, "storage root") {
-                    Ok(crate::storage::Location::Local(p)) => p,
-                    Ok(crate::storage::Location::Remote(_)) => {
+                let path = match crate::storage::location::parse_location(uri, "storage root") {
+                    Ok(crate::storage::location::Location::Local(p)) => p,
+                    Ok(crate::storage::location::Location::Remote(_)) => {
                         return Err(format!("storage root `{uri}` is not a local path"))
                     }
                     Err(e) => return Err(e.to_string()),
@@ -243,9 +218,9 @@ impl StorageRoots {
             });
             return if inside { Ok(()) } else { Err(outside()) };
         }
-        let path = match crate::storage::parse_location(uri, field)? {
-            crate::storage::Location::Local(p) => p,
-            crate::storage::Location::Remote(_) => return Err(outside()),
+        let path = match crate::storage::location::parse_location(uri, field)? {
+            crate::storage::location::Location::Local(p) => p,
+            crate::storage::location::Location::Remote(_) => return Err(outside()),
         };
         let canonical = canonical_lenient(&path).map_err(|e| JobError::spec(field, e))?;
         let inside = self.roots.iter().any(|r| match r {
@@ -259,9 +234,12 @@ impl StorageRoots {
         }
     }
 
-    /// Checks every location of `spec` (see [`spec_uris`]).
-    pub fn check_spec(&self, spec: &JobSpec) -> Result<(), JobError> {
-        for (field, uri) in spec_uris(spec) {
+    /// Checks every location of a job (`(field, uri)` pairs, as `JobSpec::uris` lists them).
+    pub fn check_all<'a>(
+        &self,
+        uris: impl IntoIterator<Item = (&'static str, &'a str)>,
+    ) -> Result<(), JobError> {
+        for (field, uri) in uris {
             self.check(field, uri)?;
         }
         Ok(())
@@ -415,7 +393,7 @@ mod tests {
     async fn nasty_names_never_leave_the_root() {
         let dir = tempfile::tempdir().unwrap();
         let root = dir.path().join("root");
-        let storage = crate::storage::Storage::open(&root.display().to_string()).unwrap();
+        let storage = crate::storage::store::Storage::open(&root.display().to_string()).unwrap();
         let pieces = [
             ".",
             "..",
@@ -492,14 +470,14 @@ mod tests {
         // Keys built from task and frame numbers are plain keys for any number.
         for n in [0usize, 1, 9999, 1 << 20, usize::MAX] {
             for key in [
-                crate::keys::fold_chunk(n),
-                crate::keys::fold_chunk_timing(n),
-                crate::keys::block_partial(n, n),
-                crate::keys::window_field(n, n),
-                crate::keys::window_stats(n),
-                crate::keys::positions(n),
-                crate::keys::frame_stretch(n),
-                crate::keys::frame_timings(n),
+                crate::storage::keys::fold_chunk(n),
+                crate::storage::keys::fold_chunk_timing(n),
+                crate::storage::keys::block_partial(n, n),
+                crate::storage::keys::window_field(n, n),
+                crate::storage::keys::window_stats(n),
+                crate::storage::keys::positions(n),
+                crate::storage::keys::frame_stretch(n),
+                crate::storage::keys::frame_timings(n),
             ] {
                 check_key(&key).unwrap_or_else(|e| panic!("{key}: {e}"));
             }

@@ -20,14 +20,13 @@
 //! `fold-files` task that writes the user-facing anchor files. Nothing but finalize waits for `fold-files`,
 //! so it runs beside the weight tasks instead of lengthening the chain every deformation task waits on.
 
-use crate::detect;
 use crate::error::JobError;
-use crate::inspect::InputInfo;
-use crate::keys;
+use crate::plan::chunks::{blocks_per_window, job_windows, position_chunks};
+use crate::plan::detect;
+use crate::plan::input::InputInfo;
+use crate::plan::task::{TaskDef, TaskOutput, TaskSpec};
 use crate::spec::JobSpec;
-use crate::task::{TaskDef, TaskOutput, TaskSpec};
-use crease_core::spacetime::weights::per_anchor::plan_blocks;
-use crease_core::spacetime::windows::{plan_windows, Window};
+use crate::storage::keys;
 use crease_core::spacetime::WeightMode;
 
 /// The initial task graph of a job.
@@ -56,7 +55,7 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
         ))
     })?;
     if matches!(job.folds, crate::spec::FoldSpec::Stretch { .. }) {
-        return Ok(crate::stretch_tasks::tasks(job, info));
+        return Ok(crate::plan::stretch::tasks(job, info));
     }
     let chunks = detect::detection_chunks(granularity, n, job.partition.fold_frames_per_chunk);
     let mut tasks: Vec<TaskDef> = chunks
@@ -76,7 +75,7 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
         .cloned()
         .zip(tasks.iter().map(|t| t.key.clone()))
         .collect();
-    tasks.extend(crate::settle_tasks::tasks(
+    tasks.extend(crate::plan::settle::tasks(
         job,
         n,
         info.n_triangles,
@@ -135,7 +134,7 @@ pub fn expand(
     );
     // A stretch job's `fold-plot` (planned with the detection tasks) is waited for by finalize only.
     let plot = matches!(job.folds, crate::spec::FoldSpec::Stretch { .. })
-        && crate::stretch_tasks::draws_plot(job, info.n_frames);
+        && crate::plan::stretch::draws_plot(job, info.n_frames);
     if let Some(finalize) = tasks
         .iter_mut()
         .find(|t| matches!(t.spec, TaskSpec::Finalize { .. }))
@@ -165,59 +164,6 @@ pub fn final_outputs(job: &JobSpec, info: &InputInfo) -> Vec<String> {
     }
     out.push(keys::REPORT.to_string());
     out
-}
-
-/// `[0, n)` cut into consecutive ranges of at most `size` frames.
-pub fn chunk_ranges(n: usize, size: usize) -> Vec<std::ops::Range<usize>> {
-    let size = size.max(1);
-    (0..n.div_ceil(size))
-        .map(|c| c * size..((c + 1) * size).min(n))
-        .collect()
-}
-
-/// The positioning chunks: `[0, n)` cut where the last window a frame needs changes, then into ranges of at
-/// most `size` frames.
-///
-/// Why at the windows' release points: a frame can be positioned once the last window covering it is solved
-/// (the in-process deformation positions exactly those frames beside the next window's solve). A chunk that
-/// straddled a release point waited for the later window with all its frames, so with 10-frame windows shifted
-/// by 7 and 4-frame chunks the per-anchor job ended with 8 frames to position after its last window instead
-/// of 6, one core idle during the tail. The frames of each chunk are positioned independently, so any cut
-/// gives the same outputs.
-pub fn position_chunks(n: usize, windows: &[Window], size: usize) -> Vec<std::ops::Range<usize>> {
-    // Frame t's last window: the last one starting at or before t (windows are in frame order).
-    let last_window = |t: usize| windows.iter().rposition(|w| w.start <= t);
-    let mut out = Vec::new();
-    let mut start = 0;
-    for t in 1..=n {
-        if t == n || last_window(t) != last_window(start) {
-            out.extend(
-                chunk_ranges(t - start, size)
-                    .into_iter()
-                    .map(|r| r.start + start..r.end + start),
-            );
-            start = t;
-        }
-    }
-    out
-}
-
-/// Windows of a job over `n` frames.
-pub fn job_windows(job: &JobSpec, n: usize) -> Vec<Window> {
-    let p = job.params();
-    plan_windows(n, p.window, p.shift)
-}
-
-/// Number of anchor blocks of each window, given the anchors per frame.
-pub fn blocks_per_window(job: &JobSpec, counts: &[usize]) -> Vec<usize> {
-    let p = job.params();
-    job_windows(job, counts.len())
-        .iter()
-        .map(|w| {
-            let anchors: usize = counts[w.start..w.end()].iter().sum();
-            plan_blocks(anchors, p.anchor_block).len()
-        })
-        .collect()
 }
 
 /// Weights, reduce, positioning and finalize tasks, each also depending on `extra_deps`.

@@ -9,14 +9,14 @@
 //! handling) and the occupancy: summed attempt time / (slots × wall), the share of the slots' time that had a
 //! task in flight. When more slots stop raising the rate and occupancy falls, the coordinator is the limit.
 
-use crate::bench::BenchArgs;
-use crate::bench_jobs::{self, path_str};
+use super::args::BenchArgs;
+use super::jobs::{self, path_str};
 use anyhow::{bail, Result};
 use crease_core::synth::{self, DemoSpec};
 use serde_json::json;
 
 pub fn bench_dispatch(a: &BenchArgs) -> Result<()> {
-    let dir = bench_jobs::scratch("dispatch")?;
+    let dir = jobs::scratch("dispatch")?;
     let (seq, _) = synth::demo(&DemoSpec {
         triangles: a.dispatch_triangles,
         frames: a.frames,
@@ -59,7 +59,7 @@ pub fn bench_dispatch(a: &BenchArgs) -> Result<()> {
             "partition": { "anchor_block": 1, "frames_per_chunk": 1 },
             "preview": { "size": 32 },
         });
-        let run = bench_jobs::run_job(&rt, &spec, workers, capacity, dir.join("cache"))?;
+        let run = jobs::run_job(&rt, &spec, workers, capacity, dir.join("cache"))?;
         let tasks = run.status.tasks.len().max(1) as f64;
         let work: f64 = run.status.tasks.iter().map(|t| t.work_seconds).sum();
         let attempt: f64 = run.status.tasks.iter().map(|t| t.wall_seconds).sum();

@@ -16,10 +16,10 @@
 //! traced; the merge reconciles as before and settles again, from the reconciled frames, only the ranges whose
 //! input window holds a frame it traced again, so the output stays exact either way.
 
-use crate::keys;
-use crate::plan::chunk_ranges;
+use crate::plan::chunks::chunk_ranges;
+use crate::plan::task::{TaskDef, TaskSpec};
 use crate::spec::{FoldSpec, JobSpec};
-use crate::task::{TaskDef, TaskSpec};
+use crate::storage::keys;
 use crease_core::folds::temporal::settle_input;
 use std::ops::Range;
 
@@ -59,7 +59,7 @@ pub fn settle_chunks(job: &JobSpec, n_frames: usize, detect_chunk: usize) -> Vec
 pub fn job_settle_chunks(job: &JobSpec, n_frames: usize, n_triangles: usize) -> Vec<Range<usize>> {
     let detect_chunk = match &job.folds {
         FoldSpec::Stretch { .. } => {
-            crate::stretch_tasks::trace_frames_per_chunk(job, n_frames, n_triangles)
+            crate::plan::chunks::trace_frames_per_chunk(job, n_frames, n_triangles)
         }
         _ => job.partition.fold_frames_per_chunk,
     };

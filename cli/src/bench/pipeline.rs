@@ -13,8 +13,8 @@
 //!    with its work time and the bytes it read and wrote (`rchar`/`wchar` of /proc/self/io), per task kind and
 //!    per frame — the figures the farm-sizing estimate in docs/benchmarks.md ("Sizing a farm") is built from.
 
-use crate::bench::BenchArgs;
-use crate::bench_jobs::{self, path_str};
+use super::args::BenchArgs;
+use super::jobs::{self, path_str};
 use anyhow::{bail, Context, Result};
 use crease_core::folds::stretch::StretchDetector;
 use crease_core::folds::{AnchorSet, FrameAnchors, FrameDetection};
@@ -54,7 +54,7 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
     if frames < 2 || workers == 0 {
         bail!("--pipeline needs --frames ≥ 2 and --pipeline-workers ≥ 1");
     }
-    let dir = bench_jobs::scratch("pipeline")?;
+    let dir = jobs::scratch("pipeline")?;
     let seq = synth::compressed_tube(triangles, frames, 0.3, -1.0)?;
     let input = dir.join("input");
     synth::write_frames(&input, &seq)?;
@@ -138,12 +138,12 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
             "folds": folds,
             "preview": { "size": 64 },
         });
-        bench_jobs::reset_peak_rss();
-        let run = bench_jobs::run_job(&rt, &spec, workers, 1, dir.join("cache"))?;
-        let peak = bench_jobs::peak_rss().unwrap_or(0);
+        super::measure::reset_peak_rss();
+        let run = jobs::run_job(&rt, &spec, workers, 1, dir.join("cache"))?;
+        let peak = super::measure::peak_rss().unwrap_or(0);
         let by_kind = run.work_by_kind();
         let anchors = AnchorSet::read(
-            &out.join(crease_jobs::keys::ANCHORS),
+            &out.join(crease_jobs::storage::keys::ANCHORS),
             frames,
             triangles_of(&input)?,
         )
@@ -249,7 +249,7 @@ pub fn bench_pipeline(a: &BenchArgs) -> Result<()> {
             "name": "pipeline-sequential-per-anchor",
             "input": path_str(&input),
             "output": path_str(&dir.join("out-sequential-per-anchor")),
-            "folds": { "kind": "anchors", "uri": path_str(&out.join(crease_jobs::keys::ANCHORS)) },
+            "folds": { "kind": "anchors", "uri": path_str(&out.join(crease_jobs::storage::keys::ANCHORS)) },
             "deform": { "mode": "per-anchor" },
             "preview": { "size": 64 },
         })
@@ -426,13 +426,13 @@ async fn sequential_costs(
     while i < pending.len() {
         let task = pending[i].clone();
         i += 1;
-        let (r0, w0) = bench_jobs::io_counters().unwrap_or_default();
+        let (r0, w0) = super::measure::io_counters().unwrap_or_default();
         let t = Instant::now();
         let out = execute(&task.spec, &ctx)
             .await
             .map_err(|e| anyhow::anyhow!("task {}: {}", task.key, e.reason))?;
         let seconds = t.elapsed().as_secs_f64();
-        let (r1, w1) = bench_jobs::io_counters().unwrap_or_default();
+        let (r1, w1) = super::measure::io_counters().unwrap_or_default();
         let c = costs.entry(task.spec.kind().to_string()).or_default();
         c.tasks += 1;
         c.seconds += seconds;

@@ -6,10 +6,18 @@
 //! high-water mark is reset between cases). With `--export DIR` it also writes the matrices of one window and
 //! one frame as `.npy` together with our own timings of exactly those solves, for `bench/scipy_compare.py`.
 
+mod args;
+mod cluster;
+#[cfg(feature = "deep")]
+mod deep;
+mod dispatch;
+mod jobs;
+mod measure;
+mod pipeline;
+
 use anyhow::{Context, Result};
-use clap::Args;
-use crease_core::folds::AnchorSet;
-use crease_core::mesh::{MemorySink, Sequence};
+pub use args::BenchArgs;
+use crease_core::mesh::MemorySink;
 use crease_core::npy;
 use crease_core::progress::NoProgress;
 use crease_core::spacetime::blend::so3;
@@ -19,152 +27,26 @@ use crease_core::spacetime::weights::{solve_window, WindowProblem};
 use crease_core::spacetime::windows::Window;
 use crease_core::spacetime::{deform, DeformParams, WeightMode};
 use crease_core::synth::{self, DemoSpec};
+use measure::{case_input, median, peak_rss, reset_peak_rss, scratch_dir};
 use serde_json::json;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
-
-#[derive(Args, Debug)]
-pub struct BenchArgs {
-    /// Mesh sizes in triangles.
-    #[arg(long, value_delimiter = ',', default_value = "25000,100000,400000")]
-    pub sizes: Vec<usize>,
-    /// Frames per case (at least 20 for three windows).
-    #[arg(long, default_value_t = 20)]
-    pub frames: usize,
-    /// Anchors per frame.
-    #[arg(long, default_value_t = 2000)]
-    pub anchors: usize,
-    /// Weight modes to run.
-    #[arg(long, value_delimiter = ',', default_value = "fused,per-anchor")]
-    pub modes: Vec<WeightMode>,
-    /// Repeats per case; medians are reported.
-    #[arg(long, default_value_t = 3)]
-    pub repeats: usize,
-    /// Write the 100K-class matrices and our timings of the same solves here (for bench/scipy_compare.py).
-    #[arg(long)]
-    pub export: Option<PathBuf>,
-    /// Size (triangles) of the exported case.
-    #[arg(long, default_value_t = 100_000)]
-    pub export_size: usize,
-    /// Write all results as JSON here.
-    #[arg(long)]
-    pub json: Option<PathBuf>,
-    /// Run the per-anchor case as a cluster job on loopback instead (see `--cluster-workers`).
-    #[arg(long)]
-    pub cluster: bool,
-    /// Worker counts of the cluster benchmark.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,4")]
-    pub cluster_workers: Vec<usize>,
-    /// Mesh size (triangles) of the cluster benchmark.
-    #[arg(long, default_value_t = 100_000)]
-    pub cluster_triangles: usize,
-    /// Anchor columns per weight block (task) in the cluster benchmark.
-    #[arg(long, default_value_t = 256)]
-    pub cluster_anchor_block: usize,
-    /// Run only the stretch-folds stage (geometric fold estimation, Chen 2011).
-    #[arg(long)]
-    pub stretch_folds_only: bool,
-    /// Image for the video edge stage (default: a 640x480 render of the demo's folded ground truth with the
-    /// synthetic-video shading, which has folds to pair).
-    #[arg(long)]
-    pub edges_image: Option<PathBuf>,
-    /// Run only the video edge stage.
-    #[arg(long)]
-    pub edges_only: bool,
-    /// Detection (stretch and video) + deformation end to end through the local cluster (bench_pipeline.rs).
-    #[arg(long)]
-    pub pipeline: bool,
-    /// Workers of the pipeline benchmark (one task each).
-    #[arg(long, default_value_t = 2)]
-    pub pipeline_workers: usize,
-    /// Coordinator dispatch rate with many tiny tasks (bench_dispatch.rs).
-    #[arg(long)]
-    pub dispatch: bool,
-    /// Worker configurations of the dispatch benchmark, WORKERSxCAPACITY each.
-    #[arg(long, value_delimiter = ',', default_value = "1x1,2x4,4x8")]
-    pub dispatch_slots: Vec<String>,
-    /// Mesh size (triangles) of the dispatch benchmark.
-    #[arg(long, default_value_t = 2000)]
-    pub dispatch_triangles: usize,
-    /// Anchors per frame of the dispatch benchmark (one weight-block task each).
-    #[arg(long, default_value_t = 40)]
-    pub dispatch_anchors: usize,
-    /// DeepWrinkles instead: inference per frame (map rasterisation, generator forward) and cGAN training
-    /// time per epoch (see `bench_deep`).
-    #[arg(long)]
-    pub deep: bool,
-    /// Normal map resolution of `--deep`.
-    #[arg(long, default_value_t = 256)]
-    pub deep_resolution: usize,
-    /// Filters of the generator's (and discriminator's) first layer in `--deep`, one or more sizes timed in turn
-    /// (paper and `crease deep train --cgan-filters` default: 64; 16: the smaller generator).
-    #[arg(long, value_delimiter = ',', default_value = "16,64")]
-    pub deep_filters: Vec<usize>,
-    /// A training directory (captured/, gt/) whose first frames `--deep` uses; default: a synthetic tube of the
-    /// sleeve's size.
-    #[arg(long)]
-    pub deep_data: Option<PathBuf>,
-    /// Timed cGAN training steps in `--deep` per generator size (0: inference only).
-    #[arg(long, default_value_t = 3)]
-    pub deep_train_steps: usize,
-    /// Frames of the epoch whose training time `--deep` reports (sleeve-train: 240 in two sequences).
-    #[arg(long, default_value_t = 240)]
-    pub deep_epoch_frames: usize,
-}
-
-pub(crate) fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
-}
-
-/// Peak resident set size in bytes (VmHWM), if the platform reports it.
-fn peak_rss() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
-/// Resets the kernel's peak-RSS mark so each case reports its own peak (Linux `clear_refs` 5).
-fn reset_peak_rss() {
-    let _ = std::fs::write("/proc/self/clear_refs", "5");
-}
-
-pub(crate) fn case_input(
-    triangles: usize,
-    frames: usize,
-    anchors: usize,
-) -> Result<(Sequence, AnchorSet)> {
-    let spec = DemoSpec {
-        triangles,
-        frames,
-        ..Default::default()
-    };
-    let (seq, _) = synth::demo(&spec)?;
-    let a = synth::random_anchors(&seq.topology, &seq.frames, anchors, 7)?;
-    Ok((seq, a))
-}
 
 pub fn bench(a: BenchArgs) -> Result<()> {
     if a.cluster {
-        return crate::bench_cluster::bench_cluster(&a);
+        return cluster::bench_cluster(&a);
     }
     if a.pipeline {
-        return crate::bench_pipeline::bench_pipeline(&a);
+        return pipeline::bench_pipeline(&a);
     }
     if a.dispatch {
-        return crate::bench_dispatch::bench_dispatch(&a);
+        return dispatch::bench_dispatch(&a);
     }
     if a.deep {
-        return crate::bench_deep::bench_deep(&a);
+        #[cfg(feature = "deep")]
+        return deep::bench_deep(&a);
+        #[cfg(not(feature = "deep"))]
+        anyhow::bail!(crate::without_deep::HOW_TO_GET_IT);
     }
     if a.edges_only {
         let edges = edges_stage(&a)?;
@@ -489,14 +371,6 @@ fn edges_stage(a: &BenchArgs) -> Result<serde_json::Value> {
               "edges_seconds": extract, "edges_and_pairs_seconds": full,
               "edges": n_edges, "pairs": n_pairs}),
     )
-}
-
-/// A scratch directory for benchmark files (under the system temporary directory).
-fn scratch_dir() -> Result<PathBuf> {
-    let dir = std::env::temp_dir().join(format!("crease-bench-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    crease_core::fsutil::create_dir_all(&dir)?;
-    Ok(dir)
 }
 
 /// Exports the first window's weight matrix and right-hand sides, and frame 0's positioning matrix and

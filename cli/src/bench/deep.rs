@@ -8,7 +8,7 @@
 //! default model (no cGAN): the detail filter's map (the inference of the default model) and writing the frame's OBJ and
 //! PNG (bytes, files, sync apart), the PNG encoder's settings against each other, and every `--deep-filters` size.
 
-use crate::bench::BenchArgs;
+use super::args::BenchArgs;
 use anyhow::{bail, Context, Result};
 use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::Topology;

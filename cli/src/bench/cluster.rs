@@ -12,7 +12,7 @@
 //! per task kind, the weight-block and reduce phases (`crease_jobs::phase_times`; the workers run in this
 //! process) and the workers' time outside any task.
 
-use crate::bench::BenchArgs;
+use super::args::BenchArgs;
 use anyhow::{bail, Context, Result};
 use crease_core::mesh::MemorySink;
 use crease_core::progress::NoProgress;
@@ -31,7 +31,7 @@ pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
         a.anchors,
         dir.display()
     );
-    let (seq, anchors) = crate::bench::case_input(triangles, a.frames, a.anchors)?;
+    let (seq, anchors) = super::measure::case_input(triangles, a.frames, a.anchors)?;
     crease_core::synth::write_demo(&dir, &seq, &anchors)?;
     let params = DeformParams {
         mode: WeightMode::PerAnchor,
@@ -85,10 +85,10 @@ pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
             "preview": { "size": 64 },
         });
         crease_jobs::phase_times::take();
-        let run = crate::bench_jobs::run_job(&rt, &spec, n, 1, dir.join("cache"))?;
+        let run = super::jobs::run_job(&rt, &spec, n, 1, dir.join("cache"))?;
         let phases = crease_jobs::phase_times::take();
         let by_kind = run.work_by_kind();
-        let crate::bench_jobs::JobRun { status, wall } = run;
+        let super::jobs::JobRun { status, wall } = run;
         let tasks = status.tasks.len().max(1) as f64;
         let work: f64 = status.tasks.iter().map(|t| t.work_seconds).sum();
         let overhead: f64 = status
@@ -126,7 +126,7 @@ pub fn bench_cluster(a: &BenchArgs) -> Result<()> {
         eprintln!("in-process reference");
         refs.push(in_process()?);
     }
-    let reference = crate::bench::median(refs.clone());
+    let reference = super::measure::median(refs.clone());
     println!(
         "\nin-process per-anchor deformation of the same input and anchors (this process, one run before the \
          first cluster run and one after each): {} s; median {reference:.2} s",

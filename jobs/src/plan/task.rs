@@ -138,7 +138,7 @@ pub struct TaskDef {
     pub spec: TaskSpec,
     /// Keys of the tasks that must succeed first.
     pub deps: Vec<String>,
-    /// When true, the coordinator calls [`crate::expand`] after this task succeeds and inserts the returned
+    /// When true, the coordinator calls [`crate::plan::graph::expand`] after this task succeeds and inserts the returned
     /// tasks in the same transaction that marks this one done.
     pub expands: bool,
 }

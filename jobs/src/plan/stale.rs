@@ -8,10 +8,10 @@
 //! whole output elsewhere and swapping it in, is not possible on object stores (no atomic rename of a prefix).
 
 use crate::error::JobError;
-use crate::inspect::InputInfo;
-use crate::keys;
+use crate::plan::input::InputInfo;
 use crate::spec::{FoldSpec, JobSpec};
-use crate::storage::Storage;
+use crate::storage::keys;
+use crate::storage::store::Storage;
 use std::collections::BTreeSet;
 
 /// Keys (relative to the output) that the run submitted last owns, as JSON `{"owned": [...]}`.
@@ -20,7 +20,9 @@ pub const OWNED: &str = ".crease-work/owned.json";
 /// Every key outside `.crease-work/` that a run of `job` may write: the final outputs and the detectors'
 /// inspection images.
 pub fn owned_keys(job: &JobSpec, info: &InputInfo) -> BTreeSet<String> {
-    let mut keys: BTreeSet<String> = crate::plan::final_outputs(job, info).into_iter().collect();
+    let mut keys: BTreeSet<String> = crate::plan::graph::final_outputs(job, info)
+        .into_iter()
+        .collect();
     match &job.folds {
         FoldSpec::Stretch { .. } => {
             keys.insert("folds.png".to_string());
@@ -74,7 +76,7 @@ pub async fn claim_output(
         // A key from a damaged or hand-edited list never reaches outside the output or into the work area.
         if key == keys::REPORT
             || key.starts_with(keys::WORK_DIR)
-            || crate::confine::check_key(key).is_err()
+            || crate::storage::confine::check_key(key).is_err()
         {
             continue;
         }

@@ -3,9 +3,9 @@
 //! `dyn FoldDetector` and its [`Granularity`].
 
 use crate::error::JobError;
-use crate::plan::chunk_ranges;
+use crate::plan::chunks::chunk_ranges;
 use crate::spec::{FoldSpec, JobSpec};
-use crate::storage::fetch_input_to_cache;
+use crate::storage::store::fetch_input_to_cache;
 use crease_core::folds::stretch::StretchDetector;
 use crease_core::folds::video::{CameraRig, VideoFolds};
 use crease_core::folds::{FoldDetector, Granularity};
@@ -215,9 +215,12 @@ mod tests {
     //! The generic fold-detection path: detection tasks (per frame chunk or whole sequence), the merge that
     //! expands the graph, then the deformation on the detected anchors, all run in process.
     use super::test_detector::GeometryDetector;
+    use crate::plan::graph::{expand, plan};
+    use crate::plan::inspect::inspect_input;
+    use crate::plan::task::TaskSpec;
     use crate::spec::JobSpec;
-    use crate::task::TaskSpec;
-    use crate::{execute, expand, inspect_input, keys, plan, ExecContext};
+    use crate::storage::keys;
+    use crate::{execute, ExecContext};
     use crease_core::folds::{AnchorSet, FoldDetector};
     use crease_core::mesh::io::{create_sink, open_sequence, write_obj_sequence};
     use crease_core::progress::NoProgress;
@@ -318,7 +321,7 @@ mod tests {
                 "{name} differs"
             );
         }
-        for key in crate::final_outputs(&spec, &info) {
+        for key in crate::plan::graph::final_outputs(&spec, &info) {
             assert!(out.join(&key).is_file(), "{key}");
         }
     }

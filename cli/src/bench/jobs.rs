@@ -1,5 +1,5 @@
 //! What the cluster benchmarks share: running one job spec on a fresh in-process cluster (coordinator and
-//! gRPC workers on 127.0.0.1, as `crease run` does), the process's peak memory, and its I/O counters.
+//! gRPC workers on 127.0.0.1, as `crease run` does), in a scratch directory of its own.
 
 use crate::local::LocalCluster;
 use anyhow::{bail, Context, Result};
@@ -42,7 +42,7 @@ pub fn run_job(
         let result = async {
             let t0 = Instant::now();
             let (id, _) = cluster.client.submit(spec.to_string(), "json").await?;
-            crate::cluster::follow(&cluster.client, &id, None).await?;
+            crate::watch::follow(&cluster.client, &id, None).await?;
             let wall = t0.elapsed().as_secs_f64();
             let s = cluster.client.status(&id, true).await?;
             anyhow::Ok((s, wall))
@@ -60,31 +60,6 @@ pub fn run_job(
         );
     }
     Ok(JobRun { status, wall })
-}
-
-/// Peak resident set size of this process in bytes (VmHWM), if the platform reports it.
-pub fn peak_rss() -> Option<u64> {
-    proc_field("/proc/self/status", "VmHWM:").map(|kb| kb * 1024)
-}
-
-/// Resets the kernel's peak-RSS mark (Linux `clear_refs` 5) so the next figure is the next run's own peak.
-pub fn reset_peak_rss() {
-    let _ = std::fs::write("/proc/self/clear_refs", "5");
-}
-
-/// Bytes this process has passed through read() and write() so far (`rchar`, `wchar` of /proc/self/io):
-/// storage and input traffic of the tasks it runs, whether or not the page cache served it.
-pub fn io_counters() -> Option<(u64, u64)> {
-    Some((
-        proc_field("/proc/self/io", "rchar:")?,
-        proc_field("/proc/self/io", "wchar:")?,
-    ))
-}
-
-fn proc_field(file: &str, name: &str) -> Option<u64> {
-    let s = std::fs::read_to_string(file).ok()?;
-    let line = s.lines().find(|l| l.starts_with(name))?;
-    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 /// A fresh scratch directory for one benchmark (removed by the caller).

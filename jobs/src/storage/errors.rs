@@ -7,7 +7,6 @@
 //! (`object_store::client::HttpError` of kind connect / timeout, or an `io::Error` such as connection
 //! refused underneath `reqwest`).
 
-use crate::error::JobError;
 use std::error::Error;
 use std::io::ErrorKind;
 
@@ -104,33 +103,6 @@ pub fn endpoint_of(uri: &str) -> Option<String> {
     })
 }
 
-/// The [`JobError`] for a failure of the storage at `uri`: `Full`, `Unreachable` (naming the endpoint of
-/// a network store), or `Storage`.
-pub fn classify(uri: &str, e: &(dyn Error + 'static)) -> JobError {
-    match kind(e) {
-        Kind::Full => JobError::Full {
-            uri: uri.to_string(),
-            msg: e.to_string(),
-        },
-        Kind::Unreachable => JobError::Unreachable {
-            uri: match endpoint_of(uri) {
-                Some(ep) => format!("{uri} (endpoint {ep})"),
-                None => uri.to_string(),
-            },
-            msg: e.to_string(),
-        },
-        Kind::Other => JobError::storage(uri, e),
-    }
-}
-
-/// Like [`classify`], but an unclassified failure is an input error (reading an input, an anchors file).
-pub fn classify_input(uri: &str, e: &(dyn Error + 'static)) -> JobError {
-    match kind(e) {
-        Kind::Other => JobError::input(uri, e),
-        _ => classify(uri, e),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -143,8 +115,6 @@ mod tests {
         assert_eq!(kind(&e), Kind::Full);
         let e = std::io::Error::new(ErrorKind::StorageFull, "x");
         assert_eq!(kind(&e), Kind::Full);
-        let msg = classify("/data/out", &std::io::Error::from_raw_os_error(ENOSPC)).to_string();
-        assert!(msg.starts_with("storage full at /data/out: "), "{msg}");
     }
 
     #[test]
@@ -171,27 +141,5 @@ mod tests {
             source: "missing".into(),
         };
         assert_eq!(kind(&e), Kind::Other);
-    }
-
-    #[test]
-    fn a_request_that_was_never_answered_is_unreachable() {
-        let e = std::io::Error::other(
-            "Error performing PUT http://127.0.0.1:9/b/k after 2 retries - HTTP error: error sending request",
-        );
-        let msg = classify("s3://b/out", &e).to_string();
-        assert!(
-            msg.starts_with("storage unreachable at s3://b/out"),
-            "{msg}"
-        );
-    }
-
-    #[test]
-    fn unreachable_names_the_uri() {
-        let refused = std::io::Error::new(ErrorKind::ConnectionRefused, "refused");
-        let msg = classify("memory://x/out", &refused).to_string();
-        assert!(
-            msg.starts_with("storage unreachable at memory://x/out: "),
-            "{msg}"
-        );
     }
 }

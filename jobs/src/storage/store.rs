@@ -4,10 +4,11 @@
 //! A [`Storage`] is a directory-like root (the job's output location, an input directory) addressed by a URI:
 //! a plain path, `file://…`, or any scheme `object_store` was built with. Objects under it are named by
 //! relative keys (`report.json`, `.crease-work/weights/w0003.npy`). Keys are deterministic functions of the job
-//! and the task (see [`crate::keys`]), so a task that runs twice writes the same object twice, with the same
+//! and the task (see [`crate::storage::keys`]), so a task that runs twice writes the same object twice, with the same
 //! bytes. `put` is atomic on every backend: `LocalFileSystem` stages into a temporary file and renames it, object
 //! stores publish whole objects, so a reader never sees half an object under a final key.
 
+use super::location::{parse_location, remote_store, Location};
 use crate::error::JobError;
 use bytes::Bytes;
 use futures::TryStreamExt;
@@ -16,112 +17,6 @@ use object_store::path::Path as ObjectPath;
 use object_store::{ObjectStore, ObjectStoreExt, PutPayload};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-/// How a URI was understood: a local filesystem path, or a remote object-store location.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Location {
-    /// A plain path or `file://` URI, made absolute.
-    Local(PathBuf),
-    /// Any other scheme, kept as a URL.
-    Remote(url::Url),
-}
-
-/// Parses a URI: plain paths (relative ones against the current directory) and `file://` are local, every
-/// other `scheme://` is remote. `field` names the job-spec field in errors.
-pub fn parse_location(uri: &str, field: &str) -> Result<Location, JobError> {
-    if uri.trim().is_empty() {
-        return Err(JobError::spec(field, "is empty; give a path or a URI"));
-    }
-    if !uri.contains("://") {
-        let p = PathBuf::from(uri);
-        let abs = if p.is_absolute() {
-            p
-        } else {
-            std::env::current_dir()
-                .map_err(|e| JobError::input(uri, format!("cannot resolve a relative path: {e}")))?
-                .join(p)
-        };
-        return Ok(Location::Local(abs));
-    }
-    let url = url::Url::parse(uri)
-        .map_err(|e| JobError::spec(field, format!("`{uri}` is not a valid URI: {e}")))?;
-    if url.scheme() == "file" {
-        let p = url
-            .to_file_path()
-            .map_err(|_| JobError::spec(field, format!("`{uri}` is not a valid local file URI")))?;
-        return Ok(Location::Local(p));
-    }
-    Ok(Location::Remote(url))
-}
-
-/// The object store serving `url` and the path of `url` inside it. `memory://<name>/…` URLs name process-wide
-/// in-memory stores (one per `<name>`, created on first use), so in-process runs and tests exercise the
-/// remote-storage path (staged outputs, cached inputs) without a network; `s3://bucket/…` (and `s3a://`)
-/// go to an S3-compatible store configured from the environment (see [`crate::s3`]); every other scheme goes to
-/// `object_store::parse_url` (which knows the schemes the crate was built with). Stores registered with
-/// [`register_store`] take precedence.
-pub fn remote_store(
-    url: &url::Url,
-) -> Result<(Arc<dyn ObjectStore>, ObjectPath), object_store::Error> {
-    let root = store_root(url);
-    if let Some(store) = registered(&root) {
-        return Ok((store, ObjectPath::from_url_path(url.path())?));
-    }
-    if url.scheme() == "memory" {
-        let mut stores = STORES.lock().unwrap_or_else(|p| p.into_inner());
-        let store = match stores.iter().find(|(n, _)| *n == root) {
-            Some((_, s)) => s.clone(),
-            None => {
-                let s: Arc<dyn ObjectStore> = Arc::new(object_store::memory::InMemory::new());
-                stores.push((root, s.clone()));
-                s
-            }
-        };
-        return Ok((store, ObjectPath::from_url_path(url.path())?));
-    }
-    if matches!(url.scheme(), "s3" | "s3a") {
-        let mut stores = STORES.lock().unwrap_or_else(|p| p.into_inner());
-        if let Some((_, s)) = stores.iter().find(|(n, _)| *n == root) {
-            return Ok((s.clone(), ObjectPath::from_url_path(url.path())?));
-        }
-        let store = crate::s3::store(url)?;
-        stores.push((root, store.clone()));
-        return Ok((store, ObjectPath::from_url_path(url.path())?));
-    }
-    let (store, prefix) = object_store::parse_url(url)?;
-    Ok((Arc::from(store), prefix))
-}
-
-/// Stores built so far, by `scheme://host` (in-memory stores, and S3 clients, which keep their connection pool
-/// between tasks).
-static STORES: std::sync::Mutex<Vec<(String, Arc<dyn ObjectStore>)>> =
-    std::sync::Mutex::new(Vec::new());
-#[allow(clippy::type_complexity)]
-static REGISTERED: std::sync::Mutex<Vec<(String, Arc<dyn ObjectStore>)>> =
-    std::sync::Mutex::new(Vec::new());
-
-fn store_root(url: &url::Url) -> String {
-    format!(
-        "{}://{}",
-        url.scheme(),
-        &url[url::Position::BeforeHost..url::Position::AfterPort]
-    )
-}
-
-fn registered(root: &str) -> Option<Arc<dyn ObjectStore>> {
-    let reg = REGISTERED.lock().unwrap_or_else(|p| p.into_inner());
-    reg.iter().find(|(r, _)| r == root).map(|(_, s)| s.clone())
-}
-
-/// Serves every URL under `root` (`scheme://host`, e.g. `s3://bucket` or `memory://quota`) from `store` in this
-/// process. For programs embedding crease-jobs with their own `ObjectStore` (a wrapper adding metrics or
-/// quotas, a store configured in code) and for tests (a store that fails on purpose).
-pub fn register_store(root: &str, store: Arc<dyn ObjectStore>) {
-    let root = root.trim_end_matches('/').to_string();
-    let mut reg = REGISTERED.lock().unwrap_or_else(|p| p.into_inner());
-    reg.retain(|(r, _)| *r != root);
-    reg.push((root, store));
-}
 
 /// A storage root: an object store plus the prefix of the root inside it.
 #[derive(Clone)]
@@ -214,9 +109,9 @@ impl Storage {
     }
 
     /// The object path of `key` under the root. Keys are relative and cannot leave the root (see
-    /// [`crate::confine::check_key`]); a key that tries is refused, not normalised.
+    /// [`crate::storage::confine::check_key`]); a key that tries is refused, not normalised.
     fn path(&self, key: &str) -> Result<ObjectPath, JobError> {
-        crate::confine::check_key(key)
+        crate::storage::confine::check_key(key)
             .map_err(|e| JobError::storage(self.describe(key), format!("invalid key: {e}")))?;
         let rel = ObjectPath::parse(key)
             .map_err(|e| JobError::storage(self.describe(key), format!("invalid key: {e}")))?;
@@ -281,7 +176,7 @@ impl Storage {
             && key
                 .bytes()
                 .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'/' | b'-'));
-        (plain && crate::confine::check_key(key).is_ok()).then(|| root.join(key))
+        (plain && crate::storage::confine::check_key(key).is_ok()).then(|| root.join(key))
     }
 
     /// Uploads the local file `file` to `key`. Files of at least `CREASE_STORAGE_MULTIPART_MIB` (default 64)
@@ -292,7 +187,7 @@ impl Storage {
     pub async fn put_file(&self, key: &str, file: &Path) -> Result<(), JobError> {
         let path = self.path(key)?;
         let read_err = |e: std::io::Error| {
-            crate::storage_errors::classify(&format!("{} (upload source)", file.display()), &e)
+            JobError::storage_failure(&format!("{} (upload source)", file.display()), &e)
         };
         let len = std::fs::metadata(file).map_err(read_err)?.len();
         let part = multipart_part_bytes();
@@ -399,7 +294,7 @@ pub async fn fetch_input_to_cache(uri: &str, cache_dir: &Path) -> Result<PathBuf
                     .collect::<Vec<_>>()
                     .join("/");
                 // A listed name is data from the store: it must stay inside this input's cache directory.
-                crate::confine::check_key(&rel_key).map_err(|e| {
+                crate::storage::confine::check_key(&rel_key).map_err(|e| {
                     JobError::input(uri, format!("object `{rel_key}` cannot be cached: {e}"))
                 })?;
                 let dest = local.join(&rel_key);
@@ -449,14 +344,14 @@ fn multipart_part_bytes() -> usize {
 
 /// A failure reading the input at `uri`: unreachable or full storage named as such, anything else an input error.
 fn input_err(uri: &str, e: &(dyn std::error::Error + 'static)) -> JobError {
-    crate::storage_errors::classify_input(uri, e)
+    JobError::input_failure(uri, e)
 }
 
 /// A failure writing the worker's cache while fetching `uri` (a full local disk is "storage full at <cache>").
 fn cache_err(uri: &str, path: &Path, e: &(dyn std::error::Error + 'static)) -> JobError {
-    match crate::storage_errors::kind(e) {
-        crate::storage_errors::Kind::Full => {
-            crate::storage_errors::classify(&format!("{} (worker cache)", path.display()), e)
+    match super::errors::kind(e) {
+        super::errors::Kind::Full => {
+            JobError::storage_failure(&format!("{} (worker cache)", path.display()), e)
         }
         _ => JobError::input(uri, format!("cache {}: {e}", path.display())),
     }

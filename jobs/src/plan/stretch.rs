@@ -1,5 +1,5 @@
 //! The stretch detector's part of the task graph: step chunks → one phase task → tracing chunks →
-//! settle ranges ([`crate::settle_tasks`]: temporal coherence) → the usual `fold-merge`, which reconciles the
+//! settle ranges ([`crate::plan::settle`]: temporal coherence) → the usual `fold-merge`, which reconciles the
 //! tracing chunks' seed memories ([`crease_core::folds::stretch::split`]).
 //!
 //! ```text
@@ -12,43 +12,12 @@
 //! tasks of some seconds each; step chunks do about a quarter of the work per frame, so they take four times
 //! as many frames (at most half the sequence, so that two workers share them).
 
-use crate::inspect::InputInfo;
-use crate::keys;
-use crate::plan::chunk_ranges;
+use crate::plan::chunks::{step_chunks, trace_chunks};
+use crate::plan::input::InputInfo;
+use crate::plan::task::{TaskDef, TaskSpec};
 use crate::spec::JobSpec;
-use crate::task::{TaskDef, TaskSpec};
+use crate::storage::keys;
 use std::ops::Range;
-
-/// Frames each tracing task traces ahead of its chunk by default.
-pub const DEFAULT_WARM_UP: usize = 3;
-
-/// Triangle-frames per tracing task when the job does not say: about 20 frames at 100K triangles.
-const TRIANGLE_FRAMES_PER_TASK: usize = 2_000_000;
-
-/// Frames per tracing chunk: the job's `partition.stretch_frames_per_chunk`, or (0) from the triangle count
-/// (4..=64 frames), no more than half the sequence so that two workers share even a short one.
-pub fn trace_frames_per_chunk(job: &JobSpec, n_frames: usize, n_triangles: usize) -> usize {
-    match job.partition.stretch_frames_per_chunk {
-        0 => (TRIANGLE_FRAMES_PER_TASK / n_triangles.max(1))
-            .clamp(4, 64)
-            .min(n_frames.div_ceil(2))
-            .max(1),
-        k => k,
-    }
-}
-
-/// The tracing chunks of the job.
-pub fn trace_chunks(job: &JobSpec, n_frames: usize, n_triangles: usize) -> Vec<Range<usize>> {
-    chunk_ranges(n_frames, trace_frames_per_chunk(job, n_frames, n_triangles))
-}
-
-/// The step chunks of the job: four tracing chunks' worth of frames each, but no more than half the sequence.
-/// Every later task of the job waits for the steps, so a short sequence in one step chunk kept all workers but
-/// one idle at the start of the job; split in two, two workers share them. Any chunking gives the same bits.
-pub fn step_chunks(job: &JobSpec, n_frames: usize, n_triangles: usize) -> Vec<Range<usize>> {
-    let per_chunk = 4 * trace_frames_per_chunk(job, n_frames, n_triangles);
-    chunk_ranges(n_frames, per_chunk.min(n_frames.div_ceil(2)).max(1))
-}
 
 /// The detection tasks and the merge (marked `expands`) of a stretch job. `n_triangles` is the traced
 /// (input) mesh's, whatever the subdivision.
@@ -92,7 +61,7 @@ pub fn tasks(job: &JobSpec, info: &InputInfo) -> Vec<TaskDef> {
             _ => unreachable!("tracing tasks are fold-detect tasks"),
         })
         .collect();
-    let settle = crate::settle_tasks::tasks(job, n, nt, &traced);
+    let settle = crate::plan::settle::tasks(job, n, nt, &traced);
     // The merge reads the tracing chunks (it reconciles them) and the settled ranges.
     let merge = TaskDef {
         key: keys::FOLD_MERGE_TASK.to_string(),
@@ -120,7 +89,7 @@ pub fn tasks(job: &JobSpec, info: &InputInfo) -> Vec<TaskDef> {
 /// Whether a stretch job over `n_frames` frames draws `folds.png` (and so has a `fold-plot` task): it has
 /// frames to show at a nonzero size (a valid job always has; the planner and the task ask the same question).
 pub fn draws_plot(job: &JobSpec, n_frames: usize) -> bool {
-    crate::detect::stretch_detector(job, n_frames)
+    crate::plan::detect::stretch_detector(job, n_frames)
         .is_some_and(|d| d.overlay_size > 0 && !d.overlay_frames.is_empty())
 }
 

@@ -14,9 +14,9 @@ use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::Topology;
 use crease_core::vec3::V3;
 use crease_deep::cgan::{Cgan, CganConfig};
-use crease_deep::normal_map::bake_coarse;
-use crease_deep::raster::TexelMap;
-use crease_deep::uv::auto_atlas;
+use crease_deep::normal_maps::bake_coarse;
+use crease_deep::normal_maps::raster::TexelMap;
+use crease_deep::normal_maps::uv::auto_atlas;
 use serde_json::json;
 use std::path::Path;
 use std::time::Instant;
@@ -155,9 +155,9 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
 
     // Inference of the default model (`apply --coarse`, no cGAN): the detail filter's fine shape (degree 40;
     // its cost does not depend on the weights) drawn into the map, with the buffers apply reuses per frame.
-    let op = crease_deep::detail_filter::Umbrella::new(&topo);
-    let degree = crease_deep::detail_filter::DEFAULT_DEGREE;
-    let filter = crease_deep::detail_filter::DetailFilter {
+    let op = crease_deep::detail::Umbrella::new(&topo);
+    let degree = crease_deep::detail::DEFAULT_DEGREE;
+    let filter = crease_deep::detail::DetailFilter {
         degree,
         interior: (0..=degree).map(|j| 0.1 / (1.0 + j as f64)).collect(),
         boundary: (0..=degree).map(|j| 0.05 / (1.0 + j as f64)).collect(),
@@ -240,7 +240,7 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
     // PNG encoder settings (the bytes differ, the pixels do not): what the default costs against the others.
     let mut png_variants = Vec::new();
     {
-        use crease_deep::normal_map::{PngScratch, PngSettings};
+        use crease_deep::normal_maps::{PngScratch, PngSettings};
         use image::codecs::png::{CompressionType as C, FilterType as F};
         let mut ps = PngScratch::default();
         let mut line = Vec::new();
@@ -288,14 +288,14 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
             None
         } else {
             // Training: one step (discriminator + generator, batch 1) per training frame.
-            let pairs = crease_deep::cgan_data::map_pairs(
+            let pairs = crease_deep::cgan::data::map_pairs(
                 &topo,
                 &texels,
                 &[coarse[0].clone(), coarse[1].clone()],
                 &[fine[0].clone(), fine[1].clone()],
                 8.0,
             )?;
-            let samples = crease_deep::cgan_data::samples(&pairs);
+            let samples = crease_deep::cgan::data::samples(&pairs);
             gan.step(&[&samples[1]])?; // warm-up
             let mut i = 0;
             let step_ms = time_ms(a.deep_train_steps, || {

@@ -7,14 +7,14 @@ use clap::{Args, Subcommand};
 use crease_core::mesh::io::{open_sequence, sort_numbered, write_obj};
 use crease_core::mesh::FrameSource;
 use crease_deep::apply::{apply, ApplyInput, ApplyParams};
-use crease_deep::bake::{bake_sequence, BakeParams};
 use crease_deep::cgan::CganConfig;
-use crease_deep::lstm::LstmConfig;
 use crease_deep::model::{Model, RegressorKind};
-use crease_deep::normal_map::Space;
-use crease_deep::register::{read_scan, RegisterParams, Registration};
+use crease_deep::normal_maps::bake::{bake_sequence, BakeParams};
+use crease_deep::normal_maps::uv::{auto_atlas, read_obj_mesh, read_obj_uv, UvLayout};
+use crease_deep::normal_maps::Space;
+use crease_deep::registration::{read_scan, RegisterParams, Registration};
+use crease_deep::regression::lstm::LstmConfig;
 use crease_deep::train::{load_training_dir, train, TrainParams};
-use crease_deep::uv::{auto_atlas, read_obj_mesh, read_obj_uv, UvLayout};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -131,12 +131,12 @@ pub struct TrainArgs {
     /// products), raw (the pose numbers), or auto (rigid when pose.json names its numbers OBJ.location.x …
     /// OBJ.rotation_euler.z, raw otherwise).
     #[arg(long, default_value = "auto")]
-    pub pose_features: crease_deep::pose_features::PoseFeatureMode,
+    pub pose_features: crease_deep::regression::pose_features::PoseFeatureMode,
     /// Also train the subspace and regressions on the training data reflected in a coordinate plane (x, y or
     /// z = 0), poses reflected to match; auto: in the plane where the first training frame is symmetric, if
     /// any and the poses have rigid names; none: no reflection.
     #[arg(long, default_value = "auto")]
-    pub mirror: crease_deep::mirror::MirrorMode,
+    pub mirror: crease_deep::subspace::mirror::MirrorMode,
     /// LSTM layers of the encoder and of the decoder (paper: 4).
     #[arg(long, default_value_t = 4)]
     pub lstm_layers: usize,
@@ -164,10 +164,10 @@ pub struct TrainArgs {
     pub lstm_early_stopping: bool,
     /// Leading subspace coefficients of the shape `apply --pose` draws (0: all): the small components carry
     /// other frames' folds.
-    #[arg(long, default_value_t = crease_deep::pose_smoothing::DEFAULT_COMPONENTS)]
+    #[arg(long, default_value_t = crease_deep::regression::pose_smoothing::DEFAULT_COMPONENTS)]
     pub pose_components: usize,
     /// λ|μ low-pass steps on the shape `apply --pose` draws (0: none; the data's capture filter is 80).
-    #[arg(long, default_value_t = crease_deep::pose_smoothing::DEFAULT_STEPS)]
+    #[arg(long, default_value_t = crease_deep::regression::pose_smoothing::DEFAULT_STEPS)]
     pub pose_smoothing: usize,
     /// Seed of every random choice (weights, batches): the same seed gives the same model.
     #[arg(long, default_value_t = 1)]

@@ -22,19 +22,21 @@ use crease_core::mesh::geometry::vertex_normals;
 use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::{Frame, Sequence, Topology};
 use crease_core::vec3::{self, V3};
-use crease_deep::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
-use crease_deep::bake::{map_normal_error, mesh_normal_error};
+use crease_deep::cgan::data::{map_pairs, samples};
 use crease_deep::cgan::{Cgan, CganConfig, Sample};
-use crease_deep::cgan_data::{map_pairs, samples};
-use crease_deep::lstm::{windows, LstmConfig, LstmRegressor};
-use crease_deep::normal_map::{sample_vertex_normals, NormalMap};
-use crease_deep::pose::ControlSpec;
-use crease_deep::raster::TexelMap;
-use crease_deep::register::{synth_scan, RegisterParams, Registration};
-use crease_deep::regress::LinearRegression;
+use crease_deep::normal_maps::bake::{map_normal_error, mesh_normal_error};
+use crease_deep::normal_maps::raster::TexelMap;
+use crease_deep::normal_maps::uv::{auto_atlas, read_obj_uv};
+use crease_deep::normal_maps::{sample_vertex_normals, NormalMap};
+use crease_deep::registration::{synth_scan, RegisterParams, Registration};
+use crease_deep::regression::autoregress::{
+    AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory,
+};
+use crease_deep::regression::linear::LinearRegression;
+use crease_deep::regression::lstm::{windows, LstmConfig, LstmRegressor};
+use crease_deep::regression::pose::ControlSpec;
 use crease_deep::subspace::{vertex_error, Subspace};
 use crease_deep::train::{load_training_dir, TrainParams, TrainingSequence};
-use crease_deep::uv::{auto_atlas, read_obj_uv};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -229,7 +231,7 @@ fn mm(x: f64) -> String {
 fn normal_errors(
     topo: &Topology,
     texels: &TexelMap,
-    layout: &crease_deep::uv::UvLayout,
+    layout: &crease_deep::normal_maps::uv::UvLayout,
     idx: &[usize],
     frames: &[Frame],
     fine: &[Frame],
@@ -242,7 +244,7 @@ fn normal_errors(
     let map = idx
         .iter()
         .map(|&t| {
-            let m = crease_deep::normal_map::world_from_vertex_normals(
+            let m = crease_deep::normal_maps::world_from_vertex_normals(
                 texels,
                 topo,
                 &vertex_normals(topo, &frames[t]),
@@ -605,12 +607,17 @@ fn regression_loso(
                     rows_here.push((0, err(&ar.rollout(&tc))));
                 }
                 let t0 = Instant::now();
-                let report =
-                    crease_deep::rollout_fit::refine(&mut ar, &seqs, ridge, max_iter, |i, m| {
+                let report = crease_deep::regression::rollout_fit::refine(
+                    &mut ar,
+                    &seqs,
+                    ridge,
+                    max_iter,
+                    |i, m| {
                         if iterations.contains(&i) {
                             rows_here.push((i, err(&m.rollout(&tc))));
                         }
-                    })?;
+                    },
+                )?;
                 let secs = t0.elapsed().as_secs_f64();
                 // A fit that stalled before an iteration count keeps its final model for that count.
                 let final_e = err(&ar.rollout(&tc));
@@ -628,10 +635,16 @@ fn regression_loso(
                 for bound in [0.98, 0.95].into_iter().filter(|_| extras) {
                     let hist = ShapeHistory::fit(&a_refs, k_state.min(k), 2)?;
                     let mut stable = AutoregressiveLinear::fit(&seqs, hist, ridge, 0)?;
-                    crease_deep::stable_state::project(&mut stable, bound)?;
+                    crease_deep::regression::stable_state::project(&mut stable, bound)?;
                     for _ in 0..max_iter {
-                        crease_deep::rollout_fit::refine(&mut stable, &seqs, ridge, 1, |_, _| {})?;
-                        crease_deep::stable_state::project(&mut stable, bound)?;
+                        crease_deep::regression::rollout_fit::refine(
+                            &mut stable,
+                            &seqs,
+                            ridge,
+                            1,
+                            |_, _| {},
+                        )?;
+                        crease_deep::regression::stable_state::project(&mut stable, bound)?;
                     }
                     add(
                         si,
@@ -668,14 +681,14 @@ fn regression_loso(
                 add(
                     si,
                     format!("blend, inner leave-one-out weight, AR state {k_state} rollout fit {max_iter} it., {ctl}"),
-                    err(&crease_deep::blend::mix(&pred, &rolled, inner.weight)),
+                    err(&crease_deep::regression::blend::mix(&pred, &rolled, inner.weight)),
                 );
-                let mut oracle = crease_deep::blend::WeightFit::default();
+                let mut oracle = crease_deep::regression::blend::WeightFit::default();
                 oracle.add(&pred, &rolled, &truth);
                 add(
                     si,
                     format!("blend, weight fitted on the held-out sequence (not a forecast), AR state {k_state}, {ctl}"),
-                    err(&crease_deep::blend::mix(&pred, &rolled, oracle.weight())),
+                    err(&crease_deep::regression::blend::mix(&pred, &rolled, oracle.weight())),
                 );
                 eprintln!(
                     "{held}: blend weight: inner leave-one-out {:.3} (folds {:?}, {inner_s:.1} s), best on the held-out sequence {:.3}",
@@ -684,10 +697,10 @@ fn regression_loso(
                 notes.push(serde_json::json!({"held_out": held, "controls": ctl, "k_state": k_state, "blend_inner": inner, "blend_oracle": oracle.weight(), "inner_s": inner_s}));
                 // The fitted recurrence's spectral radius, and the rollout with it projected below a bound
                 // (stable_state.rs): whether drift comes from an unstable state map.
-                let rho = crease_deep::stable_state::spectral_radius(&ar)?;
+                let rho = crease_deep::regression::stable_state::spectral_radius(&ar)?;
                 for bound in [0.95, 0.9, 0.8].into_iter().filter(|_| extras) {
                     let mut stable = ar.clone();
-                    crease_deep::stable_state::project(&mut stable, bound)?;
+                    crease_deep::regression::stable_state::project(&mut stable, bound)?;
                     add(
                         si,
                         format!("AR state {k_state}, {ctl}, rollout fit {max_iter} it., spectral radius ≤ {bound}, rollout"),
@@ -1067,7 +1080,7 @@ fn lstm_autoregressive(
         .collect();
     let norm = Standardizer::fit(aug.iter().flatten());
     let in_dim = aug[0][0].len();
-    let teacher = |hists: &[Vec<Vec<f64>>]| -> Vec<crease_deep::lstm::Window> {
+    let teacher = |hists: &[Vec<Vec<f64>>]| -> Vec<crease_deep::regression::lstm::Window> {
         let mut w = Vec::new();
         for ((c, a), h) in d.train_c.iter().zip(d.train_a).zip(hists) {
             let x: Vec<Vec<f64>> = (0..c.len())
@@ -1202,7 +1215,7 @@ fn lstm_ar_rollout(
     let mut xs: Vec<Vec<f64>> = Vec::with_capacity(controls.len());
     for t in 0..controls.len() {
         xs.push(norm.apply(&[controls[t].clone(), hist.features(&out, t)].concat()));
-        let w = crease_deep::lstm::Window {
+        let w = crease_deep::regression::lstm::Window {
             controls: (0..len)
                 .map(|i| xs[(t + i + 1).saturating_sub(len)].clone())
                 .collect(),
@@ -1552,7 +1565,7 @@ fn cgan(data: &str, out: &str, held: &str, run: &CganRun, ridge: f64, ar_state: 
             crease_deep::contract::finish(
                 &dir,
                 preds.len(),
-                crease_deep::normal_map::Space::World,
+                crease_deep::normal_maps::Space::World,
                 res,
                 "deep_report cgan",
             )?;
@@ -1691,7 +1704,7 @@ fn lstm_check(data: &str, out: &str, held_arg: &str, shape: &str, variants: &str
                     s.fine.iter().map(|f| r.reflect_frame(f)).collect(),
                     s.poses
                         .iter()
-                        .map(|p| crease_deep::mirror::reflect_pose(p, r.axis))
+                        .map(|p| crease_deep::subspace::mirror::reflect_pose(p, r.axis))
                         .collect(),
                 ));
             }
@@ -1910,7 +1923,7 @@ fn register(data: &str, out: &str, frames: &str, params: RegisterParams) -> R<()
             let dir = Path::new(&dir);
             std::fs::create_dir_all(dir.join("scans"))?;
             crease_core::mesh::io::write_obj(&dir.join("template.obj"), &topo, &seq.frames[0])?;
-            crease_deep::register::write_scan(
+            crease_deep::registration::write_scan(
                 &dir.join("scans").join(format!("scan_{:04}.obj", t + 1)),
                 &scan,
             )?;
@@ -1964,7 +1977,7 @@ fn score(out: &str, gt: &str, captured: &str) -> R<()> {
     for t in 0..n {
         let stem = format!("frame_{:04}", t + 1);
         let obj = Path::new(out).join("mesh").join(format!("{stem}.obj"));
-        let (mtopo, coarse, layout) = crease_deep::uv::read_obj_mesh(&obj)?;
+        let (mtopo, coarse, layout) = crease_deep::normal_maps::uv::read_obj_mesh(&obj)?;
         let layout = layout.ok_or("output mesh without vt")?;
         let _ = read_obj_uv(&obj, &mtopo)?;
         let map = NormalMap::read_png(&Path::new(out).join("normals").join(format!("{stem}.png")))?;
@@ -1993,7 +2006,7 @@ fn score(out: &str, gt: &str, captured: &str) -> R<()> {
     Ok(())
 }
 
-/// The mesh-space detail filter ([`crease_deep::detail_filter`]) per held-out sequence: fitted on the other
+/// The mesh-space detail filter ([`crease_deep::detail`]) per held-out sequence: fitted on the other
 /// sequences' (captured, gt) pairs for every degree and ridge, scored on the held-out one by the DESIGN §9 normal
 /// error of the predicted fine mesh (vertex normals) beside the captured mesh's; then, for the first degree and
 /// ridge, what drawing those normals into a map and sampling it back at the vertices (as `score` does) keeps, at
@@ -2008,8 +2021,8 @@ fn detail(
     resolutions: &[usize],
     step: usize,
 ) -> R<()> {
-    use crease_deep::detail_filter::{fit_system, Umbrella};
-    use crease_deep::normal_map::world_from_vertex_normals;
+    use crease_deep::detail::{fit_system, Umbrella};
+    use crease_deep::normal_maps::world_from_vertex_normals;
     let helds = if held == "all" {
         sequence_names(data)?
     } else {
@@ -2262,7 +2275,7 @@ fn smooth_in_time(c: &[Vec<f64>], sigma: f64) -> Vec<Vec<f64>> {
 /// on the captured meshes (a smooth subspace and regressors), "~σ" a Gaussian over time on the coefficients.
 fn posenorm(data: &str, out: &str, held: &str, sigmas: &[f64], step: usize, res: usize) -> R<()> {
     use crease_core::shape::TaubinFilter;
-    use crease_deep::detail_filter::Umbrella;
+    use crease_deep::detail::Umbrella;
     use crease_deep::model::RegressorKind;
     let helds = if held == "all" {
         sequence_names(data)?
@@ -2505,7 +2518,7 @@ fn posesmooth(
 /// train`'s fit mapped onto its coefficients by ridge regression, the prediction renormalised per vertex and
 /// scored like `posenorm`; beside the normal subspace's own bound (held-out gt normals projected).
 fn posenormals(data: &str, out: &str, held: &str, ks: &[usize], step: usize, res: usize) -> R<()> {
-    use crease_deep::normal_map::world_from_vertex_normals;
+    use crease_deep::normal_maps::world_from_vertex_normals;
     let helds = if held == "all" {
         sequence_names(data)?
     } else {
@@ -2569,7 +2582,7 @@ fn posenormals(data: &str, out: &str, held: &str, ks: &[usize], step: usize, res
                     let rp: Vec<Vec<f64>> = s
                         .poses
                         .iter()
-                        .map(|p| crease_deep::mirror::reflect_pose(p, r.axis))
+                        .map(|p| crease_deep::subspace::mirror::reflect_pose(p, r.axis))
                         .collect();
                     controls.extend(fit.control.controls(&rp)?);
                 }

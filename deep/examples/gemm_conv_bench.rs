@@ -5,7 +5,7 @@
 //! (set RAYON_NUM_THREADS=1 for the one-core figure of issue 12).
 
 use candle_core::{Device, Tensor};
-use crease_deep::gemm_conv::{conv_k4s2p1, conv_transpose_k4s2p1};
+use crease_deep::cgan::gemm_conv::{conv_k4s2p1, conv_transpose_k4s2p1};
 use std::time::Instant;
 
 fn median(mut v: Vec<f64>) -> f64 {

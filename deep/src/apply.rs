@@ -4,11 +4,11 @@
 //! that is what lets the job system split apply into frame chunks.
 
 use crate::contract;
-use crate::detail_filter::{DetailFilter, Umbrella};
+use crate::detail::{DetailFilter, Umbrella};
 use crate::model::{Model, RegressorKind};
-use crate::normal_map::{bake_coarse, convert_space, world_from_vertex_normals, NormalMap, Space};
-use crate::pose::read_pose_file;
-use crate::raster::TexelMap;
+use crate::normal_maps::raster::TexelMap;
+use crate::normal_maps::{bake_coarse, convert_space, world_from_vertex_normals, NormalMap, Space};
+use crate::regression::pose::read_pose_file;
 use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::{geometry, Frame, FrameSource, Topology};
 use crease_core::progress::Progress;
@@ -82,7 +82,7 @@ pub fn shapes_from_poses(
 }
 
 /// The shapes `apply --pose` writes for the frames in `range`: the regression's coefficients, made smooth by the
-/// model's `pose_smoothing` (format 8 on; [`crate::pose_smoothing`]), or reconstructed as they are. Frames
+/// model's `pose_smoothing` (format 8 on; [`crate::regression::pose_smoothing`]), or reconstructed as they are. Frames
 /// outside `range` stay empty (a chunk smooths only its own frames).
 pub fn pose_shapes(
     model: &Model,
@@ -139,7 +139,7 @@ pub fn coefficients_from_poses(
                 _ => return Err(model.missing_regressor(regressor)),
             };
             let linear: Vec<Vec<f64>> = controls.iter().map(|c| model.linear.predict(c)).collect();
-            crate::blend::mix(&linear, &ar.rollout(&controls), blend.weight)
+            crate::regression::blend::mix(&linear, &ar.rollout(&controls), blend.weight)
         }
         RegressorKind::Lstm => {
             let net = model
@@ -160,7 +160,9 @@ pub fn coefficients_from_poses(
                         controls.iter().map(|c| model.linear.predict(c)).collect();
                     Some(match ar {
                         None => lin,
-                        Some(ar) => crate::blend::mix(&lin, &ar.rollout(&controls), weight),
+                        Some(ar) => {
+                            crate::regression::blend::mix(&lin, &ar.rollout(&controls), weight)
+                        }
                     })
                 }
                 None => None,
@@ -228,12 +230,12 @@ pub fn apply(
     let enhancer = if params.no_cgan {
         None
     } else {
-        crate::enhance::Enhancer::for_model(model)?
+        crate::cgan::enhance::Enhancer::for_model(model)?
     };
     // The detail filter learned captured → fine; a regression's reconstruction is no capture (it sharpens the
     // mixed-in folds: docs/deepwrinkles.md, "Pose-only normals taken apart"), so poses get the map of their
     // (smoothed) shape.
-    let op = crate::detail_filter::Umbrella::new(&model.topology);
+    let op = crate::detail::Umbrella::new(&model.topology);
     let detail = match input {
         ApplyInput::Coarse(_) => model.detail.as_ref().map(|f| (f, &op)),
         ApplyInput::Pose(_) => None,
@@ -286,7 +288,7 @@ pub fn apply(
 /// Buffers one thread of `apply` reuses from frame to frame.
 #[derive(Debug, Default)]
 pub struct ApplyScratch {
-    filter: crate::detail_filter::FilterScratch,
+    filter: crate::detail::FilterScratch,
     fine: Vec<V3>,
     files: contract::FrameScratch,
 }
@@ -330,7 +332,7 @@ pub fn frame_map(
     texels: &TexelMap,
     coarse: &[V3],
     detail: Option<(&DetailFilter, &Umbrella)>,
-    enhancer: Option<&crate::enhance::Enhancer>,
+    enhancer: Option<&crate::cgan::enhance::Enhancer>,
     space: Space,
 ) -> Result<NormalMap> {
     frame_map_with(
@@ -350,7 +352,7 @@ pub fn frame_map_with(
     texels: &TexelMap,
     coarse: &[V3],
     detail: Option<(&DetailFilter, &Umbrella)>,
-    enhancer: Option<&crate::enhance::Enhancer>,
+    enhancer: Option<&crate::cgan::enhance::Enhancer>,
     space: Space,
     scratch: &mut ApplyScratch,
 ) -> Result<NormalMap> {

@@ -6,13 +6,13 @@
 //! loader checks the version first and each file against the manifest, so a model from another version or a
 //! damaged file is a clear error, never a silently different model.
 
-use crate::autoregress::{AutoregressiveLinear, ShapeHistory};
-use crate::detail_filter::DetailFilter;
-use crate::lstm::{LstmConfig, LstmRegressor};
-use crate::pose::ControlSpec;
-use crate::regress::LinearRegression;
+use crate::detail::DetailFilter;
+use crate::normal_maps::uv::{write_obj_with_uv, UvLayout};
+use crate::regression::autoregress::{AutoregressiveLinear, ShapeHistory};
+use crate::regression::linear::LinearRegression;
+use crate::regression::lstm::{LstmConfig, LstmRegressor};
+use crate::regression::pose::ControlSpec;
 use crate::subspace::Subspace;
-use crate::uv::{write_obj_with_uv, UvLayout};
 use crease_core::mesh::Topology;
 use crease_core::{npy, Error, Result};
 use faer::Mat;
@@ -28,7 +28,7 @@ use std::sync::Arc;
 /// plain one, or built control vectors of the wrong length, so it must refuse the model instead.
 /// Version 4 added the blend regressor (`blend` in the manifest: its weight); a version 3 crease could not
 /// parse a manifest whose `regressor` is `blend`, so it must see a version it refuses by name.
-/// Version 5 added pose features (`control.features`: rigid features of the pose, [`crate::pose_features`]); a
+/// Version 5 added pose features (`control.features`: rigid features of the pose, [`crate::regression::pose_features`]); a
 /// version 4 crease would have ignored the field and built raw control vectors of the wrong length.
 /// Version 6 added the mesh-space detail filter (`detail` in the manifest, `detail.npy`) that `apply --coarse`
 /// runs before drawing the map; a version 5 crease would have ignored it and written the plain coarse maps.
@@ -36,7 +36,7 @@ use std::sync::Arc;
 /// coefficients `lstm.safetensors` corrects); a version 6 crease would have ignored the field and run the
 /// correction alone as if it were the shape. Older LSTMs have no such field and run as before.
 /// Version 8 added the pose-only shape's smoothing (`pose_smoothing` in the manifest: leading components kept
-/// and low-pass steps, [`crate::pose_smoothing`]) that `apply --pose` runs before drawing mesh and map; a
+/// and low-pass steps, [`crate::regression::pose_smoothing`]) that `apply --pose` runs before drawing mesh and map; a
 /// version 7 crease would have ignored it and written the unsmoothed shapes. Older models have none and run
 /// as before.
 pub const MODEL_VERSION: u32 = 8;
@@ -55,7 +55,7 @@ pub enum RegressorKind {
     /// Pose and the model's own previous shape coefficients, rolled out from the first frame.
     Autoregressive,
     Lstm,
-    /// Weighted mean of the linear map and the autoregressive rollout ([`crate::blend`]).
+    /// Weighted mean of the linear map and the autoregressive rollout ([`crate::regression::blend`]).
     Blend,
 }
 
@@ -108,16 +108,16 @@ pub struct Manifest {
     pub autoregressive: Option<ArSpec>,
     /// The blend regressor's weight and how it was chosen; absent before version 4.
     #[serde(default)]
-    pub blend: Option<crate::blend::BlendSpec>,
-    /// The mesh-space detail filter ([`crate::detail_filter`], weights in `detail.npy`); absent before version 6.
+    pub blend: Option<crate::regression::blend::BlendSpec>,
+    /// The mesh-space detail filter ([`crate::detail`], weights in `detail.npy`); absent before version 6.
     #[serde(default)]
     pub detail: Option<DetailSpec>,
-    /// How `apply --pose` smooths the regression's shape ([`crate::pose_smoothing`]); absent before version 8
+    /// How `apply --pose` smooths the regression's shape ([`crate::regression::pose_smoothing`]); absent before version 8
     /// (the reconstruction as it is).
     #[serde(default)]
-    pub pose_smoothing: Option<crate::pose_smoothing::PoseSmoothing>,
+    pub pose_smoothing: Option<crate::regression::pose_smoothing::PoseSmoothing>,
     /// The LSTM's output unit per coefficient: one shared value (the RMS of all training coefficients,
-    /// [`crate::lstm::output_scale`]) since this session; each coefficient's own standard deviation in models
+    /// [`crate::regression::lstm::output_scale`]) since this session; each coefficient's own standard deviation in models
     /// trained before, which load and run with their stored units unchanged.
     pub coeff_scale: Vec<f64>,
     /// Normal map resolution the model (and its cGAN) works at.
@@ -541,7 +541,7 @@ impl Model {
             None => None,
         };
         match &manifest.blend {
-            Some(b) => crate::blend::check_weight(b.weight)
+            Some(b) => crate::regression::blend::check_weight(b.weight)
                 .map_err(|e| Error::format(&mpath, None, format!("`blend.weight`: {e}")))?,
             None if manifest.version >= 4 => {
                 return Err(Error::format(

@@ -4,22 +4,20 @@
 //! `captured/` (the coarse input the cGAN learns to enrich) and `pose.json`. The data's meshes already share
 //! the template's topology; raw scans go through `crease deep register` first.
 
-use crate::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
-use crate::blend::{BlendSpec, WeightFit};
-use crate::detail_filter::{
-    fit_system, DetailFilter, FramePair, Umbrella, DEFAULT_DEGREE, DEFAULT_RIDGE,
-};
-use crate::lstm::{windows, LstmConfig, LstmRegressor};
-use crate::mirror::{reflect_pose, MirrorMode, Reflection};
+use crate::detail::{fit_system, DetailFilter, FramePair, Umbrella, DEFAULT_DEGREE, DEFAULT_RIDGE};
 use crate::model::{
     write_autoregressive, write_core_parts, write_detail, ArSpec, DetailSpec, Manifest,
     ModelWriter, RegressorKind, MODEL_FORMAT, MODEL_VERSION,
 };
-use crate::pose::{read_pose_file, read_pose_names, ControlSpec};
-use crate::pose_features::{PoseFeatureMode, PoseFeatures};
-use crate::regress::LinearRegression;
+use crate::normal_maps::uv::{auto_atlas, read_obj_uv, UvLayout};
+use crate::regression::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
+use crate::regression::blend::{BlendSpec, WeightFit};
+use crate::regression::linear::LinearRegression;
+use crate::regression::lstm::{windows, LstmConfig, LstmRegressor};
+use crate::regression::pose::{read_pose_file, read_pose_names, ControlSpec};
+use crate::regression::pose_features::{PoseFeatureMode, PoseFeatures};
+use crate::subspace::mirror::{reflect_pose, MirrorMode, Reflection};
 use crate::subspace::Subspace;
-use crate::uv::{auto_atlas, read_obj_uv, UvLayout};
 use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::{Frame, Sequence, Topology};
 use crease_core::progress::Progress;
@@ -34,7 +32,7 @@ pub struct TrainingSequence {
     pub fine: Vec<Frame>,
     pub coarse: Vec<Frame>,
     pub poses: Vec<Vec<f64>>,
-    /// `pose_vector_names` of the pose file, when it has them ([`crate::pose_features`]).
+    /// `pose_vector_names` of the pose file, when it has them ([`crate::regression::pose_features`]).
     pub pose_names: Option<Vec<String>>,
 }
 
@@ -78,21 +76,21 @@ pub struct TrainParams {
     /// Subspace size (capped by the number of training frames).
     pub k: usize,
     pub lags: Vec<usize>,
-    /// Time constants (frames) of the decayed pose history features ([`crate::pose_history`]); none: no
+    /// Time constants (frames) of the decayed pose history features ([`crate::regression::pose_history`]); none: no
     /// history features.
     pub pose_history: Vec<f64>,
     /// Ridge weight of the linear regression, relative to the mean diagonal of ΘᵀΘ.
     pub ridge: f64,
-    /// What the pose numbers become before the regression ([`crate::pose_features`]).
+    /// What the pose numbers become before the regression ([`crate::regression::pose_features`]).
     pub pose_features: PoseFeatureMode,
-    /// Reflection that augments the subspace and regression data ([`crate::mirror`]).
+    /// Reflection that augments the subspace and regression data ([`crate::subspace::mirror`]).
     pub mirror: MirrorMode,
     /// Regressor used by `apply --pose`. The linear and autoregressive ones are always trained (seconds);
     /// `Lstm` adds the network.
     pub regressor: RegressorKind,
     /// Leading shape coefficients the autoregressive regressor feeds back (capped at the subspace size).
     pub ar_state: usize,
-    /// Steps of the autoregressive regressor's fit on its own rollout ([`crate::rollout_fit`]) after the
+    /// Steps of the autoregressive regressor's fit on its own rollout ([`crate::regression::rollout_fit`]) after the
     /// ridge fit; 0 keeps the ridge fit.
     pub ar_rollout_iters: usize,
     /// Weight of the autoregressive rollout in the blend regressor (the linear map gets 1 − weight), unless
@@ -103,7 +101,7 @@ pub struct TrainParams {
     pub blend_fit: bool,
     pub lstm: LstmConfig,
     /// Leading subspace coefficients and λ|μ low-pass steps of the shape `apply --pose` draws
-    /// ([`crate::pose_smoothing`]; 0 and 0: the reconstruction as it is).
+    /// ([`crate::regression::pose_smoothing`]; 0 and 0: the reconstruction as it is).
     pub pose_components: usize,
     pub pose_smoothing: usize,
     pub resolution: usize,
@@ -143,8 +141,8 @@ impl Default for TrainParams {
             // The regression's folds are mostly other frames' folds: low-passing its shape by 160 λ|μ steps
             // lowered the map normal error of `apply --pose` on every split of sleeve-train (17.4–18.1° →
             // 16.2–17.6°) and the vertex error too (docs/deepwrinkles.md, "Pose-only normals taken apart").
-            pose_components: crate::pose_smoothing::DEFAULT_COMPONENTS,
-            pose_smoothing: crate::pose_smoothing::DEFAULT_STEPS,
+            pose_components: crate::regression::pose_smoothing::DEFAULT_COMPONENTS,
+            pose_smoothing: crate::regression::pose_smoothing::DEFAULT_STEPS,
             resolution: 256,
             uv: None,
             cgan: None,
@@ -164,14 +162,14 @@ impl TrainParams {
         if !(self.ridge.is_finite() && self.ridge >= 0.0) {
             return Err(Error::param("ridge", "must be a non-negative number"));
         }
-        crate::blend::check_weight(self.blend_weight)?;
-        if self.pose_smoothing > crate::pose_smoothing::MAX_STEPS {
+        crate::regression::blend::check_weight(self.blend_weight)?;
+        if self.pose_smoothing > crate::regression::pose_smoothing::MAX_STEPS {
             return Err(Error::param(
                 "pose_smoothing",
                 format!(
                     "{} steps is more than {}",
                     self.pose_smoothing,
-                    crate::pose_smoothing::MAX_STEPS
+                    crate::regression::pose_smoothing::MAX_STEPS
                 ),
             ));
         }
@@ -359,7 +357,7 @@ pub fn fit(
     let (mut lstm, mut lstm_losses, mut lstm_s) = (None, Vec::new(), 0.0);
     let (mut lstm_held_out, mut lstm_best_epoch) = (Vec::new(), None);
     // One shared output unit (not one per coefficient): the network's loss is then the vertex MSE.
-    let mut coeff_scale = crate::lstm::output_scale(&targets);
+    let mut coeff_scale = crate::regression::lstm::output_scale(&targets);
     if params.regressor == RegressorKind::Lstm {
         let t2 = Instant::now();
         let cfg = &params.lstm;
@@ -406,10 +404,10 @@ pub fn fit(
             .filter(|(i, _)| !held(*i))
             .flat_map(|(_, t)| t.iter().cloned())
             .collect();
-        coeff_scale = crate::lstm::output_scale(&train_targets);
+        coeff_scale = crate::regression::lstm::output_scale(&train_targets);
         let mut net = LstmRegressor::new(cfg.clone(), control.len(), k, coeff_scale.clone())?;
         progress.begin("lstm", cfg.epochs as u64);
-        let lr = crate::lstm::cosine_lr(cfg.lr, cfg.epochs);
+        let lr = crate::regression::lstm::cosine_lr(cfg.lr, cfg.epochs);
         let note = |epoch: usize, loss: f64, held: Option<f64>| {
             progress.advance("lstm", 1);
             if (epoch + 1).is_multiple_of(25) || epoch == 0 {
@@ -466,7 +464,7 @@ impl Fitted {
         Ok(match kind {
             RegressorKind::Linear => linear(),
             RegressorKind::Autoregressive => self.autoregressive.rollout(&controls),
-            RegressorKind::Blend => crate::blend::mix(
+            RegressorKind::Blend => crate::regression::blend::mix(
                 &linear(),
                 &self.autoregressive.rollout(&controls),
                 self.blend.weight,
@@ -505,7 +503,7 @@ pub fn base_coefficients(
         RegressorKind::Linear => lin(),
         RegressorKind::Autoregressive => autoregressive.rollout(controls),
         RegressorKind::Blend => {
-            crate::blend::mix(&lin(), &autoregressive.rollout(controls), blend_weight)
+            crate::regression::blend::mix(&lin(), &autoregressive.rollout(controls), blend_weight)
         }
         RegressorKind::Lstm => {
             return Err(Error::param(
@@ -602,7 +600,7 @@ fn fit_autoregressive(
     let a_refs: Vec<&[Vec<f64>]> = seqs.iter().map(|(_, a)| *a).collect();
     let history = ShapeHistory::fit(&a_refs, params.ar_state.min(k), 2)?;
     let mut ar = AutoregressiveLinear::fit(seqs, history, params.ridge, 0)?;
-    let report = crate::rollout_fit::refine(
+    let report = crate::regression::rollout_fit::refine(
         &mut ar,
         seqs,
         params.ridge,
@@ -673,7 +671,7 @@ pub fn train(
         autoregressive: Some(ArSpec::of(&fitted.autoregressive.history)),
         blend: Some(fitted.blend.clone()),
         detail: Some(detail_spec),
-        pose_smoothing: Some(crate::pose_smoothing::PoseSmoothing::new(
+        pose_smoothing: Some(crate::regression::pose_smoothing::PoseSmoothing::new(
             params.pose_components,
             params.pose_smoothing,
         )),
@@ -697,7 +695,7 @@ pub fn train(
     w.publish(manifest)
 }
 
-/// The mesh-space detail filter ([`crate::detail_filter`]) fitted on every training frame's (captured, gt) pair
+/// The mesh-space detail filter ([`crate::detail`]) fitted on every training frame's (captured, gt) pair
 /// with the default degree and ridge, and its summary for the manifest. The mirrored frames are not used: the
 /// filter is the same in any reflection of the mesh.
 pub fn fit_detail(
@@ -742,18 +740,18 @@ pub fn train_cgan(
     progress: &dyn Progress,
 ) -> Result<serde_json::Value> {
     use crate::cgan::Cgan;
-    let texels = crate::raster::TexelMap::new(layout, cfg.resolution, cfg.resolution);
+    let texels = crate::normal_maps::raster::TexelMap::new(layout, cfg.resolution, cfg.resolution);
     let t0 = Instant::now();
     let mut data = Vec::new();
     for s in seqs {
-        let mut pairs = crate::cgan_data::map_pairs(topo, &texels, &s.coarse, &s.fine, 8.0)?;
+        let mut pairs = crate::cgan::data::map_pairs(topo, &texels, &s.coarse, &s.fine, 8.0)?;
         if let Some(f) = detail {
             let op = Umbrella::new(topo);
             for (pair, c) in pairs.iter_mut().zip(&s.coarse) {
                 pair.0 = crate::apply::detail_map(&texels, topo, &op, f, c);
             }
         }
-        data.extend(crate::cgan_data::samples(&pairs));
+        data.extend(crate::cgan::data::samples(&pairs));
     }
     let prep_s = t0.elapsed().as_secs_f64();
     let mut gan = match checkpoint {

@@ -65,7 +65,7 @@ fn chunked_apply_equals_the_single_run_byte_for_byte() {
         k: 4,
         lags: vec![1, 2],
         regressor: RegressorKind::Lstm,
-        lstm: crease_deep::lstm::LstmConfig {
+        lstm: crease_deep::regression::lstm::LstmConfig {
             layers: 1,
             hidden: 8,
             epochs: 3,

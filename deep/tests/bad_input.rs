@@ -7,7 +7,7 @@ use crease_core::mesh::io::write_obj;
 use crease_core::progress::NoProgress;
 use crease_deep::apply::{apply, ApplyInput, ApplyParams};
 use crease_deep::model::Model;
-use crease_deep::pose::read_pose_file;
+use crease_deep::regression::pose::read_pose_file;
 use crease_deep::train::{layout_for, train, TrainParams, TrainingSequence};
 use std::path::Path;
 

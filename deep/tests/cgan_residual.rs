@@ -5,10 +5,10 @@
 mod support;
 
 use crease_core::progress::NoProgress;
+use crease_deep::cgan::enhance::Enhancer;
 use crease_deep::cgan::{Cgan, CganConfig, GeneratorModel};
-use crease_deep::enhance::Enhancer;
 use crease_deep::model::Model;
-use crease_deep::normal_map::NormalMap;
+use crease_deep::normal_maps::NormalMap;
 use crease_deep::train::{train, TrainParams, TrainingSequence};
 use std::path::Path;
 use support::ripple_samples as samples;

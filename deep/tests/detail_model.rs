@@ -9,10 +9,10 @@ use crease_core::progress::NoProgress;
 use crease_core::shape::TaubinFilter;
 use crease_core::vec3::V3;
 use crease_deep::apply::{apply, ApplyInput, ApplyParams};
-use crease_deep::bake::map_normal_error;
 use crease_deep::model::{Model, MODEL_VERSION};
-use crease_deep::normal_map::{bake_coarse, sample_vertex_normals, NormalMap};
-use crease_deep::raster::TexelMap;
+use crease_deep::normal_maps::bake::map_normal_error;
+use crease_deep::normal_maps::raster::TexelMap;
+use crease_deep::normal_maps::{bake_coarse, sample_vertex_normals, NormalMap};
 use crease_deep::train::{train, TrainParams, TrainingSequence};
 use std::path::Path;
 
@@ -215,7 +215,7 @@ fn apply_coarse_draws_the_predicted_folds_and_beats_the_captured_map() {
     let mesh = coarse
         .iter()
         .zip(&held.fine)
-        .map(|(c, f)| crease_deep::bake::mesh_normal_error(&model.topology, c, f))
+        .map(|(c, f)| crease_deep::normal_maps::bake::mesh_normal_error(&model.topology, c, f))
         .sum::<f64>()
         / coarse.len() as f64;
     eprintln!("held-out normal error: captured mesh {mesh:.2}°, its map {plain:.2}°, detail map {detailed:.2}°");
@@ -228,7 +228,8 @@ fn apply_coarse_draws_the_predicted_folds_and_beats_the_captured_map() {
         "detail map {detailed:.2}° against the captured map {plain:.2}° and mesh {mesh:.2}°"
     );
     // The output mesh is still the coarse one (the filter moves only the normals).
-    let (_, written, _) = crease_deep::uv::read_obj_mesh(&out.join("mesh/frame_0001.obj")).unwrap();
+    let (_, written, _) =
+        crease_deep::normal_maps::uv::read_obj_mesh(&out.join("mesh/frame_0001.obj")).unwrap();
     for (a, b) in written.iter().zip(&coarse[0]) {
         for k in 0..3 {
             assert!((a[k] - b[k]).abs() < 1e-6);
@@ -236,7 +237,7 @@ fn apply_coarse_draws_the_predicted_folds_and_beats_the_captured_map() {
     }
     // The fine normals the filter predicts, not the map sampling, carry the gain.
     let f0 = model.detail.as_ref().unwrap().apply(
-        &crease_deep::detail_filter::Umbrella::new(&model.topology),
+        &crease_deep::detail::Umbrella::new(&model.topology),
         &coarse[0],
     );
     assert_eq!(vertex_normals(&model.topology, &f0).len(), f0.len());

@@ -8,8 +8,8 @@ mod support;
 
 use crease_core::progress::NoProgress;
 use crease_deep::apply::shapes_from_poses;
-use crease_deep::lstm::LstmConfig;
 use crease_deep::model::{Model, RegressorKind};
+use crease_deep::regression::lstm::LstmConfig;
 use crease_deep::train::{fit, train, TrainParams, TrainingSequence};
 use std::path::Path;
 

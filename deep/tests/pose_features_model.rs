@@ -7,9 +7,9 @@ mod support;
 
 use crease_core::progress::NoProgress;
 use crease_deep::apply::shapes_from_poses;
-use crease_deep::mirror::MirrorMode;
 use crease_deep::model::{Model, RegressorKind};
-use crease_deep::pose_features::{PoseFeatureMode, PoseFeatures};
+use crease_deep::regression::pose_features::{PoseFeatureMode, PoseFeatures};
+use crease_deep::subspace::mirror::MirrorMode;
 use crease_deep::train::{train, TrainParams, TrainingSequence};
 use std::path::Path;
 

@@ -11,7 +11,7 @@ use crease_core::shape::TaubinFilter;
 use crease_core::vec3::{self, V3};
 use crease_deep::apply::{apply, pose_shapes, shapes_from_poses, ApplyInput, ApplyParams};
 use crease_deep::model::{Model, RegressorKind};
-use crease_deep::pose_smoothing::{PoseSmoothing, DEFAULT_STEPS};
+use crease_deep::regression::pose_smoothing::{PoseSmoothing, DEFAULT_STEPS};
 use crease_deep::train::{train, TrainParams, TrainingSequence};
 use std::path::Path;
 
@@ -139,7 +139,7 @@ fn apply_pose_writes_the_smoothed_shape_and_its_normals_are_closer_to_the_truth(
     let input = ApplyInput::Pose(pose.clone());
     apply(&model, &input, &ApplyParams::default(), &full, &NoProgress).unwrap();
     let (_, written, _) =
-        crease_deep::uv::read_obj_mesh(&full.join("mesh/frame_0005.obj")).unwrap();
+        crease_deep::normal_maps::uv::read_obj_mesh(&full.join("mesh/frame_0005.obj")).unwrap();
     let worst = written
         .iter()
         .zip(&smooth[4])

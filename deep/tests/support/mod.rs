@@ -4,7 +4,7 @@
 use crease_core::mesh::Topology;
 use crease_core::vec3::V3;
 use crease_deep::cgan::Sample;
-use crease_deep::normal_map::NormalMap;
+use crease_deep::normal_maps::NormalMap;
 use std::sync::Arc;
 
 /// Quad grid of `nx` × `ny` vertices split into triangles (a, b, c), (a, c, d), like the sleeve data.

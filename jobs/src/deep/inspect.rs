@@ -10,7 +10,7 @@ use crate::spec::JobSpec;
 use crate::storage::fetch_input_to_cache;
 use crease_deep::apply::open_coarse;
 use crease_deep::model::{Model, RegressorKind};
-use crease_deep::pose::read_pose_file;
+use crease_deep::regression::pose::read_pose_file;
 use crease_deep::train::{common_topology, load_training_dir};
 use std::path::{Path, PathBuf};
 

@@ -5,9 +5,9 @@ use crate::error::JobError;
 use crate::spec::{FoldSpec, JobSpec};
 use crate::storage::parse_location;
 use crease_deep::cgan::CganConfig;
-use crease_deep::lstm::LstmConfig;
 use crease_deep::model::RegressorKind;
-use crease_deep::normal_map::Space;
+use crease_deep::normal_maps::Space;
+use crease_deep::regression::lstm::LstmConfig;
 use crease_deep::train::TrainParams;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -69,8 +69,8 @@ pub struct DeepTrainParams {
     pub lags: Vec<usize>,
     pub pose_history: Vec<f64>,
     pub ridge: f64,
-    pub pose_features: crease_deep::pose_features::PoseFeatureMode,
-    pub mirror: crease_deep::mirror::MirrorMode,
+    pub pose_features: crease_deep::regression::pose_features::PoseFeatureMode,
+    pub mirror: crease_deep::subspace::mirror::MirrorMode,
     pub lstm_layers: usize,
     pub lstm_hidden: usize,
     pub lstm_seq: usize,

@@ -131,7 +131,7 @@ fn shift(z: &Tensor, dim: usize, d: isize) -> Result<Tensor> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::seed::Rng;
+    use crate::nn::seed::Rng;
     use candle_core::{Device, Var};
 
     fn random(rng: &mut Rng, dims: &[usize]) -> Tensor {

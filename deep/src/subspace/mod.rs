@@ -6,6 +6,8 @@
 //! Pose normalisation (the paper's inverse skinning) is the identity here: the sleeve data has no skeleton,
 //! the arm is static and the pose only drives the cuff, so the registered shapes are already in one frame.
 
+pub mod mirror;
+
 use crease_core::vec3::V3;
 use crease_core::{Error, Result};
 use faer::{Mat, Side};

@@ -19,7 +19,7 @@
 //! The predicted fine shape is used only for its normals (the map `apply --coarse` writes); the output mesh stays
 //! the coarse one, so the shape is not moved.
 
-use crate::register::boundary_vertices;
+use crate::registration::boundary_vertices;
 use crease_core::mesh::Topology;
 use crease_core::shape::TaubinFilter;
 use crease_core::vec3::{self, V3};

@@ -13,10 +13,10 @@
 //! as symmetric as the scene). A pose block of location and Euler angles reflects as S·T·S: the location's
 //! `axis` component and the angles about the two other axes change sign (S R_a(φ) S = R_a(φ) about the
 //! mirror's normal a, R_b(−φ) about any other axis b, and S (Rz Ry Rx) S = (S Rz S)(S Ry S)(S Rx S)).
-//! Reflecting needs both: rigid pose names ([`crate::pose_features`]) and a first frame that is symmetric
+//! Reflecting needs both: rigid pose names ([`crate::regression::pose_features`]) and a first frame that is symmetric
 //! (mean distance of a reflected vertex to its match at most [`MAX_ASYMMETRY`] edge lengths).
 
-use crate::kdtree::KdTree;
+use crate::registration::kdtree::KdTree;
 use crease_core::mesh::Topology;
 use crease_core::vec3::V3;
 use crease_core::{Error, Result};

@@ -16,9 +16,13 @@
 //!   large deformation. Data targets averaged over several scan points (`target_points`) and a pull toward
 //!   the previous frame's transforms (`w_temporal`) are available, off by default (they measured worse).
 
-use crate::kdtree::KdTree;
-use crate::point_normals::estimate_normals;
-use crate::register_system::{DataRows, Plan, RigidRows, Rows, SmoothRows, NV};
+pub mod kdtree;
+pub mod point_normals;
+mod system;
+
+use crate::registration::kdtree::KdTree;
+use crate::registration::point_normals::estimate_normals;
+use crate::registration::system::{DataRows, Plan, RigidRows, Rows, SmoothRows, NV};
 use crease_core::mesh::geometry::vertex_normals;
 use crease_core::mesh::{Topology, NONE};
 use crease_core::vec3::{self, V3};
@@ -64,7 +68,7 @@ pub struct RegisterParams {
     #[serde(default)]
     pub w_temporal: f64,
     /// Floor of the relaxed ω_r, ω_s tied to the scan's noise: max(`min_weight`, `noise_floor` · σ²), σ² the
-    /// scan's noise variance along its normal in squared edge lengths ([`crate::point_normals::noise_variance`]).
+    /// scan's noise variance along its normal in squared edge lengths ([`crate::registration::point_normals::noise_variance`]).
     /// A MAP fit weighs the data term by 1/σ², so regularisation relative to it scales with σ²: a clean scan
     /// lets the graph relax to follow a large deformation, a noisy one keeps it stiff. 0: off.
     #[serde(default)]
@@ -238,7 +242,7 @@ impl Registration {
         params: RegisterParams,
     ) -> Result<Self> {
         params.validate()?;
-        let edge = crate::bake::mean_edge_length(&topo, template);
+        let edge = crate::normal_maps::bake::mean_edge_length(&topo, template);
         if !(edge.is_finite() && edge > 0.0) {
             return Err(Error::mesh("template has no edges of positive length"));
         }
@@ -385,7 +389,7 @@ impl Registration {
         let mut floor = self.params.min_weight;
         self.last_noise = None;
         if self.params.noise_floor > 0.0 {
-            let var = crate::point_normals::noise_variance(&pts, &tree, 16, 7);
+            let var = crate::registration::point_normals::noise_variance(&pts, &tree, 16, 7);
             floor = floor.max(self.params.noise_floor * var);
             self.last_noise = Some(var);
         }
@@ -749,7 +753,7 @@ pub fn synth_scan(
     noise: f64,
     seed: u64,
 ) -> Scan {
-    let mut rng = crate::seed::Rng::new(seed);
+    let mut rng = crate::nn::seed::Rng::new(seed);
     let tris = topo.triangles();
     let areas: Vec<f64> = tris
         .iter()
@@ -768,7 +772,7 @@ pub fn synth_scan(
         cdf.push(acc);
     }
     let n = (per_vertex * p.len() as f64) as usize;
-    let gauss = |rng: &mut crate::seed::Rng| {
+    let gauss = |rng: &mut crate::nn::seed::Rng| {
         let (u1, u2) = (rng.uniform().max(1e-12), rng.uniform());
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
     };
@@ -792,7 +796,7 @@ pub fn synth_scan(
         pts.push(q);
     }
     // Holes: spheres around random points, until the fraction is gone.
-    let edge = crate::bake::mean_edge_length(topo, p);
+    let edge = crate::normal_maps::bake::mean_edge_length(topo, p);
     let mut keep = vec![true; pts.len()];
     let target = (hole_fraction * pts.len() as f64) as usize;
     let mut removed = 0;

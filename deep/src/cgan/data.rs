@@ -3,8 +3,8 @@
 //! with the previous frame's detailed map for the temporal term.
 
 use crate::cgan::Sample;
-use crate::normal_map::{bake_coarse, bake_fine, FineSurface, NormalMap};
-use crate::raster::TexelMap;
+use crate::normal_maps::raster::TexelMap;
+use crate::normal_maps::{bake_coarse, bake_fine, FineSurface, NormalMap};
 use crease_core::mesh::{Frame, Topology};
 use crease_core::Result;
 use rayon::prelude::*;
@@ -23,7 +23,7 @@ pub fn map_pairs(
         .map(|(c, f)| {
             let lr = bake_coarse(texels, topo, c);
             let surface = FineSurface::new(topo, f)?;
-            let max_dist = max_dist_edges * crate::bake::mean_edge_length(topo, c);
+            let max_dist = max_dist_edges * crate::normal_maps::bake::mean_edge_length(topo, c);
             let hr = bake_fine(texels, topo, c, &surface, max_dist);
             Ok((lr, hr))
         })

@@ -6,7 +6,7 @@
 //! far the object has travelled: on sleeve-train the cuff's 70° twist and 15 cm travel interact. So the
 //! **rigid** features of an object are its location, the sine and cosine of each angle, the products of the
 //! location components with each other and with those sines and cosines (33 numbers per object). Velocity and
-//! acceleration are then taken of these features ([`crate::pose::ControlSpec`]), which puts products such as
+//! acceleration are then taken of these features ([`crate::regression::pose::ControlSpec`]), which puts products such as
 //! cos θ · θ̇ into the control vector. Constant features (a component that never moves, cos 0 = 1) and ones
 //! that repeat an earlier feature on the training data get a zero scale in the control spec, so the ridge is
 //! not shared out over copies. Over the three leave-one-sequence-out splits of sleeve-train the pose-only

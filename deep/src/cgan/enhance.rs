@@ -2,7 +2,7 @@
 
 use crate::cgan::{CganConfig, GeneratorModel};
 use crate::model::Model;
-use crate::normal_map::NormalMap;
+use crate::normal_maps::NormalMap;
 use crease_core::{Error, Result};
 
 pub struct Enhancer {

@@ -3,9 +3,9 @@
 //! subdivided output, a scan): it is only ray-cast against.
 
 use crate::contract;
-use crate::normal_map::{bake_fine, convert_space, FineSurface, Space};
-use crate::raster::TexelMap;
-use crate::uv::UvLayout;
+use crate::normal_maps::raster::TexelMap;
+use crate::normal_maps::uv::UvLayout;
+use crate::normal_maps::{bake_fine, convert_space, FineSurface, Space};
 use crease_core::mesh::{geometry, FrameSource, Topology};
 use crease_core::progress::Progress;
 use crease_core::vec3::{self, V3};

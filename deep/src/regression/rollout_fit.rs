@@ -10,7 +10,7 @@
 //! is the Gauss–Newton step, which from the teacher-forced inputs gives back the ridge solution exactly; a step
 //! that would raise the loss is halved until it does not, so the training loss never rises.
 
-use crate::autoregress::{AutoregressiveLinear, ControlsAndCoefficients};
+use crate::regression::autoregress::{AutoregressiveLinear, ControlsAndCoefficients};
 use crease_core::{Error, Result};
 
 /// What the refinement did: the training rollout loss before it and after every accepted step.
@@ -215,7 +215,7 @@ fn solve_spd(gram: &[f64], grad: &[f64], m: usize, k: usize) -> Result<Vec<f64>>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::autoregress::ShapeHistory;
+    use crate::regression::autoregress::ShapeHistory;
 
     /// A leaky integrator of the pose with a slow second state the fed-back coefficient does not carry.
     fn sequence(freq: f64, n: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {

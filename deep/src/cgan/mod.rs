@@ -17,10 +17,14 @@
 //! in the paper is to add the wrinkles; a generator that has to rebuild the whole map from noise started (and,
 //! after one epoch, stayed) far worse than its own input.
 
-use crate::adam::Adam;
-use crate::lstm::SortedVars;
-use crate::normal_map::NormalMap;
-use crate::seed::{init_vars, Rng};
+pub mod data;
+pub mod enhance;
+pub mod gemm_conv;
+
+use crate::nn::adam::Adam;
+use crate::nn::seed::{init_vars, Rng};
+use crate::normal_maps::NormalMap;
+use crate::regression::lstm::SortedVars;
 use candle_core::{DType, Device, ModuleT, Tensor};
 use candle_nn::{
     batch_norm, conv2d, conv_transpose2d, BatchNorm, BatchNormConfig, Conv2d, Conv2dConfig,
@@ -197,7 +201,7 @@ impl Generator {
         let mut h = x.clone();
         for (i, (conv, bn)) in self.enc.iter().enumerate() {
             let inp = if i == 0 { h.clone() } else { leaky(&h)? };
-            h = crate::gemm_conv::conv_k4s2p1(&inp, conv.weight(), conv.bias())?;
+            h = crate::cgan::gemm_conv::conv_k4s2p1(&inp, conv.weight(), conv.bias())?;
             if let Some(bn) = bn {
                 h = bn.forward_t(&h, train)?;
             }
@@ -211,7 +215,11 @@ impl Generator {
                 Tensor::cat(&[&h, &skips[depth - 1 - j]], 1)?
             };
             // candle's own transposed convolution is a per-texel loop; this is the same sum as one GEMM.
-            h = crate::gemm_conv::conv_transpose_k4s2p1(&inp.relu()?, conv.weight(), conv.bias())?;
+            h = crate::cgan::gemm_conv::conv_transpose_k4s2p1(
+                &inp.relu()?,
+                conv.weight(),
+                conv.bias(),
+            )?;
             if let Some(bn) = bn {
                 h = bn.forward_t(&h, train)?;
             }
@@ -277,7 +285,7 @@ impl Discriminator {
             // The generator's gradient passes back through every discriminator layer; candle differentiates its
             // own convolution with its per-texel transposed convolution, the GEMM form with matrix products.
             h = if *stride == 2 {
-                crate::gemm_conv::conv_k4s2p1(&h, conv.weight(), conv.bias())?
+                crate::cgan::gemm_conv::conv_k4s2p1(&h, conv.weight(), conv.bias())?
             } else {
                 conv.forward(&h)?
             };

@@ -8,7 +8,7 @@
 //! every eigenvalue of the companion matrix by c exactly, so the projection can put the radius where it is
 //! asked while keeping the recurrence's modes (their frequencies and relative weights) as fitted.
 
-use crate::autoregress::AutoregressiveLinear;
+use crate::regression::autoregress::AutoregressiveLinear;
 use crease_core::{Error, Result};
 use faer::Mat;
 
@@ -77,8 +77,8 @@ pub fn project(ar: &mut AutoregressiveLinear, max_radius: f64) -> Result<(f64, f
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::autoregress::ShapeHistory;
-    use crate::regress::LinearRegression;
+    use crate::regression::autoregress::ShapeHistory;
+    use crate::regression::linear::LinearRegression;
 
     /// One pose control plus a bias; k = 2 coefficients, both fed back, order 2, unit scale.
     fn model(a1: [[f64; 2]; 2], a2: [[f64; 2]; 2]) -> AutoregressiveLinear {

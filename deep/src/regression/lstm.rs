@@ -4,10 +4,10 @@
 //! the decoder, whose outputs map (one linear layer) to the subspace coefficients of the same frames. Frame t's
 //! prediction is the last one. Coefficients are learned in one shared unit ([`output_scale`]), so the training
 //! MSE is the vertex MSE up to a constant and the large components count as much as they move the surface.
-//! candle (CPU, f32); weights are seeded (see [`crate::seed`]).
+//! candle (CPU, f32); weights are seeded (see [`crate::nn::seed`]).
 
 use crate::model::RegressorKind;
-use crate::seed::{init_vars, Rng};
+use crate::nn::seed::{init_vars, Rng};
 use candle_core::{DType, Device, Module, Tensor};
 use candle_nn::rnn::{LSTMConfig, LSTM, RNN};
 use candle_nn::{linear, Linear, Optimizer, VarBuilder, VarMap};

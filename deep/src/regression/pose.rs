@@ -5,8 +5,8 @@
 //! acceleration, and the pose at a few earlier lags. Everything is normalised with statistics of the training
 //! data; constant dimensions (4 of the sleeve's 6) are guarded against a zero variance.
 
-use crate::pose_features::PoseFeatures;
-use crate::pose_history::DecayedHistory;
+use crate::regression::pose_features::PoseFeatures;
+use crate::regression::pose_history::DecayedHistory;
 use crease_core::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;

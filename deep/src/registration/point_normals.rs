@@ -4,7 +4,7 @@
 //! instead of pinning each vertex to one noisy point, and pairs whose normals disagree (a vertex matched to the
 //! other wall of a fold) are rejected. The sign is unknown and not needed: both uses square or take |n·m|.
 
-use crate::kdtree::KdTree;
+use crate::registration::kdtree::KdTree;
 use crease_core::vec3::{self, V3};
 
 /// Unit normal per point: the eigenvector of the smallest eigenvalue of the covariance of its `k` nearest
@@ -121,7 +121,7 @@ mod tests {
 
     #[test]
     fn normals_of_a_noisy_plane_point_along_its_axis() {
-        let mut rng = crate::seed::Rng::new(4);
+        let mut rng = crate::nn::seed::Rng::new(4);
         let pts: Vec<V3> = (0..400)
             .map(|_| [rng.uniform(), rng.uniform(), 0.002 * (rng.uniform() - 0.5)])
             .collect();
@@ -133,7 +133,7 @@ mod tests {
 
     #[test]
     fn k_nearest_agrees_with_brute_force() {
-        let mut rng = crate::seed::Rng::new(9);
+        let mut rng = crate::nn::seed::Rng::new(9);
         let pts: Vec<V3> = (0..300)
             .map(|_| [rng.uniform(), rng.uniform(), rng.uniform()])
             .collect();

@@ -9,7 +9,7 @@
 //! repeated on the states the model itself produces when rolled out over the training sequences (DAgger, Ross
 //! et al. 2011), so it learns to recover from its own drift instead of only from perfect histories.
 
-use crate::regress::LinearRegression;
+use crate::regression::linear::LinearRegression;
 use crease_core::{Error, Result};
 use serde::{Deserialize, Serialize};
 

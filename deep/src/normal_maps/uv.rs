@@ -497,6 +497,6 @@ pub fn write_obj_with_uv(
     positions: &[V3],
     layout: &UvLayout,
 ) -> Result<()> {
-    let text = crate::obj_text::ObjText::new(topo, &layout.uv, &layout.corners);
+    let text = crate::contract::obj_text::ObjText::new(topo, &layout.uv, &layout.corners);
     crease_core::fsutil::write_atomic(path, &text.file(positions))
 }

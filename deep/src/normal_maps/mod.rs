@@ -7,8 +7,12 @@
 //! engines want, so both are written. PNG: 16-bit RGBA, n = 2·c/65535 − 1, alpha 65535 on covered texels; the
 //! RGB is dilated a few texels into the gutter so bilinear lookups at chart borders do not fetch blanks.
 
-use crate::raster::TexelMap;
-use crate::uv::UvLayout;
+pub mod bake;
+pub mod raster;
+pub mod uv;
+
+use crate::normal_maps::raster::TexelMap;
+use crate::normal_maps::uv::UvLayout;
 use crease_core::mesh::geometry;
 use crease_core::mesh::{Topology, NONE};
 use crease_core::vec3::{self, V3};

@@ -2,7 +2,7 @@
 //! lies on. It depends only on the layout and the resolution, so it is computed once and every frame's map is
 //! a gather through it (the per-frame cost is then linear in texels, which is what keeps inference fast).
 
-use crate::uv::UvLayout;
+use crate::normal_maps::uv::UvLayout;
 use crease_core::mesh::NONE;
 
 /// Per texel (row-major, row 0 at the top = v near 1): the covering triangle (or [`NONE`]) and barycentrics.

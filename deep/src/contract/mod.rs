@@ -8,9 +8,11 @@
 //! before anything that vouches for them (`done.json`, a task's success), so a crash can still lose only a
 //! run that has not claimed to be complete.
 
-use crate::normal_map::{NormalMap, PngScratch, PngSettings, Space};
-use crate::obj_text::ObjText;
-use crate::uv::UvLayout;
+pub mod obj_text;
+
+use crate::contract::obj_text::ObjText;
+use crate::normal_maps::uv::UvLayout;
+use crate::normal_maps::{NormalMap, PngScratch, PngSettings, Space};
 use crease_core::mesh::Topology;
 use crease_core::vec3::V3;
 use crease_core::{Error, Result};
@@ -172,9 +174,9 @@ pub fn finish(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::normal_map::bake_coarse;
-    use crate::raster::TexelMap;
-    use crate::uv::auto_atlas;
+    use crate::normal_maps::bake_coarse;
+    use crate::normal_maps::raster::TexelMap;
+    use crate::normal_maps::uv::auto_atlas;
 
     /// A wavy open tube; `phase` moves every vertex.
     fn tube(phase: f64) -> (Topology, Vec<V3>) {

@@ -424,10 +424,8 @@ impl Registration {
             for (i, cand) in candidates.into_iter().enumerate() {
                 self.x = cand;
                 let e = self.energy(&scan, floor, max_d, &x_prev)?;
-                if std::env::var_os("CREASE_REG_DEBUG").is_some() {
-                    let name = ["fit", "previous", "template", "fit from template"][i];
-                    eprintln!("acceptance: {name} energy {e:.3}");
-                }
+                let name = ["fit", "previous", "template", "fit from template"][i];
+                tracing::debug!(candidate = name, energy = e, "registration acceptance test");
                 if best.as_ref().is_none_or(|b| e < b.0) {
                     best = Some((e, std::mem::take(&mut self.x)));
                 }
@@ -512,13 +510,15 @@ impl Registration {
                     energy = e;
                 }
             }
-            if std::env::var_os("CREASE_DEEP_DEBUG").is_some() {
-                let paired = pairs.iter().filter(|p| p.is_some()).count();
-                eprintln!(
-                    "icp {it}: energy {energy:.3} wr {wr} ws {ws} paired {paired} bound {}",
-                    bound.len()
-                );
-            }
+            tracing::debug!(
+                iteration = it,
+                energy,
+                w_rigid = wr,
+                w_smooth = ws,
+                paired = pairs.iter().filter(|p| p.is_some()).count(),
+                boundary = bound.len(),
+                "registration step"
+            );
             if energy > prev_energy * (1.0 - 5e-2) {
                 wr = (wr * 0.5).max(floor);
                 ws = (ws * 0.5).max(floor);

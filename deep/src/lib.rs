@@ -12,6 +12,7 @@ pub mod apply;
 pub mod cgan;
 pub mod contract;
 pub mod detail;
+pub mod evaluation;
 pub mod model;
 pub mod nn;
 pub mod normal_maps;

@@ -1,25 +1,26 @@
 //! The conditional GAN of Lähner et al. §4.2 (pix2pix-style): a U-Net generator with skip connections and a
-//! 70×70 PatchGAN discriminator, trained with L1·100 + temporal·50 + GAN·1 (Eq. 4), batch norm and Adam.
+//! PatchGAN discriminator, trained with L1·100 + temporal·50 + GAN·1 (Eq. 4), batch norm and Adam.
 //!
-//! Input: the coarse world-space normal map plus its coverage (4 channels); output: the detailed map (3
-//! channels, tanh, normalised per texel afterwards). The data and temporal terms are taken over covered texels
-//! only (the grey "no information" areas of the paper's maps carry no signal), and the temporal term
-//! |Σ (G(x_t) − y_{t−1})| is divided by the texel count so that its weight 50 means the same at every
-//! resolution. Dropout (pix2pix's noise) is left out: inference must be deterministic, since the cluster's
+//! Input: a world-space normal map plus its coverage (4 channels); output: the detailed map (3 channels,
+//! normalised per texel afterwards). The data and temporal terms are taken over covered texels only, and the
+//! temporal term |Σ (G(x_t) − y_{t−1})| is divided by the texel count so that its weight 50 means the same at
+//! every size. Dropout (pix2pix's noise) is left out: inference must be deterministic, since the cluster's
 //! output has to match a single-node run byte for byte.
 //!
-//! At 256² with 64 filters the generator is 8 + 8 layers as in the paper; smaller resolutions use
-//! log2(resolution) layers per side, so the innermost feature map is always 1×1.
+//! Sized for a CPU (the paper's 256² maps through 2 × 8 layers of 64 filters are about 6 GMAC per frame):
+//! the U-Net has a fixed number of levels ([`CganConfig::depth`], 5 by default) and few filters (8, doubling
+//! to 64), so it is fully convolutional: it trains on random crops of the maps ([`CganConfig::crop`], 64²
+//! texels, batches of 8) and runs on the whole map at inference. The discriminator sees the same crops; with
+//! two stride-2 layers its patches are 34 texels wide, about the width of a few folds at 256².
 //!
-//! The generator is residual by default ([`CganConfig::residual`]): it predicts a correction that is added to
-//! the input normals, and its last layer starts at zero, so an untrained model returns the input map and
-//! training can only add detail. The coarse map already carries the garment's large shape, and the cGAN's job
-//! in the paper is to add the wrinkles; a generator that has to rebuild the whole map from noise started (and,
-//! after one epoch, stayed) far worse than its own input.
+//! The generator is residual: it predicts a correction added to the input normals, and its last layer starts
+//! at zero, so an untrained model returns the input map and training can only add detail. The input already
+//! carries the garment's shape; the cGAN's job in the paper is to add the wrinkles.
 
 pub mod data;
 pub mod enhance;
 pub mod gemm_conv;
+pub mod training;
 
 use crate::nn::adam::Adam;
 use crate::nn::seed::{init_vars, Rng};
@@ -31,61 +32,73 @@ use candle_nn::{
     ConvTranspose2d, ConvTranspose2dConfig, Module, VarBuilder, VarMap,
 };
 use crease_core::{Error, Result};
+use data::TrainingSet;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 pub const IN_CHANNELS: usize = 4;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct CganConfig {
-    pub resolution: usize,
-    /// Filters of the first generator layer (paper: 64); doubled per layer up to 8×.
+    /// Filters of the first generator layer (paper: 64); doubled per level up to 8×.
     pub filters: usize,
     /// Filters of the first discriminator layer.
     pub disc_filters: usize,
+    /// U-Net levels per side (paper: 8 at 256²); maps must be a multiple of 2^depth texels wide.
+    pub depth: usize,
+    /// Side of the square training crops, in texels (a multiple of 2^depth).
+    pub crop: usize,
+    pub batch: usize,
+    /// Optimisation steps (one batch each).
+    pub steps: usize,
     pub w_l1: f64,
     pub w_temporal: f64,
     pub w_gan: f64,
     pub lr: f64,
     pub beta1: f64,
-    pub epochs: usize,
-    pub batch: usize,
     pub seed: u64,
-    /// Output = input normals + G(input) (last layer initialised to zero) instead of G(input) alone. Absent in
-    /// the manifests of model format 2 and older, whose generators are not residual: it then reads as false.
-    #[serde(default)]
-    pub residual: bool,
 }
 
 impl Default for CganConfig {
     fn default() -> Self {
         CganConfig {
-            resolution: 256,
-            filters: 64,
-            disc_filters: 64,
+            filters: 8,
+            disc_filters: 8,
+            depth: 5,
+            crop: 64,
+            batch: 8,
+            steps: 1500,
             w_l1: 100.0,
             w_temporal: 50.0,
             w_gan: 1.0,
             lr: 2e-4,
             beta1: 0.5,
-            epochs: 20,
-            batch: 1,
             seed: 1,
-            residual: true,
         }
     }
 }
 
 impl CganConfig {
     pub fn validate(&self) -> Result<()> {
-        if !self.resolution.is_power_of_two() || !(16..=1024).contains(&self.resolution) {
-            return Err(Error::param(
-                "cgan.resolution",
-                format!("{} is not a power of two in 16..=1024", self.resolution),
-            ));
-        }
         if self.filters == 0 || self.disc_filters == 0 || self.batch == 0 {
             return Err(Error::param("cgan", "filters and batch must be at least 1"));
+        }
+        if !(1..=8).contains(&self.depth) {
+            return Err(Error::param(
+                "cgan.depth",
+                format!("{} is outside 1..=8", self.depth),
+            ));
+        }
+        if self.crop < 16 || !self.crop.is_multiple_of(1 << self.depth) {
+            return Err(Error::param(
+                "cgan.crop",
+                format!(
+                    "{} is not a multiple of 2^depth = {} of at least 16",
+                    self.crop,
+                    1 << self.depth
+                ),
+            ));
         }
         for (n, v) in [
             ("cgan.w_l1", self.w_l1),
@@ -102,9 +115,19 @@ impl CganConfig {
         Ok(())
     }
 
-    /// Layers per U-Net side: log2(resolution), at most 8 (the paper's 2 × 8 at 256²).
-    pub fn depth(&self) -> usize {
-        (self.resolution.trailing_zeros() as usize).min(8)
+    /// Whether maps of `resolution`² texels fit the U-Net (and the crops fit in them).
+    pub fn check_resolution(&self, resolution: usize) -> Result<()> {
+        if !resolution.is_multiple_of(1 << self.depth) || resolution < self.crop {
+            return Err(Error::param(
+                "resolution",
+                format!(
+                    "{resolution} is not a multiple of 2^depth = {} at least as large as the cGAN's crop {}",
+                    1 << self.depth,
+                    self.crop
+                ),
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -143,20 +166,18 @@ fn bn_cfg() -> BatchNormConfig {
 pub struct Generator {
     enc: Vec<(Conv2d, Option<BatchNorm>)>,
     dec: Vec<(ConvTranspose2d, Option<BatchNorm>)>,
-    residual: bool,
 }
 
 impl Generator {
     pub fn new(cfg: &CganConfig, vb: VarBuilder) -> candle_core::Result<Self> {
-        let depth = cfg.depth();
+        let depth = cfg.depth;
         let f = cfg.filters;
         let ch: Vec<usize> = (0..depth).map(|i| (f << i.min(3)).min(8 * f)).collect();
         let mut enc = Vec::new();
         for i in 0..depth {
             let cin = if i == 0 { IN_CHANNELS } else { ch[i - 1] };
             let conv = conv2d(cin, ch[i], 4, down_cfg(), vb.pp(format!("g.enc{i}")))?;
-            // No norm on the first layer (pix2pix) nor on the 1×1 innermost one (its batch statistics are
-            // degenerate at batch size 1).
+            // No norm on the first layer (pix2pix) nor on the innermost one.
             let bn = if i == 0 || i == depth - 1 {
                 None
             } else {
@@ -180,22 +201,18 @@ impl Generator {
             };
             dec.push((conv, bn));
         }
-        Ok(Generator {
-            enc,
-            dec,
-            residual: cfg.residual,
-        })
+        Ok(Generator { enc, dec })
     }
 
-    /// The variable names of the last decoder layer, which a residual generator starts at zero.
+    /// The variable names of the last decoder layer, which starts at zero (the generator starts as the
+    /// identity).
     fn last_layer_names(cfg: &CganConfig) -> [String; 2] {
-        let j = cfg.depth() - 1;
+        let j = cfg.depth - 1;
         [format!("g.dec{j}.weight"), format!("g.dec{j}.bias")]
     }
 
-    /// [b, 4, H, W] → [b, 3, H, W]: in (−1, 1), or for a residual generator the input normals plus a
-    /// correction in (−1, 1), zero where the input is not covered (the target is zero there too, so the
-    /// discriminator cannot tell real from fake by the gutter).
+    /// [b, 4, H, W] → [b, 3, H, W]: the input normals plus a correction in (−1, 1), zero where the input is not
+    /// covered (the target is zero there too, so the discriminator cannot tell real from fake by the gutter).
     pub fn forward(&self, x: &Tensor, train: bool) -> candle_core::Result<Tensor> {
         let mut skips = Vec::with_capacity(self.enc.len());
         let mut h = x.clone();
@@ -225,9 +242,6 @@ impl Generator {
             }
         }
         let out = h.tanh()?;
-        if !self.residual {
-            return Ok(out);
-        }
         let normals = x.narrow(1, 0, 3)?;
         let coverage = x.narrow(1, 3, 1)?;
         (normals + out)?.broadcast_mul(&coverage)
@@ -240,12 +254,12 @@ pub struct Discriminator {
 }
 
 impl Discriminator {
-    /// PatchGAN: three stride-2 and two stride-1 4×4 convolutions, a 70×70 receptive field per output logit.
-    /// Maps smaller than 32² get fewer stride-2 layers, so at least a 2×2 grid of patches remains.
+    /// PatchGAN: stride-2 4×4 convolutions down to a quarter of the crop or less (at most three), then two
+    /// stride-1 ones, one logit per patch.
     pub fn new(cfg: &CganConfig, vb: VarBuilder) -> candle_core::Result<Self> {
         let f = cfg.disc_filters;
-        let downs = (cfg.resolution.trailing_zeros() as usize)
-            .saturating_sub(2)
+        let downs = (cfg.crop.trailing_zeros() as usize)
+            .saturating_sub(4)
             .clamp(1, 3);
         let mut spec = vec![(IN_CHANNELS + 3, f, 2, false)];
         let mut c = f;
@@ -300,7 +314,7 @@ impl Discriminator {
     }
 }
 
-/// Sets the named variables to zero (the residual generator's last layer: it starts as the identity).
+/// Sets the named variables to zero (the generator's last layer: it starts as the identity).
 fn zero_vars(vm: &VarMap, names: &[String]) -> candle_core::Result<()> {
     let data = vm
         .data()
@@ -327,51 +341,28 @@ fn bce_logits(z: &Tensor, target: f64) -> candle_core::Result<Tensor> {
     ((pos - (z * target)?)? + log_term)?.mean_all()
 }
 
-/// One training pair: the coarse map (input), the detailed map (target) and the previous frame's detailed map.
-#[derive(Clone)]
-pub struct Sample {
-    pub input: NormalMap,
-    pub target: NormalMap,
-    pub prev_target: NormalMap,
+/// [1, 4, H, W] of a whole map: normals then coverage.
+pub fn input_tensor(map: &NormalMap) -> candle_core::Result<Tensor> {
+    let (w, h) = (map.width, map.height);
+    let mut v = Vec::with_capacity(IN_CHANNELS * w * h);
+    for c in 0..3 {
+        v.extend(
+            map.n
+                .iter()
+                .zip(&map.covered)
+                .map(|(n, &cov)| if cov { n[c] } else { 0.0 }),
+        );
+    }
+    v.extend(map.covered.iter().map(|&c| if c { 1.0f32 } else { 0.0 }));
+    Tensor::from_vec(v, (1, IN_CHANNELS, h, w), &Device::Cpu)
 }
 
-/// [4, H, W]: normals then coverage.
-pub fn input_tensor(maps: &[&NormalMap]) -> candle_core::Result<Tensor> {
-    let (w, h) = (maps[0].width, maps[0].height);
-    let mut v = Vec::with_capacity(maps.len() * IN_CHANNELS * w * h);
-    for m in maps {
-        for c in 0..3 {
-            v.extend(
-                m.n.iter()
-                    .zip(&m.covered)
-                    .map(|(n, &cov)| if cov { n[c] } else { 0.0 }),
-            );
-        }
-        v.extend(m.covered.iter().map(|&c| if c { 1.0f32 } else { 0.0 }));
-    }
-    Tensor::from_vec(v, (maps.len(), IN_CHANNELS, h, w), &Device::Cpu)
-}
-
-/// ([b, 3, H, W] normals, [b, 1, H, W] coverage).
-fn target_tensor(maps: &[&NormalMap]) -> candle_core::Result<(Tensor, Tensor)> {
-    let (w, h) = (maps[0].width, maps[0].height);
-    let mut v = Vec::with_capacity(maps.len() * 3 * w * h);
-    let mut m = Vec::with_capacity(maps.len() * w * h);
-    for map in maps {
-        for c in 0..3 {
-            v.extend(
-                map.n
-                    .iter()
-                    .zip(&map.covered)
-                    .map(|(n, &cov)| if cov { n[c] } else { 0.0 }),
-            );
-        }
-        m.extend(map.covered.iter().map(|&c| if c { 1.0f32 } else { 0.0 }));
-    }
-    Ok((
-        Tensor::from_vec(v, (maps.len(), 3, h, w), &Device::Cpu)?,
-        Tensor::from_vec(m, (maps.len(), 1, h, w), &Device::Cpu)?,
-    ))
+/// One training batch: input [b, 4, c, c], target and previous target [b, 3, c, c], coverage [b, 1, c, c].
+pub struct Batch {
+    pub input: Tensor,
+    pub target: Tensor,
+    pub prev_target: Tensor,
+    pub mask: Tensor,
 }
 
 /// Losses of one step (generator terms before weighting).
@@ -391,8 +382,8 @@ pub struct Cgan {
     disc: Discriminator,
     opt_g: Adam,
     opt_d: Adam,
-    /// Epochs completed (for resuming).
-    pub epoch: usize,
+    /// Steps completed (for resuming).
+    pub step: usize,
 }
 
 fn named_sorted(vm: &VarMap) -> Vec<(String, candle_core::Var)> {
@@ -423,9 +414,7 @@ impl Cgan {
         .map_err(ce)?;
         init_vars(&gen_vars, config.seed, &["g."]).map_err(ce)?;
         init_vars(&disc_vars, config.seed.wrapping_add(17), &["d."]).map_err(ce)?;
-        if config.residual {
-            zero_vars(&gen_vars, &Generator::last_layer_names(&config)).map_err(ce)?;
-        }
+        zero_vars(&gen_vars, &Generator::last_layer_names(&config)).map_err(ce)?;
         // Only trainable tensors go to the optimisers; batch-norm running statistics are updated by the layers.
         let trainable = |vm: &VarMap| {
             named_sorted(vm)
@@ -443,23 +432,18 @@ impl Cgan {
             disc,
             opt_g,
             opt_d,
-            epoch: 0,
+            step: 0,
         })
     }
 
     /// One optimisation step on a batch (discriminator, then generator).
-    pub fn step(&mut self, batch: &[&Sample]) -> Result<StepLosses> {
+    pub fn train_step(&mut self, b: &Batch) -> Result<StepLosses> {
         let cfg = &self.config;
-        let inputs: Vec<&NormalMap> = batch.iter().map(|s| &s.input).collect();
-        let targets: Vec<&NormalMap> = batch.iter().map(|s| &s.target).collect();
-        let prevs: Vec<&NormalMap> = batch.iter().map(|s| &s.prev_target).collect();
-        let x = input_tensor(&inputs).map_err(ce)?;
-        let (y, mask) = target_tensor(&targets).map_err(ce)?;
-        let (y_prev, _) = target_tensor(&prevs).map_err(ce)?;
-        let fake = self.gen.forward(&x, true).map_err(ce)?;
+        let (x, y, y_prev, mask) = (&b.input, &b.target, &b.prev_target, &b.mask);
+        let fake = self.gen.forward(x, true).map_err(ce)?;
         // Discriminator.
-        let d_real = self.disc.forward(&x, &y, true).map_err(ce)?;
-        let d_fake = self.disc.forward(&x, &fake.detach(), true).map_err(ce)?;
+        let d_real = self.disc.forward(x, y, true).map_err(ce)?;
+        let d_fake = self.disc.forward(x, &fake.detach(), true).map_err(ce)?;
         let loss_d = ((bce_logits(&d_real, 1.0).map_err(ce)?
             + bce_logits(&d_fake, 0.0).map_err(ce)?)
         .map_err(ce)?
@@ -468,18 +452,18 @@ impl Cgan {
         let gd = loss_d.backward().map_err(ce)?;
         self.opt_d.step(&gd).map_err(ce)?;
         // Generator.
-        let d_gen = self.disc.forward(&x, &fake, true).map_err(ce)?;
+        let d_gen = self.disc.forward(x, &fake, true).map_err(ce)?;
         let gan = bce_logits(&d_gen, 1.0).map_err(ce)?;
         let count =
             (mask.sum_all().map_err(ce)?.to_scalar::<f32>().map_err(ce)? as f64 * 3.0).max(1.0);
         let mask3 = mask.broadcast_as(fake.shape()).map_err(ce)?;
-        let l1 = (((&fake - &y).map_err(ce)?.abs().map_err(ce)? * &mask3)
+        let l1 = (((&fake - y).map_err(ce)?.abs().map_err(ce)? * &mask3)
             .map_err(ce)?
             .sum_all()
             .map_err(ce)?
             / count)
             .map_err(ce)?;
-        let temporal = (((&fake - &y_prev).map_err(ce)? * &mask3)
+        let temporal = (((&fake - y_prev).map_err(ce)? * &mask3)
             .map_err(ce)?
             .sum_all()
             .map_err(ce)?
@@ -514,44 +498,41 @@ impl Cgan {
         Ok(out)
     }
 
-    /// Trains until `config.epochs` epochs are done (continuing from `self.epoch`), shuffling with a seed per
-    /// epoch so a resumed run sees the same batches as an uninterrupted one. After each epoch `on_epoch`
-    /// gets the epoch's mean losses and may write a checkpoint.
+    /// Trains until `config.steps` steps are done (continuing from `self.step`). Step i's batch is drawn from
+    /// a generator seeded by the seed and i, so a resumed run sees the same batches as an uninterrupted one.
+    /// Every `report` steps `on_report` gets the mean losses since the last report and may write a checkpoint.
     pub fn train(
         &mut self,
-        data: &[Sample],
-        mut on_step: impl FnMut(usize, usize, &StepLosses),
-        mut on_epoch: impl FnMut(&mut Cgan, usize, &StepLosses) -> Result<()>,
+        data: &TrainingSet,
+        report: usize,
+        mut on_report: impl FnMut(&mut Cgan, usize, &StepLosses) -> Result<()>,
     ) -> Result<Vec<StepLosses>> {
-        if data.is_empty() {
-            return Err(Error::param("cgan", "no training samples"));
-        }
         let mut history = Vec::new();
-        while self.epoch < self.config.epochs {
-            let mut order: Vec<usize> = (0..data.len()).collect();
-            Rng::new(self.config.seed ^ (0xE90C + self.epoch as u64)).shuffle(&mut order);
-            let mut sum = StepLosses::default();
-            let mut n = 0.0;
-            for (i, chunk) in order.chunks(self.config.batch).enumerate() {
-                let batch: Vec<&Sample> = chunk.iter().map(|&k| &data[k]).collect();
-                let l = self.step(&batch)?;
-                on_step(self.epoch, i, &l);
-                sum.l1 += l.l1;
-                sum.temporal += l.temporal;
-                sum.gan += l.gan;
-                sum.disc += l.disc;
-                n += 1.0;
+        let (mut sum, mut n) = (StepLosses::default(), 0.0);
+        while self.step < self.config.steps {
+            let mut rng = Rng::new(self.config.seed ^ (0xE90C_0000 + self.step as u64));
+            let batch = data
+                .batch(&mut rng, self.config.batch, self.config.crop)
+                .map_err(ce)?;
+            let l = self.train_step(&batch)?;
+            sum.l1 += l.l1;
+            sum.temporal += l.temporal;
+            sum.gan += l.gan;
+            sum.disc += l.disc;
+            n += 1.0;
+            self.step += 1;
+            if self.step.is_multiple_of(report.max(1)) || self.step == self.config.steps {
+                let mean = StepLosses {
+                    l1: sum.l1 / n,
+                    temporal: sum.temporal / n,
+                    gan: sum.gan / n,
+                    disc: sum.disc / n,
+                };
+                history.push(mean);
+                let step = self.step;
+                on_report(self, step, &mean)?;
+                (sum, n) = (StepLosses::default(), 0.0);
             }
-            let mean = StepLosses {
-                l1: sum.l1 / n,
-                temporal: sum.temporal / n,
-                gan: sum.gan / n,
-                disc: sum.disc / n,
-            };
-            self.epoch += 1;
-            history.push(mean);
-            let e = self.epoch;
-            on_epoch(self, e, &mean)?;
         }
         Ok(history)
     }
@@ -569,7 +550,7 @@ impl Cgan {
             .map_err(|e| Error::format(path, None, format!("cannot save cGAN weights: {e}")))
     }
 
-    /// Writes a resumable checkpoint (weights, optimiser moments, epoch) into `dir`, atomically: the files go
+    /// Writes a resumable checkpoint (weights, optimiser moments, step) into `dir`, atomically: the files go
     /// to a temporary directory that replaces `dir` once complete.
     pub fn save_checkpoint(&self, dir: &Path) -> Result<()> {
         let tmp = PathBuf::from(format!("{}.tmp-{}", dir.display(), std::process::id()));
@@ -592,7 +573,7 @@ impl Cgan {
         self.opt_d
             .save(&tmp.join("adam_d.safetensors"))
             .map_err(f)?;
-        let state = serde_json::json!({ "epoch": self.epoch, "config": self.config });
+        let state = serde_json::json!({ "step": self.step, "config": self.config });
         crease_core::fsutil::write_atomic(&tmp.join("state.json"), state.to_string().as_bytes())?;
         if dir.exists() {
             std::fs::remove_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -600,7 +581,7 @@ impl Cgan {
         std::fs::rename(&tmp, dir).map_err(|e| Error::io(dir, e))
     }
 
-    /// Restores a checkpoint written by [`Cgan::save_checkpoint`] with the same configuration (epochs may
+    /// Restores a checkpoint written by [`Cgan::save_checkpoint`] with the same configuration (steps may
     /// differ: a resumed run may train longer).
     pub fn resume(config: CganConfig, dir: &Path) -> Result<Self> {
         let state_path = dir.join("state.json");
@@ -610,7 +591,7 @@ impl Cgan {
         let saved: CganConfig = serde_json::from_value(state["config"].clone())
             .map_err(|e| Error::format(&state_path, None, format!("config: {e}")))?;
         let same_net = CganConfig {
-            epochs: config.epochs,
+            steps: config.steps,
             ..saved.clone()
         } == config;
         if !same_net {
@@ -640,7 +621,7 @@ impl Cgan {
         g.opt_d
             .load(&dir.join("adam_d.safetensors"))
             .map_err(f(dir.join("adam_d.safetensors")))?;
-        g.epoch = state["epoch"].as_u64().unwrap_or(0) as usize;
+        g.step = state["step"].as_u64().unwrap_or(0) as usize;
         Ok(g)
     }
 
@@ -658,6 +639,21 @@ impl Cgan {
         }
         Ok(out)
     }
+}
+
+/// The manifest's `cgan`: the network, where `apply` uses it, and the held-out figures that decided it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CganSpec {
+    pub config: CganConfig,
+    /// Map normal error (°) on the held-out training sequence of `apply --coarse`'s maps of random captures,
+    /// without and with the generator.
+    pub coarse_deg: [f64; 2],
+    /// The same of `apply --pose`'s maps (the regression fitted without that sequence).
+    pub pose_deg: [f64; 2],
+    /// Whether `apply --coarse` / `apply --pose` run the generator: where it beat the maps without it.
+    pub use_coarse: bool,
+    pub use_pose: bool,
 }
 
 /// A generator loaded for inference.
@@ -696,7 +692,7 @@ impl GeneratorModel {
 }
 
 fn enhance_with(gen: &Generator, input: &NormalMap) -> Result<NormalMap> {
-    let x = input_tensor(&[input]).map_err(ce)?;
+    let x = input_tensor(input).map_err(ce)?;
     let y = gen.forward(&x, false).map_err(ce)?;
     let y = y.squeeze(0).map_err(ce)?; // [3, H, W]
     let norm = y

@@ -54,8 +54,16 @@ pub fn write_frame(
     positions: &[V3],
     layout: &UvLayout,
     map: &NormalMap,
+    note: &str,
 ) -> Result<()> {
-    FrameWriter::new(topo, layout).write(out, t, positions, map, &mut FrameScratch::default())?;
+    FrameWriter::new(topo, layout).write(
+        out,
+        t,
+        positions,
+        map,
+        note,
+        &mut FrameScratch::default(),
+    )?;
     sync_frames(out, t..t + 1)
 }
 
@@ -95,9 +103,10 @@ impl FrameWriter {
         t: usize,
         positions: &[V3],
         map: &NormalMap,
+        note: &str,
         scratch: &'s mut FrameScratch,
     ) -> Result<(&'s [u8], &'s [u8])> {
-        self.obj.head(positions, &mut scratch.obj_head);
+        self.obj.head(positions, note, &mut scratch.obj_head);
         let png = map.encode_png(&normals_path(out, t), self.png, &mut scratch.png)?;
         Ok((&scratch.obj_head, png))
     }
@@ -110,9 +119,10 @@ impl FrameWriter {
         t: usize,
         positions: &[V3],
         map: &NormalMap,
+        note: &str,
         scratch: &mut FrameScratch,
     ) -> Result<()> {
-        let (head, png) = self.encode(out, t, positions, map, scratch)?;
+        let (head, png) = self.encode(out, t, positions, map, note, scratch)?;
         write_renamed(&mesh_path(out, t), &[head, self.obj.tail()])?;
         write_renamed(&normals_path(out, t), &[png])
     }
@@ -211,6 +221,7 @@ mod tests {
         use std::fmt::Write as _;
         let mut s = String::new();
         s.push_str("# crease deep: coarse mesh with the normal map's UV layout\n");
+        s.push_str("# normals: a test\n");
         for p in positions {
             let _ = writeln!(s, "v {} {} {}", p[0], p[1], p[2]);
         }
@@ -322,7 +333,9 @@ mod tests {
             );
             assert_eq!(map.dilated(3), old);
             // The same scratch across frames: nothing of the previous frame may leak into this one.
-            writer.write(dir.path(), t, &p, &map, &mut scratch).unwrap();
+            writer
+                .write(dir.path(), t, &p, &map, "a test", &mut scratch)
+                .unwrap();
             assert_eq!(
                 std::fs::read(mesh_path(dir.path(), t)).unwrap(),
                 obj_as_first_written(&topo, &p, &layout),
@@ -350,7 +363,7 @@ mod tests {
         prepare(other.path()).unwrap();
         let (_, p) = tube(-0.4);
         let map = bake_coarse(&texels, &topo, &p);
-        write_frame(other.path(), 2, &topo, &p, &layout, &map).unwrap();
+        write_frame(other.path(), 2, &topo, &p, &layout, &map, "a test").unwrap();
         for path in [mesh_path, normals_path] {
             assert_eq!(
                 std::fs::read(path(other.path(), 2)).unwrap(),

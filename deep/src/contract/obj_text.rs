@@ -50,13 +50,17 @@ impl ObjText {
         }
     }
 
-    /// The header and `v` lines of one frame, into `head` (cleared first); the file is `head` then
-    /// [`ObjText::tail`].
-    pub fn head(&self, positions: &[V3], head: &mut Vec<u8>) {
+    /// The header, the `# normals: {note}` line that says what the frame's map holds, and the `v` lines of
+    /// one frame, into `head` (cleared first); the file is `head` then [`ObjText::tail`].
+    pub fn head(&self, positions: &[V3], note: &str, head: &mut Vec<u8>) {
         debug_assert_eq!(positions.len(), self.n_vertices);
         head.clear();
-        head.reserve(HEADER.len() + 64 * positions.len());
+        head.reserve(HEADER.len() + note.len() + 12 + 64 * positions.len());
         head.extend_from_slice(HEADER.as_bytes());
+        head.extend_from_slice(b"# normals: ");
+        // One line, whatever the note holds.
+        head.extend(note.bytes().map(|b| if b == b'\n' { b' ' } else { b }));
+        head.push(b'\n');
         for p in positions {
             head.extend_from_slice(b"v ");
             push_f64(head, p[0]);
@@ -74,9 +78,9 @@ impl ObjText {
     }
 
     /// The whole file of one frame (for callers that write a single OBJ).
-    pub fn file(&self, positions: &[V3]) -> Vec<u8> {
+    pub fn file(&self, positions: &[V3], note: &str) -> Vec<u8> {
         let mut bytes = Vec::new();
-        self.head(positions, &mut bytes);
+        self.head(positions, note, &mut bytes);
         bytes.extend_from_slice(&self.tail);
         bytes
     }

@@ -1,651 +1,753 @@
-//! Mesh-space detail: the fine surface's folds predicted from the coarse mesh itself, before any map is drawn.
+//! Mesh-space detail for captured input: the fine surface predicted from a capture of it, with no knowledge
+//! of how the capture was made, and a guard that falls back to the capture's own normals where the model is
+//! out of its depth.
 //!
-//! A capture loses folds because it low-passes the surface; what is left of a fold in the coarse mesh is an
-//! attenuated copy of it at the same place. So the fine shape is predicted as the coarse one plus a learned
-//! linear filter of it: d = Σ_j w_j T_j(A) Δc, where c are the coarse positions, Δ the uniform graph Laplacian
-//! (the average of the one-ring minus the vertex; boundary vertices average only their boundary neighbours, so a
-//! rim is treated along itself), A = −Δ − I (its spectrum lies in [−1, 1]) and T_j the Chebyshev polynomials.
-//! The weights w are fitted by ridge least squares on (coarse, fine) training pairs, one set for interior and
-//! one for boundary vertices, shared by every vertex and axis: the filter depends only on the local shape of
-//! the mesh, never on vertex identity, so it applies to any mesh of the same kind of capture.
+//! What is left of a fold in a capture is, where it survives at all, an attenuated and noisy copy of it at the
+//! same place. So the fine shape is predicted as the coarse one plus a linear filter of it,
+//! d = Σ_j w_j(s) T_j(P) Δc: P the cotangent averaging walk of the coarse surface ([`operator::Walk`]),
+//! Δc = Pc − c, T_j Chebyshev polynomials. The weights depend linearly on a signature s of the input frame
+//! ([`signature`]): how fast its detail falls off from one scale to the next. A gentle capture keeps much of
+//! the short folds and wants a gentle sharpening; a harsh one keeps little and, if it is also noisy, wants
+//! the short band suppressed rather than amplified; the signature tells them apart from the data alone. The
+//! weights are fitted by ridge least squares on pairs of a detailed training frame and a random capture of
+//! it ([`captures`]); the ridge is chosen on the last training sequence held out (with one sequence, on its
+//! last quarter).
 //!
-//! Why this basis: Δc removes the coarse shape itself (a filter that keeps long waves has d ≈ 0 there), which
-//! keeps the least-squares problem well conditioned; Chebyshev polynomials of A are bounded on its spectrum, so
-//! high degrees stay numerically tame where powers of Δ would not. Why a polynomial of the Laplacian: any
-//! low-pass made of neighbourhood averages (Taubin's λ|μ filter that made the sleeve data's `captured/`, a
-//! scanner's smoothing) is one, and so is the best linear estimate of what it removed; the fit learns that
-//! estimate, with the ridge setting how far it trusts the weakest surviving frequencies.
+//! Every feature is a linear, rotation- and translation-equivariant function of the positions, measured in
+//! the frame's own mean edge length, so the filter depends on the local shape of the surface, never on vertex
+//! identity or units.
 //!
-//! The predicted fine shape is used only for its normals (the map `apply --coarse` writes); the output mesh stays
-//! the coarse one, so the shape is not moved.
+//! The guard ([`Guard`]) compares each input frame with what the model saw in training: its mean edge length
+//! (another unit or garment is refused with an error), its signature (a frame unlike every training capture
+//! falls back) and the size of the detail the filter would add (more than any training capture needed falls
+//! back). A fallback frame gets the capture's own normals and says so.
 
-use crate::registration::boundary_vertices;
-use crease_core::mesh::Topology;
-use crease_core::shape::TaubinFilter;
+pub mod captures;
+pub mod operator;
+
+use crate::nn::seed::Rng;
+use captures::CaptureDraw;
+use crease_core::mesh::{geometry, Topology};
+use crease_core::shape::mean_edge_length;
 use crease_core::vec3::{self, V3};
 use crease_core::{Error, Result};
 use faer::{Mat, Side};
+use operator::Walk;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-/// Polynomial degree of the default filter: over the sleeve-train leave-one-sequence-out splits the held-out
-/// normal error fell from 3.60° (degree 10) to 3.04° (20), 2.81° (40) and 2.78° (60): 40 is where more terms
-/// stop paying (docs/deepwrinkles.md).
-pub const DEFAULT_DEGREE: usize = 40;
-/// Ridge weight relative to the mean diagonal of the normal equations; the held-out error is flat from 1e-10
-/// to 1e-15 and rises above 1e-8 (docs/deepwrinkles.md).
-pub const DEFAULT_RIDGE: f64 = 1e-10;
+/// Chebyshev degree of the default filter.
+pub const DEFAULT_DEGREE: usize = 16;
+/// Random captures drawn per training frame.
+pub const DEFAULT_CAPTURES_PER_FRAME: usize = 1;
+/// Ridge weights tried (relative to the mean diagonal of the normal equations) on the held-out sequence.
+pub const RIDGES: [f64; 9] = [1e-10, 1e-8, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0];
+/// Numbers in a frame's signature.
+pub const SIGNATURE_LEN: usize = 7;
+/// Margin of the guard over the most extreme training frame.
+pub const GUARD_MARGIN: f64 = 1.25;
+/// Mean edge lengths the guard accepts, as a factor either side of the training range.
+pub const SCALE_TOLERANCE: f64 = 1.5;
 
-/// The uniform Laplacian of a topology: per vertex, the neighbours it averages over.
-///
-/// The neighbour lists are the capture filter's own ([`TaubinFilter::neighbors`]): the filter learns to undo
-/// that low-pass, so its Laplacian must be the very operator the capture applied, and keeping one builder
-/// means the two cannot drift apart.
-#[derive(Debug, Clone)]
-pub struct Umbrella {
-    rings: TaubinFilter,
-    boundary: Vec<bool>,
-}
+/// Chebyshev degree of the band-pass filters the signature measures with.
+const SIGNATURE_DEGREE: usize = 16;
+/// Band edges of the signature, as θ = arccos(a) in degrees for an eigenvalue a of P. On a grid of unit edges a
+/// flat wave of wavelength λ has a = (1 + cos 2π/λ)/2: the bands run from waves longer than about 16 edges,
+/// through 10, 7, 5 and 3.5 edges, to the shortest the mesh can carry (noise).
+const SIGNATURE_BANDS: [f64; 7] = [0.0, 16.0, 25.0, 36.0, 50.0, 70.0, 180.0];
 
-impl Umbrella {
-    pub fn new(topo: &Topology) -> Self {
-        let mut boundary = vec![false; topo.n_vertices()];
-        for v in boundary_vertices(topo) {
-            boundary[v as usize] = true;
-        }
-        Umbrella {
-            rings: TaubinFilter::capture(topo),
-            boundary,
-        }
-    }
-
-    pub fn n_vertices(&self) -> usize {
-        self.boundary.len()
-    }
-
-    /// Whether vertex `v` lies on an open boundary (its Laplacian runs along the boundary).
-    pub fn is_boundary(&self, v: usize) -> bool {
-        self.boundary[v]
-    }
-
-    /// Δx: the mean of each vertex's neighbours minus the vertex (0 for a vertex without neighbours).
-    pub fn laplacian(&self, x: &[V3]) -> Vec<V3> {
-        (0..x.len()).map(|v| self.laplacian_at(x, v)).collect()
-    }
-
-    /// (Δx)_v, the one definition [`Umbrella::laplacian`] and [`DetailFilter::apply_into`] share.
-    #[inline]
-    pub fn laplacian_at(&self, x: &[V3], v: usize) -> V3 {
-        let nb = self.rings.neighbors(v);
-        if nb.is_empty() {
-            return [0.0; 3];
-        }
-        let mut avg = [0.0; 3];
-        for &w in nb {
-            avg = vec3::add(avg, x[w as usize]);
-        }
-        vec3::sub(vec3::scale(avg, 1.0 / nb.len() as f64), x[v])
-    }
-
-    /// The filter's features of a coarse frame: T_j(A) Δc for j = 0..=degree, A = −Δ − I.
-    pub fn features(&self, coarse: &[V3], degree: usize) -> Vec<Vec<V3>> {
-        let a = |x: &[V3]| -> Vec<V3> {
-            self.laplacian(x)
+/// One frame's signature: ½ log of the mean |Δc|² over h², then ½ log of each band's share of that energy
+/// (the bands of [`SIGNATURE_BANDS`]). Together they say how much curvature detail the frame has and how it
+/// is spread from long folds to the shortest waves: a capture that keeps little of the short folds has little
+/// there, a noisy one has much at the very top. Measured on interior vertices, from the data alone.
+pub fn signature(features: &[Vec<V3>], walk: &Walk, h: f64) -> [f64; SIGNATURE_LEN] {
+    let d = SIGNATURE_DEGREE.min(features.len() - 1);
+    let interior: Vec<usize> = (0..walk.n_vertices())
+        .filter(|&v| !walk.is_boundary(v))
+        .collect();
+    let n = interior.len().max(1) as f64;
+    // Gram matrix of the features: every band's energy is a quadratic form in it.
+    let mut g = vec![0.0; (d + 1) * (d + 1)];
+    for i in 0..=d {
+        for j in i..=d {
+            let e = interior
                 .iter()
-                .zip(x)
-                .map(|(l, p)| vec3::scale(vec3::add(*l, *p), -1.0))
-                .collect()
-        };
-        let mut out = Vec::with_capacity(degree + 1);
-        out.push(self.laplacian(coarse));
-        if degree >= 1 {
-            out.push(a(&out[0]));
+                .map(|&v| vec3::dot(features[i][v], features[j][v]))
+                .sum::<f64>()
+                / n;
+            g[i * (d + 1) + j] = e;
+            g[j * (d + 1) + i] = e;
         }
-        for j in 2..=degree {
-            let at = a(&out[j - 1]);
-            let next: Vec<V3> = at
-                .iter()
-                .zip(&out[j - 2])
-                .map(|(p, q)| vec3::sub(vec3::scale(*p, 2.0), *q))
-                .collect();
-            out.push(next);
-        }
-        out
     }
+    let tiny = 1e-300;
+    let total = g[0].max(tiny);
+    let mut s = [0.0; SIGNATURE_LEN];
+    s[0] = 0.5 * (total / (h * h).max(tiny)).ln();
+    for (b, slot) in s.iter_mut().skip(1).enumerate() {
+        let c = band_coefficients(SIGNATURE_BANDS[b], SIGNATURE_BANDS[b + 1], d);
+        let mut e = 0.0;
+        for i in 0..=d {
+            for j in 0..=d {
+                e += c[i] * g[i * (d + 1) + j] * c[j];
+            }
+        }
+        *slot = 0.5 * (e.max(tiny * total) / total).ln();
+    }
+    s
 }
 
-/// Normal equations of the filter over some training pairs, interior and boundary vertices apart.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DetailSystem {
-    pub degree: usize,
-    /// [interior, boundary] Gram matrices ((degree+1)², row-major) and right-hand sides.
-    pub gram: [Vec<f64>; 2],
-    pub rhs: [Vec<f64>; 2],
-    /// Σ |fine − coarse|² per class, for held-out residuals of other fits ([`DetailSystem::residual`]).
-    pub target_sq: [f64; 2],
-    pub frames: usize,
+/// Jackson-damped Chebyshev coefficients of the indicator of θ ∈ [lo, hi) degrees (a = cos θ), degree `d`.
+fn band_coefficients(lo: f64, hi: f64, d: usize) -> Vec<f64> {
+    let nodes = 8 * (d + 1);
+    let mut c = vec![0.0; d + 1];
+    for q in 0..nodes {
+        let theta = std::f64::consts::PI * (q as f64 + 0.5) / nodes as f64;
+        let deg = theta.to_degrees();
+        if deg >= lo && deg < hi {
+            for (j, cj) in c.iter_mut().enumerate() {
+                *cj += 2.0 / nodes as f64 * (j as f64 * theta).cos();
+            }
+        }
+    }
+    c[0] *= 0.5;
+    let m = (d + 1) as f64;
+    let a = std::f64::consts::PI / (m + 1.0);
+    for (j, cj) in c.iter_mut().enumerate() {
+        let j = j as f64;
+        *cj *= ((m - j + 1.0) * (j * a).cos() + (j * a).sin() / a.tan()) / (m + 1.0);
+    }
+    c
 }
 
-impl DetailSystem {
-    pub fn new(degree: usize) -> Self {
-        let m = degree + 1;
-        DetailSystem {
-            degree,
-            gram: [vec![0.0; m * m], vec![0.0; m * m]],
-            rhs: [vec![0.0; m], vec![0.0; m]],
-            target_sq: [0.0; 2],
-            frames: 0,
-        }
+/// T_j(P) Δc for j = 0..=degree.
+pub fn features(walk: &Walk, coarse: &[V3], degree: usize) -> Vec<Vec<V3>> {
+    let mut out: Vec<Vec<V3>> = Vec::with_capacity(degree + 1);
+    out.push(walk.laplacian(coarse));
+    if degree >= 1 {
+        let mut t1 = vec![[0.0; 3]; coarse.len()];
+        walk.average_into(&out[0], &mut t1);
+        out.push(t1);
     }
-
-    /// The normal equations of one (coarse, fine) frame pair.
-    pub fn of_frame(op: &Umbrella, coarse: &[V3], fine: &[V3], degree: usize) -> Self {
-        let m = degree + 1;
-        let mut s = DetailSystem::new(degree);
-        let f = op.features(coarse, degree);
-        for v in 0..coarse.len() {
-            let c = usize::from(op.is_boundary(v));
-            let d = vec3::sub(fine[v], coarse[v]);
-            s.target_sq[c] += vec3::dot(d, d);
-            let (g, b) = (&mut s.gram[c], &mut s.rhs[c]);
-            for i in 0..m {
-                let fi = f[i][v];
-                b[i] += vec3::dot(fi, d);
-                for j in i..m {
-                    g[i * m + j] += vec3::dot(fi, f[j][v]);
-                }
-            }
+    for j in 2..=degree {
+        let mut t = vec![[0.0; 3]; coarse.len()];
+        walk.average_into(&out[j - 1], &mut t);
+        for (a, b) in t.iter_mut().zip(&out[j - 2]) {
+            *a = vec3::sub(vec3::scale(*a, 2.0), *b);
         }
-        for g in &mut s.gram {
-            for i in 0..m {
-                for j in 0..i {
-                    g[i * m + j] = g[j * m + i];
-                }
-            }
-        }
-        s.frames = 1;
-        s
+        out.push(t);
     }
-
-    /// Adds another system (same degree) into this one.
-    pub fn add(&mut self, o: &DetailSystem) {
-        for c in 0..2 {
-            for (a, b) in self.gram[c].iter_mut().zip(&o.gram[c]) {
-                *a += b;
-            }
-            for (a, b) in self.rhs[c].iter_mut().zip(&o.rhs[c]) {
-                *a += b;
-            }
-            self.target_sq[c] += o.target_sq[c];
-        }
-        self.frames += o.frames;
-    }
-
-    /// Sum of squared residuals |fine − (coarse + filter)|² of `filter` on the pairs of this system.
-    pub fn residual(&self, filter: &DetailFilter) -> f64 {
-        let m = self.degree + 1;
-        (0..2)
-            .map(|c| {
-                let w = filter.weights(c == 1);
-                let mut r = self.target_sq[c];
-                for i in 0..m {
-                    r -= 2.0 * self.rhs[c][i] * w[i];
-                    for j in 0..m {
-                        r += w[i] * self.gram[c][i * m + j] * w[j];
-                    }
-                }
-                r
-            })
-            .sum()
-    }
-
-    /// The ridge solution: (G + ridge · mean diag(G) · I) w = b per class; a class without vertices gets w = 0.
-    pub fn solve(&self, ridge: f64) -> Result<DetailFilter> {
-        let m = self.degree + 1;
-        let mut w = [vec![0.0; m], vec![0.0; m]];
-        for (c, wc) in w.iter_mut().enumerate() {
-            let mean_diag = (0..m).map(|i| self.gram[c][i * m + i]).sum::<f64>() / m as f64;
-            if mean_diag <= 0.0 || !mean_diag.is_finite() {
-                continue;
-            }
-            let g = Mat::<f64>::from_fn(m, m, |i, j| {
-                self.gram[c][i * m + j] + if i == j { ridge * mean_diag } else { 0.0 }
-            });
-            let eig = g
-                .self_adjoint_eigen(Side::Lower)
-                .map_err(|e| Error::Numeric {
-                    stage: "detail filter".into(),
-                    msg: format!("eigendecomposition of the normal equations: {e:?}"),
-                })?;
-            let s = eig.S().column_vector();
-            let u = eig.U();
-            let smax = (0..m).map(|i| s[i]).fold(0.0f64, f64::max);
-            for k in 0..m {
-                if s[k] <= smax * 1e-14 {
-                    continue;
-                }
-                let proj: f64 = (0..m).map(|i| u[(i, k)] * self.rhs[c][i]).sum::<f64>() / s[k];
-                for i in 0..m {
-                    wc[i] += u[(i, k)] * proj;
-                }
-            }
-        }
-        let [interior, boundary] = w;
-        Ok(DetailFilter {
-            degree: self.degree,
-            interior,
-            boundary,
-        })
-    }
+    out
 }
 
-/// The fitted filter: Chebyshev weights for interior and for boundary vertices.
+/// The conditioning vector of a signature: 1, then each number standardised and clamped to ±3.
+fn conditioning(s: &[f64; SIGNATURE_LEN], mean: &[f64], std: &[f64]) -> [f64; SIGNATURE_LEN + 1] {
+    let mut x = [1.0; SIGNATURE_LEN + 1];
+    for i in 0..SIGNATURE_LEN {
+        x[i + 1] = ((s[i] - mean[i]) / std[i].max(1e-12)).clamp(-3.0, 3.0);
+    }
+    x
+}
+
+/// Distance of a signature from the training mean, in training standard deviations (not clamped).
+fn signature_distance(s: &[f64; SIGNATURE_LEN], mean: &[f64], std: &[f64]) -> f64 {
+    (0..SIGNATURE_LEN)
+        .map(|i| ((s[i] - mean[i]) / std[i].max(1e-12)).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// What the guard accepts, measured on the training captures.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct DetailFilter {
+pub struct Guard {
+    /// Smallest and largest mean edge length of the training frames (m).
+    pub edge_length: [f64; 2],
+    /// Largest signature distance of a training capture, times [`GUARD_MARGIN`].
+    pub max_signature_distance: f64,
+    /// Largest RMS of the predicted detail of a training capture in its mean edge lengths, times the margin.
+    pub max_detail: f64,
+}
+
+/// The scalar part of the detail model (the manifest's `detail`); the weights are `detail.npy`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetailSpec {
     pub degree: usize,
+    pub ridge: f64,
+    pub captures_per_frame: usize,
+    pub seed: u64,
+    pub signature_mean: Vec<f64>,
+    pub signature_std: Vec<f64>,
+    pub guard: Guard,
+    /// Mean normal error (°) on the held-out training sequence's random captures: of the captures themselves,
+    /// and of the model's prediction (guard included).
+    pub held_out_capture_deg: f64,
+    pub held_out_model_deg: f64,
+}
+
+/// The fitted model: weights per class (interior, boundary vertices), (degree + 1) × (signature + 1).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DetailModel {
+    pub spec: DetailSpec,
     pub interior: Vec<f64>,
     pub boundary: Vec<f64>,
 }
 
-impl DetailFilter {
-    pub fn weights(&self, boundary: bool) -> &[f64] {
-        if boundary {
-            &self.boundary
-        } else {
-            &self.interior
+/// Why a frame got the capture's own normals.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Fallback {
+    /// The frame's signature is further from the training captures' than any of them.
+    Signature { distance: f64, limit: f64 },
+    /// The filter would add more detail than any training capture needed.
+    Detail { rms_edges: f64, limit: f64 },
+}
+
+impl std::fmt::Display for Fallback {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Fallback::Signature { distance, limit } => write!(
+                f,
+                "the frame's detail spectrum is {distance:.2} standard deviations from the training captures' (limit {limit:.2})"
+            ),
+            Fallback::Detail { rms_edges, limit } => write!(
+                f,
+                "the model would add {rms_edges:.3} edge lengths of detail (RMS; limit {limit:.3})"
+            ),
         }
     }
+}
 
-    /// Fits the filter on (coarse, fine) frame pairs of one topology. Frames are reduced in their given order
-    /// (each frame's system is computed in parallel, then summed one after another), so the weights are the
-    /// same bytes whatever the number of threads.
-    pub fn fit(
-        topo: &Topology,
-        pairs: &[FramePair],
-        degree: usize,
-        ridge: f64,
-    ) -> Result<DetailFilter> {
-        fit_system(topo, pairs, degree)?.solve(ridge)
+/// The result of one frame: the fine shape, or the capture itself with the reason.
+pub enum Prediction {
+    Fine(Vec<V3>),
+    Fallback(Fallback),
+}
+
+impl DetailModel {
+    fn unknowns(degree: usize) -> usize {
+        (degree + 1) * (SIGNATURE_LEN + 1)
     }
 
-    /// The fine shape the filter predicts for a coarse frame.
-    pub fn apply(&self, op: &Umbrella, coarse: &[V3]) -> Vec<V3> {
-        let mut out = Vec::new();
-        self.apply_into(op, coarse, &mut out, &mut FilterScratch::default());
-        out
-    }
-
-    /// [`DetailFilter::apply`] into `out`, with `scratch`'s buffers reused from frame to frame: the Chebyshev
-    /// recurrence keeps only its last two terms, and each term is added into the result as soon as it is made
-    /// (41 passes over three flat arrays instead of 41 stored feature arrays). Every vertex sees the same
-    /// operations in the same order as [`Umbrella::features`] followed by the weighted sum, so the result is
-    /// bit for bit the same.
-    pub fn apply_into(
-        &self,
-        op: &Umbrella,
-        coarse: &[V3],
-        out: &mut Vec<V3>,
-        scratch: &mut FilterScratch,
-    ) {
-        let n = coarse.len();
-        out.clear();
-        out.extend_from_slice(coarse);
-        let FilterScratch { prev, cur, next } = scratch;
-        for buf in [&mut *prev, &mut *cur, &mut *next] {
-            buf.clear();
-            buf.resize(n, [0.0; 3]);
-        }
-        let add_term = |out: &mut [V3], f: &[V3], j: usize| {
-            for (v, (p, fv)) in out.iter_mut().zip(f).enumerate() {
-                let w = self.weights(op.is_boundary(v))[j];
-                *p = vec3::add(*p, vec3::scale(*fv, w));
-            }
-        };
-        // T_0(A) Δc = Δc.
-        for (v, l) in cur.iter_mut().enumerate() {
-            *l = op.laplacian_at(coarse, v);
-        }
-        add_term(out, cur, 0);
-        if self.degree == 0 {
-            return;
-        }
-        // T_1(A) Δc = A Δc, A x = −(Δx + x).
-        std::mem::swap(prev, cur);
-        for (v, t) in cur.iter_mut().enumerate() {
-            *t = vec3::scale(vec3::add(op.laplacian_at(prev, v), prev[v]), -1.0);
-        }
-        add_term(out, cur, 1);
-        // T_j = 2 A T_(j−1) − T_(j−2).
-        for j in 2..=self.degree {
-            for (v, t) in next.iter_mut().enumerate() {
-                let at = vec3::scale(vec3::add(op.laplacian_at(cur, v), cur[v]), -1.0);
-                *t = vec3::sub(vec3::scale(at, 2.0), prev[v]);
-            }
-            add_term(out, next, j);
-            // (prev, cur, next) ← (cur, next, prev): the oldest term's buffer is the next one written.
-            std::mem::swap(prev, cur);
-            std::mem::swap(cur, next);
-        }
-    }
-
-    /// Checks the weights against the stored degree (a damaged or foreign `detail.npy`).
+    /// Checks the weights against the stored degree (a damaged or foreign `detail.npy`) and the spec's numbers.
     pub fn check(&self) -> std::result::Result<(), String> {
-        let m = self.degree + 1;
+        let m = Self::unknowns(self.spec.degree);
         if self.interior.len() != m || self.boundary.len() != m {
             return Err(format!(
-                "{} interior and {} boundary weights for degree {}",
+                "{} and {} weights for degree {} ({m} expected)",
                 self.interior.len(),
                 self.boundary.len(),
-                self.degree
+                self.spec.degree
             ));
         }
-        if self
+        if !self
             .interior
             .iter()
             .chain(&self.boundary)
-            .any(|w| !w.is_finite())
+            .all(|w| w.is_finite())
         {
-            return Err("a weight is not finite".into());
+            return Err("a weight is not a finite number".into());
+        }
+        let s = &self.spec;
+        if s.signature_mean.len() != SIGNATURE_LEN || s.signature_std.len() != SIGNATURE_LEN {
+            return Err(format!("the signature has {SIGNATURE_LEN} numbers"));
+        }
+        let g = &s.guard;
+        if !(g.edge_length[0] > 0.0 && g.edge_length[1] >= g.edge_length[0])
+            || !(g.max_signature_distance > 0.0 && g.max_detail > 0.0)
+        {
+            return Err("guard limits must be positive".into());
         }
         Ok(())
     }
+
+    /// Refuses a frame whose mean edge length is outside what the model was trained on (another unit or
+    /// garment): an error naming the frame and both lengths.
+    pub fn check_scale(&self, topo: &Topology, coarse: &[V3], what: &str) -> Result<f64> {
+        let h = mean_edge_length(topo, coarse);
+        let [lo, hi] = self.spec.guard.edge_length;
+        if !(h >= lo / SCALE_TOLERANCE && h <= hi * SCALE_TOLERANCE) {
+            return Err(Error::param(
+                "coarse",
+                format!(
+                    "{what}: mean edge length {:.3} mm is outside what the model was trained on ({:.3}–{:.3} mm, \
+                     accepted down to {:.3} and up to {:.3} mm): another unit or another garment?",
+                    h * 1e3,
+                    lo * 1e3,
+                    hi * 1e3,
+                    lo / SCALE_TOLERANCE * 1e3,
+                    hi * SCALE_TOLERANCE * 1e3
+                ),
+            ));
+        }
+        Ok(h)
+    }
+
+    /// The detail d the filter adds to `coarse` (not guarded), with the frame's signature.
+    pub fn detail(
+        &self,
+        topo: &Topology,
+        coarse: &[V3],
+        h: f64,
+    ) -> (Vec<V3>, [f64; SIGNATURE_LEN]) {
+        let walk = Walk::cotangent(topo, coarse);
+        let f = features(&walk, coarse, self.spec.degree.max(SIGNATURE_DEGREE));
+        let s = signature(&f, &walk, h);
+        let x = conditioning(&s, &self.spec.signature_mean, &self.spec.signature_std);
+        let k = SIGNATURE_LEN + 1;
+        let mix = |w: &[f64]| -> Vec<f64> {
+            (0..=self.spec.degree)
+                .map(|j| (0..k).map(|i| w[j * k + i] * x[i]).sum())
+                .collect()
+        };
+        let (wi, wb) = (mix(&self.interior), mix(&self.boundary));
+        let d = (0..coarse.len())
+            .map(|v| {
+                let w = if walk.is_boundary(v) { &wb } else { &wi };
+                let mut acc = [0.0; 3];
+                for (j, fj) in f.iter().take(self.spec.degree + 1).enumerate() {
+                    acc = vec3::add(acc, vec3::scale(fj[v], w[j]));
+                }
+                acc
+            })
+            .collect();
+        (d, s)
+    }
+
+    /// The fine shape predicted for `coarse` (mean edge length `h`), or why the guard refused it.
+    pub fn predict(&self, topo: &Topology, coarse: &[V3], h: f64) -> Prediction {
+        let (d, s) = self.detail(topo, coarse, h);
+        let g = &self.spec.guard;
+        let distance = signature_distance(&s, &self.spec.signature_mean, &self.spec.signature_std);
+        if distance > g.max_signature_distance {
+            return Prediction::Fallback(Fallback::Signature {
+                distance,
+                limit: g.max_signature_distance,
+            });
+        }
+        let rms = rms(&d) / h;
+        if rms > g.max_detail {
+            return Prediction::Fallback(Fallback::Detail {
+                rms_edges: rms,
+                limit: g.max_detail,
+            });
+        }
+        Prediction::Fine(
+            coarse
+                .iter()
+                .zip(&d)
+                .map(|(c, e)| vec3::add(*c, *e))
+                .collect(),
+        )
+    }
+
+    /// The vertex normals the model stands for on `coarse`: the predicted fine shape's, or on a fallback the
+    /// capture's own.
+    pub fn normals(&self, topo: &Topology, coarse: &[V3], h: f64) -> (Vec<V3>, Option<Fallback>) {
+        match self.predict(topo, coarse, h) {
+            Prediction::Fine(fine) => (geometry::vertex_normals(topo, &fine), None),
+            Prediction::Fallback(f) => (geometry::vertex_normals(topo, coarse), Some(f)),
+        }
+    }
 }
 
-/// The three recurrence buffers of [`DetailFilter::apply_into`], kept between frames.
-#[derive(Debug, Clone, Default)]
-pub struct FilterScratch {
-    prev: Vec<V3>,
-    cur: Vec<V3>,
-    next: Vec<V3>,
+/// RMS length of a displacement field.
+fn rms(d: &[V3]) -> f64 {
+    (d.iter().map(|e| vec3::dot(*e, *e)).sum::<f64>() / d.len().max(1) as f64).sqrt()
 }
 
-/// A (coarse, fine) frame pair of one topology.
-pub type FramePair<'a> = (&'a [V3], &'a [V3]);
-
-/// The normal equations of all `pairs` (checked against `topo`), reduced in frame order.
-pub fn fit_system(topo: &Topology, pairs: &[FramePair], degree: usize) -> Result<DetailSystem> {
-    use rayon::prelude::*;
-    let nv = topo.n_vertices();
-    if let Some(i) = pairs
+/// Mean angle (°) between two normal fields.
+pub fn mean_angle_deg(a: &[V3], b: &[V3]) -> f64 {
+    let sum: f64 = a
         .iter()
-        .position(|(c, f)| c.len() != nv || f.len() != nv)
-    {
+        .zip(b)
+        .map(|(x, y)| vec3::dot(*x, *y).clamp(-1.0, 1.0).acos())
+        .sum();
+    (sum / a.len().max(1) as f64).to_degrees()
+}
+
+/// The training data of the detail model: detailed frames grouped by sequence (the last one is held out to
+/// choose the ridge and calibrate nothing else).
+pub struct DetailData<'a> {
+    pub topo: &'a Topology,
+    pub sequences: Vec<&'a [Vec<V3>]>,
+}
+
+/// Options of [`fit`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetailParams {
+    pub degree: usize,
+    pub captures_per_frame: usize,
+    pub seed: u64,
+}
+
+impl Default for DetailParams {
+    fn default() -> Self {
+        DetailParams {
+            degree: DEFAULT_DEGREE,
+            captures_per_frame: DEFAULT_CAPTURES_PER_FRAME,
+            seed: 1,
+        }
+    }
+}
+
+/// One (capture, fine) pair's contribution: the Gram matrix and right-hand side of its features over both
+/// weight sets (interior vertices' then boundary vertices'), before the conditioning vector is applied, and the
+/// frame's signature and scale.
+struct PairSystem {
+    gram: Vec<f64>,
+    rhs: Vec<f64>,
+    signature: [f64; SIGNATURE_LEN],
+    h: f64,
+}
+
+/// The capture of training frame `frame` of sequence `seq`, draw `k`: seeded by all four numbers, so the
+/// training pairs are the same whatever the thread count.
+pub fn training_capture(
+    topo: &Topology,
+    fine: &[V3],
+    h: f64,
+    seed: u64,
+    seq: usize,
+    frame: usize,
+    k: usize,
+) -> (Vec<V3>, CaptureDraw) {
+    let mix = seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add((seq as u64) << 40)
+        .wrapping_add((frame as u64) << 8)
+        .wrapping_add(k as u64);
+    let mut rng = Rng::new(mix);
+    let d = captures::draw(&mut rng);
+    let c = captures::capture(topo, fine, h, &d, &mut rng);
+    (c, d)
+}
+
+/// The pair's normal equations. The residual is measured along every edge, as the difference of the
+/// residuals at its two ends: a normal is the surface's slope, and fitting positions instead spends the fit on
+/// long waves whose slopes hardly matter (same held-out normal error on sleeve-train, by a hair worse).
+fn pair_system(topo: &Topology, capture: &[V3], fine: &[V3], degree: usize) -> PairSystem {
+    let h = mean_edge_length(topo, capture);
+    let walk = Walk::cotangent(topo, capture);
+    let f = features(&walk, capture, degree.max(SIGNATURE_DEGREE));
+    let s = signature(&f, &walk, h);
+    let m = degree + 1;
+    let n = 2 * m;
+    let mut gram = vec![0.0; n * n];
+    let mut rhs = vec![0.0; n];
+    let r: Vec<V3> = fine
+        .iter()
+        .zip(capture)
+        .map(|(a, b)| vec3::sub(*a, *b))
+        .collect();
+    let class = |v: usize| usize::from(walk.is_boundary(v));
+    let mut row = vec![[0.0; 3]; n];
+    let mut add = |row: &[V3], target: V3| {
+        for i in 0..n {
+            if row[i] == [0.0; 3] {
+                continue;
+            }
+            rhs[i] += vec3::dot(row[i], target);
+            for j in i..n {
+                gram[i * n + j] += vec3::dot(row[i], row[j]);
+            }
+        }
+    };
+    for (t, tri) in topo.triangles().iter().enumerate() {
+        for k in 0..3 {
+            let adj = topo.tri_adj()[t][k];
+            if !(adj == crease_core::mesh::NONE || (adj as usize) > t) {
+                continue;
+            }
+            let (a, b) = (tri[k] as usize, tri[(k + 1) % 3] as usize);
+            row.iter_mut().for_each(|x| *x = [0.0; 3]);
+            for j in 0..m {
+                let ra = &mut row[class(a) * m + j];
+                *ra = vec3::add(*ra, f[j][a]);
+                let rb = &mut row[class(b) * m + j];
+                *rb = vec3::sub(*rb, f[j][b]);
+            }
+            add(&row, vec3::sub(r[a], r[b]));
+        }
+    }
+    for i in 0..n {
+        for j in 0..i {
+            gram[i * n + j] = gram[j * n + i];
+        }
+    }
+    PairSystem {
+        gram,
+        rhs,
+        signature: s,
+        h,
+    }
+}
+
+/// Normal equations of the conditioned model over some pairs: unknown (c · m + j) · k + i is weight j of
+/// class c (interior, boundary) times conditioning number i.
+struct System {
+    gram: Vec<f64>,
+    rhs: Vec<f64>,
+    n: usize,
+}
+
+impl System {
+    fn new(degree: usize) -> System {
+        let n = 2 * DetailModel::unknowns(degree);
+        System {
+            gram: vec![0.0; n * n],
+            rhs: vec![0.0; n],
+            n,
+        }
+    }
+
+    fn add(&mut self, p: &PairSystem, x: &[f64; SIGNATURE_LEN + 1]) {
+        let k = SIGNATURE_LEN + 1;
+        let (pn, n) = (p.rhs.len(), self.n);
+        for a in 0..pn {
+            for i in 0..k {
+                self.rhs[a * k + i] += p.rhs[a] * x[i];
+                for b in 0..pn {
+                    let g = p.gram[a * pn + b] * x[i];
+                    if g == 0.0 {
+                        continue;
+                    }
+                    let start = (a * k + i) * n + b * k;
+                    for (q, r) in self.gram[start..start + k].iter_mut().enumerate() {
+                        *r += g * x[q];
+                    }
+                }
+            }
+        }
+    }
+
+    /// The ridge solution split into the two classes' weights.
+    fn solve(&self, ridge: f64) -> Result<[Vec<f64>; 2]> {
+        let n = self.n;
+        let mut w = vec![0.0; n];
+        let mean_diag = (0..n).map(|i| self.gram[i * n + i]).sum::<f64>() / n as f64;
+        if mean_diag > 0.0 && mean_diag.is_finite() {
+            let g = Mat::<f64>::from_fn(n, n, |i, j| {
+                self.gram[i * n + j] + if i == j { ridge * mean_diag } else { 0.0 }
+            });
+            let eig = g
+                .self_adjoint_eigen(Side::Lower)
+                .map_err(|e| Error::Numeric {
+                    stage: "detail model".into(),
+                    msg: format!("eigendecomposition of the normal equations: {e:?}"),
+                })?;
+            let s = eig.S().column_vector();
+            let u = eig.U();
+            let smax = (0..n).map(|i| s[i]).fold(0.0f64, f64::max);
+            for k in 0..n {
+                if s[k] <= smax * 1e-14 {
+                    continue;
+                }
+                let proj: f64 = (0..n).map(|i| u[(i, k)] * self.rhs[i]).sum::<f64>() / s[k];
+                for (i, wi) in w.iter_mut().enumerate() {
+                    *wi += u[(i, k)] * proj;
+                }
+            }
+        }
+        let boundary = w.split_off(n / 2);
+        Ok([w, boundary])
+    }
+}
+
+/// Fits the detail model: random captures of every training frame, the ridge chosen on the last sequence
+/// held out (by the mean normal error of its captures' predictions), then the weights refitted on all
+/// sequences and the guard calibrated on every training capture. Deterministic for a seed.
+pub fn fit(data: &DetailData, params: &DetailParams) -> Result<DetailModel> {
+    let topo = data.topo;
+    let n_seq = data.sequences.len();
+    if n_seq == 0 || data.sequences.iter().all(|s| s.is_empty()) {
         return Err(Error::param(
-            "detail",
-            format!(
-                "training pair {} does not have the topology's {nv} vertices",
-                i + 1
-            ),
+            "data",
+            "no detailed frames to learn detail from",
         ));
     }
-    let op = Umbrella::new(topo);
-    let systems: Vec<DetailSystem> = pairs
-        .par_iter()
-        .map(|(c, f)| DetailSystem::of_frame(&op, c, f, degree))
+    let degree = params.degree;
+    let jobs: Vec<(usize, usize, usize)> = data
+        .sequences
+        .iter()
+        .enumerate()
+        .flat_map(|(s, frames)| {
+            (0..frames.len())
+                .flat_map(move |t| (0..params.captures_per_frame).map(move |k| (s, t, k)))
+        })
         .collect();
-    let mut total = DetailSystem::new(degree);
-    for s in &systems {
-        total.add(s);
+    let pairs: Vec<(PairSystem, Vec<V3>, f64)> = jobs
+        .par_iter()
+        .map(|&(s, t, k)| {
+            let fine = &data.sequences[s][t];
+            let h = mean_edge_length(topo, fine);
+            let (c, _) = training_capture(topo, fine, h, params.seed, s, t, k);
+            (pair_system(topo, &c, fine, degree), c, h)
+        })
+        .collect();
+    // Signature statistics over every training capture.
+    let count = pairs.len() as f64;
+    let mut mean = vec![0.0; SIGNATURE_LEN];
+    for (p, _, _) in &pairs {
+        for i in 0..SIGNATURE_LEN {
+            mean[i] += p.signature[i] / count;
+        }
     }
-    Ok(total)
+    let mut std = vec![0.0; SIGNATURE_LEN];
+    for (p, _, _) in &pairs {
+        for i in 0..SIGNATURE_LEN {
+            std[i] += (p.signature[i] - mean[i]).powi(2) / count;
+        }
+    }
+    for s in &mut std {
+        *s = s.sqrt().max(1e-6);
+    }
+    // Held out to choose the ridge: the last sequence, or with one sequence its last quarter of frames.
+    let held_len = data.sequences[n_seq - 1].len();
+    let is_held =
+        |s: usize, t: usize| s == n_seq - 1 && (n_seq > 1 || t >= held_len - held_len / 4);
+    let mut train_sys = System::new(degree);
+    let mut all_sys = System::new(degree);
+    for ((p, _, _), &(s, t, _)) in pairs.iter().zip(&jobs) {
+        let x = conditioning(&p.signature, &mean, &std);
+        all_sys.add(p, &x);
+        if !is_held(s, t) {
+            train_sys.add(p, &x);
+        }
+    }
+    // The scale the model knows is that of the detailed frames (a capture's mean edge length is a little
+    // shorter where it smooths).
+    let edge_length = pairs.iter().fold([f64::INFINITY, 0.0f64], |a, (_, _, h)| {
+        [a[0].min(*h), a[1].max(*h)]
+    });
+    let provisional = |w: [Vec<f64>; 2], ridge: f64| {
+        let [interior, boundary] = w;
+        DetailModel {
+            spec: DetailSpec {
+                degree,
+                ridge,
+                captures_per_frame: params.captures_per_frame,
+                seed: params.seed,
+                signature_mean: mean.clone(),
+                signature_std: std.clone(),
+                guard: Guard {
+                    edge_length,
+                    max_signature_distance: f64::INFINITY,
+                    max_detail: f64::INFINITY,
+                },
+                held_out_capture_deg: f64::NAN,
+                held_out_model_deg: f64::NAN,
+            },
+            interior,
+            boundary,
+        }
+    };
+    // The ridge: the one whose fit on the other sequences predicts the held-out sequence's normals best.
+    let held_pairs: Vec<usize> = jobs
+        .iter()
+        .enumerate()
+        .filter(|(_, j)| is_held(j.0, j.1))
+        .map(|(i, _)| i)
+        .collect();
+    let score = |m: &DetailModel, guarded: bool| -> (f64, f64) {
+        let errs: Vec<(f64, f64)> = held_pairs
+            .par_iter()
+            .map(|&i| {
+                let (s, t, _) = jobs[i];
+                let fine = &data.sequences[s][t];
+                let c = &pairs[i].1;
+                let truth = geometry::vertex_normals(topo, fine);
+                let h = pairs[i].0.h;
+                let own = geometry::vertex_normals(topo, c);
+                let pred = if guarded {
+                    m.normals(topo, c, h).0
+                } else {
+                    let (d, _) = m.detail(topo, c, h);
+                    let f: Vec<V3> = c.iter().zip(&d).map(|(a, b)| vec3::add(*a, *b)).collect();
+                    geometry::vertex_normals(topo, &f)
+                };
+                (mean_angle_deg(&own, &truth), mean_angle_deg(&pred, &truth))
+            })
+            .collect();
+        let n = errs.len().max(1) as f64;
+        (
+            errs.iter().map(|e| e.0).sum::<f64>() / n,
+            errs.iter().map(|e| e.1).sum::<f64>() / n,
+        )
+    };
+    let ridge = if held_pairs.is_empty() {
+        return Err(Error::param(
+            "data",
+            "too few detailed frames to hold some out for the detail model",
+        ));
+    } else {
+        let mut best = (f64::INFINITY, RIDGES[0]);
+        for &r in &RIDGES {
+            let m = provisional(train_sys.solve(r)?, r);
+            let (_, e) = score(&m, false);
+            if e < best.0 {
+                best = (e, r);
+            }
+        }
+        best.1
+    };
+    let mut model = provisional(all_sys.solve(ridge)?, ridge);
+    // The guard: the most extreme signature and detail of any training capture, with a margin.
+    let (max_dist, max_detail) = pairs
+        .par_iter()
+        .map(|(p, c, _)| {
+            let dist = signature_distance(&p.signature, &mean, &std);
+            let (d, _) = model.detail(topo, c, p.h);
+            (dist, rms(&d) / p.h)
+        })
+        .reduce(|| (0.0f64, 0.0f64), |a, b| (a.0.max(b.0), a.1.max(b.1)));
+    model.spec.guard.max_signature_distance = GUARD_MARGIN * max_dist;
+    model.spec.guard.max_detail = GUARD_MARGIN * max_detail;
+    {
+        // Held-out figures of the final ridge, from the fit without the held-out frames.
+        let mut m = provisional(train_sys.solve(ridge)?, ridge);
+        m.spec.guard = model.spec.guard.clone();
+        let (own, pred) = score(&m, true);
+        model.spec.held_out_capture_deg = own;
+        model.spec.held_out_model_deg = pred;
+    }
+    Ok(model)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detail::operator::tests::grid;
 
-    /// A flat grid, its boundary rows open.
-    fn grid(nx: usize, ny: usize) -> (Topology, Vec<V3>) {
-        let mut p = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                p.push([i as f64, j as f64, 0.0]);
-            }
+    /// A grid with folds of a few wavelengths, moving with `phase`.
+    fn folded(phase: f64) -> (Topology, Vec<V3>) {
+        let (topo, mut p) = grid(40, 24);
+        for q in p.iter_mut() {
+            let (x, y) = (q[0], q[1]);
+            q[2] = 0.35 * (x * 0.9 + phase).sin() * (y * 0.3).cos()
+                + 0.2 * (x * 0.45 - y * 0.6 + phase).sin()
+                + 2.0 * (x * 0.05).sin();
         }
-        let mut tris = Vec::new();
-        for j in 0..ny - 1 {
-            for i in 0..nx - 1 {
-                let a = (j * nx + i) as u32;
-                let (b, c, d) = (a + 1, a + 1 + nx as u32, a + nx as u32);
-                tris.push([a, b, c]);
-                tris.push([a, c, d]);
-            }
-        }
-        (Topology::new(p.len(), tris).unwrap(), p)
-    }
-
-    /// Folds of a few wavelengths on the grid, and their low-pass (a few λ|μ steps of the same Laplacian).
-    fn pair(topo: &Topology, flat: &[V3], phase: f64) -> (Vec<V3>, Vec<V3>) {
-        let fine: Vec<V3> = flat
-            .iter()
-            .map(|p| {
-                let z = 0.3 * (p[0] * 1.3 + phase).sin() + 0.2 * (p[1] * 0.9 - 2.0 * phase).cos();
-                [p[0], p[1], z]
-            })
-            .collect();
-        let op = Umbrella::new(topo);
-        let mut c = fine.clone();
-        for it in 0..8 {
-            let f = if it % 2 == 0 { 0.5 } else { -0.53 };
-            let l = op.laplacian(&c);
-            for (x, d) in c.iter_mut().zip(&l) {
-                *x = vec3::add(*x, vec3::scale(*d, f));
-            }
-        }
-        (c, fine)
+        (topo, p)
     }
 
     #[test]
-    fn learns_to_undo_a_low_pass_on_unseen_folds() {
-        let (topo, flat) = grid(24, 20);
-        let train: Vec<(Vec<V3>, Vec<V3>)> = (0..6).map(|k| pair(&topo, &flat, k as f64)).collect();
-        let refs: Vec<(&[V3], &[V3])> = train
-            .iter()
-            .map(|(c, f)| (c.as_slice(), f.as_slice()))
-            .collect();
-        let filter = DetailFilter::fit(&topo, &refs, 12, 1e-10).unwrap();
-        filter.check().unwrap();
-        let (c, f) = pair(&topo, &flat, 0.37);
-        let op = Umbrella::new(&topo);
-        let got = filter.apply(&op, &c);
-        let err = |a: &[V3]| {
-            a.iter()
-                .zip(&f)
-                .map(|(p, q)| vec3::norm(vec3::sub(*p, *q)))
-                .sum::<f64>()
+    fn fitted_model_beats_its_captures_on_held_out_frames_and_is_deterministic() {
+        let frames: Vec<Vec<V3>> = (0..12).map(|t| folded(0.3 * t as f64).1).collect();
+        let topo = folded(0.0).0;
+        let data = DetailData {
+            topo: &topo,
+            sequences: vec![&frames[..6], &frames[6..9], &frames[9..]],
         };
-        // The smoothed surface is far from the folds; the filter brings an unseen phase most of the way back.
-        assert!(err(&got) < 0.2 * err(&c), "{} vs {}", err(&got), err(&c));
-    }
-
-    /// The filter as it was first written: every feature array stored, then the weighted sum per vertex.
-    fn apply_from_features(filter: &DetailFilter, op: &Umbrella, coarse: &[V3]) -> Vec<V3> {
-        let f = op.features(coarse, filter.degree);
-        (0..coarse.len())
-            .map(|v| {
-                let w = filter.weights(op.is_boundary(v));
-                let mut p = coarse[v];
-                for (j, fj) in f.iter().enumerate() {
-                    p = vec3::add(p, vec3::scale(fj[v], w[j]));
-                }
-                p
-            })
-            .collect()
-    }
-
-    #[test]
-    fn the_fused_filter_gives_the_bits_of_the_stored_features() {
-        let (topo, flat) = grid(15, 11);
-        let op = Umbrella::new(&topo);
-        let mut scratch = FilterScratch::default();
-        let mut out = Vec::new();
-        for (degree, phase) in [(0usize, 0.1), (1, 0.4), (2, 0.9), (7, 1.3), (40, 2.2)] {
-            let (c, _) = pair(&topo, &flat, phase);
-            // Distinct interior and boundary weights of both signs, so a mixed-up class or order shows.
-            let filter = DetailFilter {
-                degree,
-                interior: (0..=degree)
-                    .map(|j| 0.3 / (1.0 + j as f64) * if j % 3 == 1 { -1.0 } else { 1.0 })
-                    .collect(),
-                boundary: (0..=degree)
-                    .map(|j| -0.07 * (j as f64 + 0.5).sqrt())
-                    .collect(),
-            };
-            let want = apply_from_features(&filter, &op, &c);
-            // The scratch comes in dirty from the previous degree: it must not matter.
-            filter.apply_into(&op, &c, &mut out, &mut scratch);
-            assert_eq!(out.len(), want.len());
-            for (v, (a, b)) in out.iter().zip(&want).enumerate() {
-                for k in 0..3 {
-                    assert_eq!(
-                        a[k].to_bits(),
-                        b[k].to_bits(),
-                        "degree {degree} vertex {v} axis {k}"
-                    );
-                }
-            }
-            assert_ne!(out, c, "the filter moved the surface (degree {degree})");
-            assert_eq!(filter.apply(&op, &c), want);
-        }
-    }
-
-    #[test]
-    fn residual_of_the_normal_equations_matches_the_direct_one() {
-        let (topo, flat) = grid(10, 9);
-        let (c, f) = pair(&topo, &flat, 0.5);
-        let op = Umbrella::new(&topo);
-        let sys = DetailSystem::of_frame(&op, &c, &f, 4);
-        let filter = sys.solve(1e-3).unwrap();
-        let direct: f64 = filter
-            .apply(&op, &c)
-            .iter()
-            .zip(&f)
-            .map(|(p, q)| {
-                let d = vec3::sub(*p, *q);
-                vec3::dot(d, d)
-            })
-            .sum();
-        assert!((sys.residual(&filter) - direct).abs() < 1e-9 * (1.0 + direct));
-        // The boundary ring of an open grid is its own class.
-        assert!(op.is_boundary(0) && !op.is_boundary(10 + 1));
-    }
-
-    #[test]
-    fn the_same_pairs_give_the_same_bytes_and_no_boundary_means_zero_weights() {
-        let (topo, flat) = grid(12, 10);
-        let pairs: Vec<(Vec<V3>, Vec<V3>)> = (0..4).map(|k| pair(&topo, &flat, k as f64)).collect();
-        let refs: Vec<(&[V3], &[V3])> = pairs
-            .iter()
-            .map(|(c, f)| (c.as_slice(), f.as_slice()))
-            .collect();
-        let a = DetailFilter::fit(&topo, &refs, 6, 1e-8).unwrap();
-        let b = DetailFilter::fit(&topo, &refs, 6, 1e-8).unwrap();
-        assert_eq!(a, b);
-        let mut empty = DetailSystem::new(3);
-        empty.gram[0][0] = 1.0;
-        empty.rhs[0][0] = 2.0;
-        let s = empty.solve(0.0).unwrap();
-        assert!(s.boundary.iter().all(|&w| w == 0.0));
-        assert!((s.interior[0] - 2.0).abs() < 1e-12);
-    }
-
-    /// The neighbour lists Umbrella built by hand before it read the capture filter's: boundary vertices take
-    /// their neighbours along open edges (sorted, deduplicated), the others their one-ring.
-    fn hand_built_rings(topo: &Topology) -> (Vec<Vec<u32>>, Vec<bool>) {
-        use crease_core::mesh::NONE;
-        let nv = topo.n_vertices();
-        let mut boundary_nb: Vec<Vec<u32>> = vec![Vec::new(); nv];
-        for (t, tri) in topo.triangles().iter().enumerate() {
-            for k in 0..3 {
-                if topo.tri_adj()[t][k] == NONE {
-                    let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                    boundary_nb[a as usize].push(b);
-                    boundary_nb[b as usize].push(a);
-                }
-            }
-        }
-        let mut boundary = vec![false; nv];
-        let rings = boundary_nb
-            .into_iter()
-            .enumerate()
-            .map(|(v, mut bn)| {
-                if bn.is_empty() {
-                    topo.vertex_neighbors(v)
-                } else {
-                    boundary[v] = true;
-                    bn.sort_unstable();
-                    bn.dedup();
-                    bn
-                }
-            })
-            .collect();
-        (rings, boundary)
-    }
-
-    #[test]
-    fn the_shared_rings_give_the_laplacian_the_hand_built_ones_gave() {
-        // A grid with a hole, a vertex pinched between two cut cells (four boundary neighbours), a detached
-        // triangle and a vertex no triangle uses: every kind of ring the builder distinguishes.
-        let (nx, ny) = (9usize, 8usize);
-        let (_, mut p) = grid(nx, ny);
-        let cut = |i: usize, j: usize| (i, j) == (3, 3) || (i, j) == (4, 3) || (i, j) == (5, 4);
-        let mut tris = Vec::new();
-        for j in 0..ny - 1 {
-            for i in 0..nx - 1 {
-                if cut(i, j) {
-                    continue;
-                }
-                let a = (j * nx + i) as u32;
-                let (b, c, d) = (a + 1, a + 1 + nx as u32, a + nx as u32);
-                tris.push([a, b, c]);
-                tris.push([a, c, d]);
-            }
-        }
-        let base = p.len() as u32;
-        p.extend([
-            [20.0, 0.0, 0.5],
-            [21.0, 0.0, -0.2],
-            [20.0, 1.0, 0.1],
-            [30.0, 0.0, 0.0],
-        ]);
-        tris.push([base, base + 1, base + 2]);
-        let topo = Topology::new(p.len(), tris).unwrap();
-        for (v, q) in p.iter_mut().enumerate() {
-            q[2] += 0.3 * (v as f64 * 0.7).sin();
-        }
-
-        let op = Umbrella::new(&topo);
-        let (rings, boundary) = hand_built_rings(&topo);
-        assert_eq!(op.n_vertices(), rings.len());
-        for v in 0..rings.len() {
-            assert_eq!(op.rings.neighbors(v), rings[v].as_slice(), "vertex {v}");
-            assert_eq!(op.is_boundary(v), boundary[v], "vertex {v}");
-        }
-        // The cases the mesh was built for are really there.
-        let pinch = 4 * nx + 5;
-        assert_eq!(rings[pinch].len(), 4, "pinched vertex");
-        assert!(boundary[base as usize] && rings[base as usize].len() == 2);
-        assert!(rings[base as usize + 3].is_empty() && !boundary[base as usize + 3]);
-        assert!(!boundary[nx + 1] && rings[nx + 1].len() == 6);
-
-        // The Laplacian (and so every feature and fitted weight) is bit for bit the hand-built rings' one.
-        let expected: Vec<V3> = (0..p.len())
-            .map(|v| {
-                let nb = &rings[v];
-                if nb.is_empty() {
-                    return [0.0; 3];
-                }
-                let mut avg = [0.0; 3];
-                for &w in nb {
-                    avg = vec3::add(avg, p[w as usize]);
-                }
-                vec3::sub(vec3::scale(avg, 1.0 / nb.len() as f64), p[v])
-            })
-            .collect();
-        let got = op.laplacian(&p);
-        for (v, (a, b)) in got.iter().zip(&expected).enumerate() {
-            for k in 0..3 {
-                assert_eq!(a[k].to_bits(), b[k].to_bits(), "vertex {v} axis {k}");
-            }
-        }
+        let params = DetailParams {
+            degree: 8,
+            captures_per_frame: 2,
+            seed: 5,
+        };
+        let m = fit(&data, &params).unwrap();
+        assert!(m.check().is_ok());
+        assert!(
+            m.spec.held_out_model_deg < m.spec.held_out_capture_deg,
+            "{:?}",
+            m.spec
+        );
+        assert_eq!(m, fit(&data, &params).unwrap());
     }
 }

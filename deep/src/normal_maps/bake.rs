@@ -105,7 +105,14 @@ pub fn bake_sequence(
             if params.space == Space::Tangent {
                 map = convert_space(&map, &texels, &topo, &c, layout, true);
             }
-            writer.write(out, t, &c, &map, scratch)?;
+            writer.write(
+                out,
+                t,
+                &c,
+                &map,
+                "baked from the detailed sequence",
+                scratch,
+            )?;
             progress.advance("bake", 1);
             Ok(())
         },

@@ -498,5 +498,11 @@ pub fn write_obj_with_uv(
     layout: &UvLayout,
 ) -> Result<()> {
     let text = crate::contract::obj_text::ObjText::new(topo, &layout.uv, &layout.corners);
-    crease_core::fsutil::write_atomic(path, &text.file(positions))
+    crease_core::fsutil::write_atomic(
+        path,
+        &text.file(
+            positions,
+            "none (the mean shape of a model, with its UV layout)",
+        ),
+    )
 }

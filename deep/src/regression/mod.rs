@@ -8,6 +8,6 @@ pub mod lstm;
 pub mod pose;
 pub mod pose_features;
 pub mod pose_history;
-pub mod pose_smoothing;
+pub mod pose_lowpass;
 pub mod rollout_fit;
 pub mod stable_state;

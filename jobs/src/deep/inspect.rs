@@ -31,11 +31,12 @@ pub fn model_files(deep: &DeepSpec) -> Vec<String> {
         "autoregressive.npy",
         "ar_scale.npy",
         "ar_start.npy",
+        "detail.npy",
     ];
     if params.regressor == RegressorKind::Lstm {
         names.push("lstm.safetensors");
     }
-    if params.cgan_epochs > 0 {
+    if params.cgan_steps > 0 {
         names.push("cgan.safetensors");
     }
     names.push("manifest.json");

@@ -19,7 +19,7 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "task", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum DeepSpec {
-    /// Train a model on `input` and `data` (each with `gt/`, `captured/`, `pose.json`): one task.
+    /// Train a model on `input` and `data` (each with `gt/` and `pose.json`): one task.
     Train {
         /// Further training directories (URIs), after `input`.
         #[serde(default)]
@@ -77,16 +77,20 @@ pub struct DeepTrainParams {
     pub lstm_epochs: usize,
     pub lstm_lr: f64,
     pub pose_components: usize,
-    pub pose_smoothing: usize,
+    pub pose_lowpass: f64,
+    pub detail_degree: usize,
+    pub detail_captures: usize,
     pub seed: u64,
     pub resolution: usize,
     /// URI of an OBJ whose `vt` gives the UV layout (it must have `vt`); default: computed.
     pub uv: Option<String>,
     /// 0: no cGAN.
-    pub cgan_epochs: usize,
+    pub cgan_steps: usize,
     pub cgan_filters: usize,
     pub cgan_disc_filters: usize,
     pub cgan_w_temporal: f64,
+    pub cgan_depth: usize,
+    pub cgan_crop: usize,
 }
 
 impl Default for DeepTrainParams {
@@ -110,15 +114,19 @@ impl Default for DeepTrainParams {
             lstm_seq: t.lstm.seq_len,
             lstm_epochs: t.lstm.epochs,
             lstm_lr: t.lstm.lr,
-            pose_components: t.pose_components,
-            pose_smoothing: t.pose_smoothing,
+            pose_components: t.pose_lowpass.components,
+            pose_lowpass: t.pose_lowpass.half_wavelength,
+            detail_degree: t.detail.degree,
+            detail_captures: t.detail.captures_per_frame,
             seed: 1,
             resolution: t.resolution,
             uv: None,
-            cgan_epochs: 0,
+            cgan_steps: c.steps,
             cgan_filters: c.filters,
             cgan_disc_filters: c.disc_filters,
             cgan_w_temporal: c.w_temporal,
+            cgan_depth: c.depth,
+            cgan_crop: c.crop,
         }
     }
 }
@@ -149,16 +157,24 @@ impl DeepTrainParams {
                 // Residual of the blend, cross-fitted, early stopping: as `crease deep train`.
                 ..LstmConfig::default()
             },
-            pose_components: self.pose_components,
-            pose_smoothing: self.pose_smoothing,
+            pose_lowpass: crease_deep::regression::pose_lowpass::PoseLowpass {
+                components: self.pose_components,
+                half_wavelength: self.pose_lowpass,
+            },
+            detail: crease_deep::detail::DetailParams {
+                degree: self.detail_degree,
+                captures_per_frame: self.detail_captures,
+                seed: self.seed,
+            },
             resolution: self.resolution,
             uv,
-            cgan: (self.cgan_epochs > 0).then(|| CganConfig {
-                resolution: self.resolution,
+            cgan: (self.cgan_steps > 0).then(|| CganConfig {
                 filters: self.cgan_filters,
                 disc_filters: self.cgan_disc_filters,
                 w_temporal: self.cgan_w_temporal,
-                epochs: self.cgan_epochs,
+                depth: self.cgan_depth,
+                crop: self.cgan_crop,
+                steps: self.cgan_steps,
                 seed: self.seed,
                 ..Default::default()
             }),
@@ -170,8 +186,9 @@ impl DeepTrainParams {
 /// The spec field a library parameter error is about (`lstm.layers` → `deep.params.lstm_layers`).
 fn param_field(name: &str) -> String {
     let field = match name {
-        "cgan.resolution" => "resolution".to_string(),
         "cgan" => "cgan_filters".to_string(),
+        "cgan.depth" => "cgan_depth".to_string(),
+        "cgan.crop" => "cgan_crop".to_string(),
         n => n.replace('.', "_"),
     };
     format!("deep.params.{field}")

@@ -1,17 +1,18 @@
-//! The pose-only shape's smoothing in a trained model (format 8): `apply --pose` writes the low-passed
-//! reconstruction, which on an unseen motion whose folds the pose does not determine has a lower normal error
-//! than the reconstruction as it is; models without the field (format 7 and before) keep writing the plain
-//! reconstruction; a format 8 manifest without it, or with a bad one, is refused naming the field.
+//! The pose-only shape's low-pass in a trained model: `apply --pose` writes the diffused reconstruction, which
+//! on an unseen motion whose folds the pose does not determine has a lower normal error than the
+//! reconstruction as it is; a half wavelength of 0 is the reconstruction itself; a manifest without the field,
+//! or with a bad one, is refused naming it.
 
 mod support;
 
 use crease_core::mesh::geometry::vertex_normals;
 use crease_core::progress::NoProgress;
-use crease_core::shape::TaubinFilter;
 use crease_core::vec3::{self, V3};
 use crease_deep::apply::{apply, pose_shapes, shapes_from_poses, ApplyInput, ApplyParams};
+use crease_deep::detail::captures::frequency_of;
+use crease_deep::detail::operator::Walk;
 use crease_deep::model::{Model, RegressorKind};
-use crease_deep::regression::pose_smoothing::{PoseSmoothing, DEFAULT_STEPS};
+use crease_deep::regression::pose_lowpass::PoseLowpass;
 use crease_deep::train::{train, TrainParams, TrainingSequence};
 use std::path::Path;
 
@@ -39,8 +40,6 @@ fn sequence(dir: &Path, frames: usize, seed: f64) -> TrainingSequence {
         poses.push(vec![a, 0.5 * a * a]);
     }
     let topology = topo.unwrap();
-    let capture = TaubinFilter::capture(&topology);
-    let coarse = fine.iter().map(|f| capture.apply(f)).collect();
     std::fs::create_dir_all(dir).unwrap();
     let doc = serde_json::json!({ "pose_vectors": poses });
     std::fs::write(dir.join("pose.json"), doc.to_string()).unwrap();
@@ -48,16 +47,21 @@ fn sequence(dir: &Path, frames: usize, seed: f64) -> TrainingSequence {
         dir: dir.to_path_buf(),
         topology,
         fine,
-        coarse,
         poses,
         pose_names: None,
     }
 }
 
+const LOWPASS: PoseLowpass = PoseLowpass {
+    components: 0,
+    half_wavelength: 8.0,
+};
+
 fn params() -> TrainParams {
     TrainParams {
         k: 16,
         resolution: 64,
+        pose_lowpass: LOWPASS,
         ..Default::default()
     }
 }
@@ -100,25 +104,31 @@ fn apply_pose_writes_the_smoothed_shape_and_its_normals_are_closer_to_the_truth(
     let dir = tmp.path().join("model");
     train(&seqs, &params(), &dir, &NoProgress).unwrap();
     let model = Model::load(&dir).unwrap();
-    assert_eq!(model.manifest.version, 8);
-    let spec = model
-        .manifest
-        .pose_smoothing
-        .clone()
-        .expect("pose_smoothing");
-    assert_eq!(spec, PoseSmoothing::new(0, DEFAULT_STEPS));
+    assert_eq!(model.manifest.pose_lowpass, LOWPASS);
 
     let pose = held.dir.join("pose.json");
     let raw = shapes_from_poses(&model, &pose, RegressorKind::Blend).unwrap();
     let smooth = pose_shapes(&model, &pose, RegressorKind::Blend, None).unwrap();
-    // The smoothed shape is the capture-like low-pass of the reconstruction, computed here on its own.
-    let f = TaubinFilter::new(&model.topology, 0.5, -0.53, DEFAULT_STEPS);
+    // The smoothed shape is the mean plus the cotangent diffusion of the reconstruction's departure from it,
+    // computed here on its own.
+    let mean = crease_deep::subspace::unflatten(&model.subspace.mean);
     for (s, r) in smooth.iter().zip(&raw) {
-        assert_eq!(s, &f.apply(r));
+        let t = 1.0 / frequency_of(LOWPASS.half_wavelength);
+        let d: Vec<V3> = r
+            .iter()
+            .zip(&mean)
+            .map(|(p, m)| vec3::sub(*p, *m))
+            .collect();
+        let e = Walk::cotangent(&model.topology, r).diffuse(&d, t);
+        let want: Vec<V3> = mean
+            .iter()
+            .zip(&e)
+            .map(|(m, x)| vec3::add(*m, *x))
+            .collect();
+        assert_eq!(s, &want);
     }
     // The folds in the reconstruction are other frames' folds: without them the normals are closer to the
-    // truth's (8.3° → 6.8° here). The shape keeps its predicted bulge: the vertex error grows only by part of
-    // the folds' own size (2.2 → 2.5 mm against folds of 2.5 mm; on sleeve-train it fell).
+    // truth's. The shape keeps its predicted bulge: the vertex error grows only by part of the folds' own size.
     let (e_raw, e_smooth) = (
         normal_error(&model.topology, &raw, &held.fine),
         normal_error(&model.topology, &smooth, &held.fine),
@@ -162,7 +172,7 @@ fn apply_pose_writes_the_smoothed_shape_and_its_normals_are_closer_to_the_truth(
 }
 
 #[test]
-fn older_models_keep_the_plain_reconstruction_and_bad_fields_are_named() {
+fn no_low_pass_is_the_reconstruction_and_bad_fields_are_named() {
     let tmp = tempfile::tempdir().unwrap();
     let seqs = vec![
         sequence(&tmp.path().join("a"), 12, 0.0),
@@ -171,22 +181,11 @@ fn older_models_keep_the_plain_reconstruction_and_bad_fields_are_named() {
     let dir = tmp.path().join("model");
     train(&seqs, &params(), &dir, &NoProgress).unwrap();
     let pose = seqs[1].dir.join("pose.json");
-
-    // Version 7 had no smoothing: the shapes are the reconstruction itself.
-    let v7 = tmp.path().join("v7");
-    edit_manifest(&dir, &v7, |m| {
-        m["version"] = 7.into();
-        m.as_object_mut().unwrap().remove("pose_smoothing");
-    });
-    let old = Model::load(&v7).unwrap();
-    assert!(old.manifest.pose_smoothing.is_none());
-    assert_eq!(
-        pose_shapes(&old, &pose, RegressorKind::Blend, None).unwrap(),
-        shapes_from_poses(&old, &pose, RegressorKind::Blend).unwrap()
-    );
-    // Zero steps and all components is the reconstruction too.
+    // A half wavelength of 0 and all components is the reconstruction itself.
     let off = tmp.path().join("off");
-    edit_manifest(&dir, &off, |m| m["pose_smoothing"]["steps"] = 0.into());
+    edit_manifest(&dir, &off, |m| {
+        m["pose_lowpass"]["half_wavelength"] = 0.0.into()
+    });
     let m = Model::load(&off).unwrap();
     assert_eq!(
         pose_shapes(&m, &pose, RegressorKind::Linear, None).unwrap(),
@@ -196,26 +195,29 @@ fn older_models_keep_the_plain_reconstruction_and_bad_fields_are_named() {
     let err = |d: &Path| Model::load(d).err().expect("refused").to_string();
     let missing = tmp.path().join("missing");
     edit_manifest(&dir, &missing, |m| {
-        m.as_object_mut().unwrap().remove("pose_smoothing");
+        m.as_object_mut().unwrap().remove("pose_lowpass");
     });
     let e = err(&missing);
     assert!(
-        e.contains("manifest.json") && e.contains("pose_smoothing"),
+        e.contains("manifest.json") && e.contains("pose_lowpass"),
         "{e}"
     );
     let huge = tmp.path().join("huge");
     edit_manifest(&dir, &huge, |m| {
-        m["pose_smoothing"]["steps"] = 1_000_000.into()
+        m["pose_lowpass"]["half_wavelength"] = 1e6.into()
     });
     let e = err(&huge);
     assert!(
-        e.contains("manifest.json") && e.contains("pose_smoothing"),
+        e.contains("manifest.json") && e.contains("pose_lowpass"),
         "{e}"
     );
 
     // The training parameter is checked before anything is written.
     let bad = TrainParams {
-        pose_smoothing: 1_000_000,
+        pose_lowpass: PoseLowpass {
+            components: 0,
+            half_wavelength: 1e6,
+        },
         ..params()
     };
     let out = tmp.path().join("bad");
@@ -223,6 +225,6 @@ fn older_models_keep_the_plain_reconstruction_and_bad_fields_are_named() {
         .err()
         .unwrap()
         .to_string();
-    assert!(e.contains("pose_smoothing"), "{e}");
+    assert!(e.contains("pose_lowpass"), "{e}");
     assert!(!out.exists());
 }

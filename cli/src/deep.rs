@@ -239,6 +239,9 @@ pub struct EvalArgs {
     /// Train on each directory's first half and score its second half instead of leaving one out.
     #[arg(long)]
     pub split: bool,
+    /// Hold out only these directories (by folder name, e.g. seed_7); default: each in turn.
+    #[arg(long, value_delimiter = ',')]
+    pub held_out: Vec<String>,
     /// Also Table 1 in spirit on the last directory held out: the cGAN (with the --cgan-* flags) from a capture
     /// and from a subspace reconstruction, with and without the temporal term.
     #[arg(long)]
@@ -480,6 +483,7 @@ fn eval_cmd(a: EvalArgs) -> Result<()> {
         motions: a.motions,
         extra: a.extra,
         split: a.split,
+        held_out: a.held_out,
         table1: a.table1.then(|| CganConfig {
             filters: a.train.cgan_filters,
             disc_filters: a.train.cgan_disc_filters,

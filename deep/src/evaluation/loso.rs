@@ -35,6 +35,8 @@ pub struct EvalParams {
     pub extra: Vec<ExtraCase>,
     /// Train on each directory's first half and score its second half, instead of leaving one out.
     pub split: bool,
+    /// Names of the directories to hold out (empty: every one).
+    pub held_out: Vec<String>,
     /// Where the trained models are written (one folder per held-out directory).
     pub work: PathBuf,
     /// Table 1 in spirit ([`super::table1`]) on the last directory held out, with this cGAN.
@@ -168,8 +170,20 @@ pub fn evaluate(dirs: &[PathBuf], p: &EvalParams, progress: &dyn Progress) -> Re
         ));
     }
     let mut report = Report::default();
+    let last_held = (0..seqs.len())
+        .rev()
+        .find(|&i| p.held_out.is_empty() || p.held_out.contains(&name_of(&seqs[i].dir)));
+    if let Some(n) = p.held_out.iter().find(|n| !seqs.iter().any(|s| &name_of(&s.dir) == *n)) {
+        return Err(Error::param(
+            "held_out",
+            format!("{n} is not the name of a --data directory"),
+        ));
+    }
     for (i, held) in seqs.iter().enumerate() {
         let name = name_of(&held.dir);
+        if !p.held_out.is_empty() && !p.held_out.contains(&name) {
+            continue;
+        }
         let (train_seqs, frames): (Vec<TrainingSequence>, Vec<usize>) = if p.split {
             let n = held.fine.len();
             (vec![first_half(held)], frames_to_score(n / 2..n, p.step))
@@ -213,7 +227,7 @@ pub fn evaluate(dirs: &[PathBuf], p: &EvalParams, progress: &dyn Progress) -> Re
                 &p.strips.join(format!("fig11_{name}_frame{}.png", t + 1)),
             )?;
         }
-        if let (Some(cfg), true) = (&p.table1, i + 1 == seqs.len() && !p.split) {
+        if let (Some(cfg), true) = (&p.table1, Some(i) == last_held && !p.split) {
             let capture = match first_capture {
                 Some((_, f)) => f?,
                 None => {
@@ -268,6 +282,9 @@ pub fn evaluate(dirs: &[PathBuf], p: &EvalParams, progress: &dyn Progress) -> Re
     for &m in &p.motions {
         for (i, held) in seqs.iter().enumerate() {
             if m == 0 || m >= seqs.len() {
+                continue;
+            }
+            if !p.held_out.is_empty() && !p.held_out.contains(&name_of(&held.dir)) {
                 continue;
             }
             // The next m sequences after the held-out one, cyclically: every sequence is used equally often.

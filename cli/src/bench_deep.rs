@@ -1,4 +1,4 @@
-//! `crease bench --deep`: the cost of DeepWrinkles inference per frame (target: ≤ 50 ms at 256² on one core,
+//! `crease bench --deep`: the cost of DeepWrinkles inference per frame (the aim: ≤ 50 ms at 256² on one core,
 //! `--threads 1`), split into the steps `crease deep apply --coarse` runs per frame — the detail model's fine
 //! shape drawn into the map, the cGAN generator's forward pass, writing the frame — and the cGAN's training
 //! time.

@@ -14,8 +14,6 @@ mod error_text;
 mod eval;
 mod export;
 mod farm;
-mod folds_stretch;
-mod folds_video;
 #[cfg(test)]
 mod help_tree;
 mod limits_args;
@@ -24,9 +22,12 @@ mod logging;
 mod logs;
 mod progress;
 mod run;
+mod run_spec;
 mod security_args;
 mod threads;
+mod tuning;
 mod urls;
+mod view;
 mod watch;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
@@ -46,9 +47,11 @@ struct Cli {
 enum Command {
     /// Wrinkle a sequence with an anchors file; with no --input, generate the demo and run on it.
     Run(run::RunArgs),
+    /// List the tuning keys `run --set` and a job spec's [tuning] table take (defaults, ranges, meanings).
+    Tuning(tuning::TuningArgs),
     /// Write the procedural demo sequence (OBJ frames) and its anchors file.
     Demo(run::DemoArgs),
-    /// Fold fidelity of a result against ground truth (DESIGN.md §9), beside the captured baseline.
+    /// Fold fidelity of a result against ground truth, beside the captured baseline (docs/fidelity.md).
     Eval(eval::EvalArgs),
     /// Paper-scale benchmark: seconds per frame per stage, peak memory, both weight modes.
     Bench(bench::BenchArgs),
@@ -81,8 +84,10 @@ enum Command {
     Export(export::ExportArgs),
     /// DeepWrinkles (Lähner et al. 2018): register templates to scans, train, apply.
     Deep(deep::DeepArgs),
-    /// Bake a detailed sequence into normal maps on its coarse input (DESIGN §7 output layout).
+    /// Bake a detailed sequence into normal maps on its coarse input (the layout `crease deep apply` writes).
     Bake(deep::BakeArgs),
+    /// Show an output folder (or any sequence) in the browser: the dashboard's 3D viewer and report.
+    View(view::ViewArgs),
 }
 
 fn lossy(args: &[std::ffi::OsString]) -> Vec<String> {
@@ -119,6 +124,7 @@ fn main() {
     }
     let result = match cli.command {
         Command::Run(a) => run::run(a),
+        Command::Tuning(a) => tuning::tuning(a),
         Command::Demo(a) => run::demo(a),
         Command::Eval(a) => eval::eval(a),
         Command::Bench(a) => bench::bench(a),
@@ -137,6 +143,7 @@ fn main() {
         Command::Export(a) => export::export_cmd(a),
         Command::Deep(a) => deep::deep(a),
         Command::Bake(a) => deep::bake(a),
+        Command::View(a) => view::view(a),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_text::one_line(&e));

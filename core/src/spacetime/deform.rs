@@ -19,12 +19,12 @@ use crate::mesh::{Frame, FrameSink, FrameSource};
 use crate::metrics::{StretchAccumulator, StretchStats};
 use crate::progress::Progress;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// Seconds spent per stage, summed over all frames and windows (work time: with frames positioned in parallel
 /// the wall time is lower; see `wall`).
-#[derive(Debug, Clone, Default, Serialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub struct StageTimings {
     pub symbolic: f64,
     pub read: f64,
@@ -45,7 +45,7 @@ pub struct StageTimings {
 }
 
 /// What a deformation did and measured.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct DeformReport {
     pub params: DeformParams,
     pub frames: usize,
@@ -97,8 +97,7 @@ pub fn deform(
         ..Default::default()
     };
     let t0 = Instant::now();
-    let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?
-        .with_operator_block(params.operator_block);
+    let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?;
     timings.symbolic = t0.elapsed().as_secs_f64();
     // The strain limit's reference lengths need every captured frame: read once (a few frames at a time) before
     // any frame is positioned. Without anchors no frame moves and the limit never applies: no reading pass.

@@ -13,7 +13,7 @@ use crease_core::mesh::{FrameSink, FrameSource};
 use crease_core::shape::{ShapeAccumulator, TaubinFilter};
 use crease_core::spacetime::position::{Pinning, PositionSystem};
 use crease_core::spacetime::stages::{self, PositionedFrame};
-use crease_core::spacetime::strain_limit::{StrainLimiter, StrainReference};
+use crease_core::spacetime::position::strain_limit::{StrainLimiter, StrainReference};
 use crease_core::spacetime::windows::Window;
 use crease_core::vec3::V3;
 use rayon::prelude::*;
@@ -112,7 +112,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                 )
                 .map_err(|e| TaskError::from_core(&label, e))?;
                 drop(phi);
-                // The frame's "shape kept" figures (DESIGN §9), here where the frame is, rather than in
+                // The frame's "shape kept" figures (docs/fidelity.md), here where the frame is, rather than in
                 // finalize, which would filter every frame again one after the other at the end of the job.
                 let clock = std::time::Instant::now();
                 let mut shape = ShapeAccumulator::default();
@@ -190,12 +190,11 @@ fn store_frame(
     Ok([kp, ks, kt])
 }
 
-/// A positioning system this process built: (input, pinning, screen bits, operator block, system).
+/// A positioning system this process built: (input, pinning, screen bits, system).
 type BuiltSystem = (
     Arc<OpenedSequence>,
     Pinning,
     Option<u64>,
-    usize,
     Arc<PositionSystem>,
 );
 
@@ -215,14 +214,11 @@ fn position_system(
 ) -> Result<(Arc<PositionSystem>, f64), TaskError> {
     let (pinning, screen) = (env.params.pinning, env.params.screen());
     let screen_bits = screen.map(f64::to_bits);
-    let block = env.params.operator_block;
     let found = |systems: &[BuiltSystem]| {
         systems
             .iter()
-            .find(|(o, p, s, b, _)| {
-                Arc::ptr_eq(o, opened) && *p == pinning && *s == screen_bits && *b == block
-            })
-            .map(|(_, _, _, _, sys)| Arc::clone(sys))
+            .find(|(o, p, s, _)| Arc::ptr_eq(o, opened) && *p == pinning && *s == screen_bits)
+            .map(|(_, _, _, sys)| Arc::clone(sys))
     };
     if let Some(sys) = found(&SYSTEMS.lock().unwrap_or_else(|p| p.into_inner())) {
         return Ok((sys, 0.0));
@@ -231,22 +227,14 @@ fn position_system(
     let clock = std::time::Instant::now();
     let topo = opened.source.topology().clone();
     let sys = Arc::new(
-        PositionSystem::new(topo, pinning, screen)
-            .map_err(|e| TaskError::from_core(label, e))?
-            .with_operator_block(block),
+        PositionSystem::new(topo, pinning, screen).map_err(|e| TaskError::from_core(label, e))?,
     );
     let seconds = clock.elapsed().as_secs_f64();
     let mut systems = SYSTEMS.lock().unwrap_or_else(|p| p.into_inner());
     if found(&systems).is_none() {
         systems.insert(
             0,
-            (
-                Arc::clone(opened),
-                pinning,
-                screen_bits,
-                block,
-                Arc::clone(&sys),
-            ),
+            (Arc::clone(opened), pinning, screen_bits, Arc::clone(&sys)),
         );
         systems.truncate(2);
     }
@@ -257,7 +245,7 @@ fn position_system(
 #[allow(clippy::type_complexity)]
 static FILTERS: Mutex<Vec<(Arc<OpenedSequence>, Arc<TaubinFilter>)>> = Mutex::new(Vec::new());
 
-/// The input's "shape kept" filter (DESIGN §9). Its neighbour tables depend on the topology alone, so a worker
+/// The input's "shape kept" filter (docs/fidelity.md). Its neighbour tables depend on the topology alone, so a worker
 /// builds them once per opened input (keyed like [`position_system`]) instead of once per positioning chunk.
 fn shape_filter(opened: &Arc<OpenedSequence>) -> Arc<TaubinFilter> {
     let mut built = FILTERS.lock().unwrap_or_else(|p| p.into_inner());

@@ -7,14 +7,17 @@ use clap::{Args, Subcommand};
 use crease_core::mesh::io::{open_sequence, sort_numbered, write_obj};
 use crease_core::mesh::FrameSource;
 use crease_deep::apply::{apply, ApplyInput, ApplyParams};
-use crease_deep::bake::{bake_sequence, BakeParams};
 use crease_deep::cgan::CganConfig;
-use crease_deep::lstm::LstmConfig;
+use crease_deep::detail::DetailParams;
+use crease_deep::evaluation::loso::{evaluate, markdown, EvalParams, ExtraCase};
 use crease_deep::model::{Model, RegressorKind};
-use crease_deep::normal_map::Space;
-use crease_deep::register::{read_scan, RegisterParams, Registration};
+use crease_deep::normal_maps::bake::{bake_sequence, BakeParams};
+use crease_deep::normal_maps::uv::{auto_atlas, read_obj_mesh, read_obj_uv, UvLayout};
+use crease_deep::normal_maps::Space;
+use crease_deep::registration::{read_scan, RegisterParams, Registration};
+use crease_deep::regression::lstm::LstmConfig;
+use crease_deep::regression::pose_lowpass::PoseLowpass;
 use crease_deep::train::{load_training_dir, train, TrainParams};
-use crease_deep::uv::{auto_atlas, read_obj_mesh, read_obj_uv, UvLayout};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -28,10 +31,14 @@ pub struct DeepArgs {
 pub enum DeepCommand {
     /// Register a template to a directory of scans (non-rigid ICP, §3.1); writes OUT/frame_NNNN.obj.
     Register(RegisterArgs),
-    /// Train a model (subspace, regression, optional LSTM) from training directories (gt/, captured/, pose.json).
+    /// Train a model (subspace, regression, detail model, optional LSTM and cGAN) from training directories
+    /// (gt/, pose.json).
     Train(TrainArgs),
     /// Run a model on a pose file or on coarse meshes; writes OUT/mesh/*.obj and OUT/normals/*.png.
     Apply(ApplyArgs),
+    /// Held-out evaluation: each --data directory scored by a model trained on the others (or --split),
+    /// with the training flags of `train`; writes OUT/eval.json and OUT/eval.md.
+    Eval(EvalArgs),
 }
 
 #[derive(Args, Debug)]
@@ -131,12 +138,12 @@ pub struct TrainArgs {
     /// products), raw (the pose numbers), or auto (rigid when pose.json names its numbers OBJ.location.x …
     /// OBJ.rotation_euler.z, raw otherwise).
     #[arg(long, default_value = "auto")]
-    pub pose_features: crease_deep::pose_features::PoseFeatureMode,
+    pub pose_features: crease_deep::regression::pose_features::PoseFeatureMode,
     /// Also train the subspace and regressions on the training data reflected in a coordinate plane (x, y or
     /// z = 0), poses reflected to match; auto: in the plane where the first training frame is symmetric, if
     /// any and the poses have rigid names; none: no reflection.
     #[arg(long, default_value = "auto")]
-    pub mirror: crease_deep::mirror::MirrorMode,
+    pub mirror: crease_deep::subspace::mirror::MirrorMode,
     /// LSTM layers of the encoder and of the decoder (paper: 4).
     #[arg(long, default_value_t = 4)]
     pub lstm_layers: usize,
@@ -162,13 +169,19 @@ pub struct TrainArgs {
     /// Hold the last training sequence out of the LSTM's training and keep the epoch that does best on it.
     #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
     pub lstm_early_stopping: bool,
-    /// Leading subspace coefficients of the shape `apply --pose` draws (0: all): the small components carry
-    /// other frames' folds.
-    #[arg(long, default_value_t = crease_deep::pose_smoothing::DEFAULT_COMPONENTS)]
+    /// Leading subspace coefficients of the shape `apply --pose` draws (0: all).
+    #[arg(long, default_value_t = TrainParams::default().pose_lowpass.components)]
     pub pose_components: usize,
-    /// λ|μ low-pass steps on the shape `apply --pose` draws (0: none; the data's capture filter is 80).
-    #[arg(long, default_value_t = crease_deep::pose_smoothing::DEFAULT_STEPS)]
-    pub pose_smoothing: usize,
+    /// Low-pass of the shape `apply --pose` draws: the wavelength, in mean edge lengths, that a cotangent
+    /// diffusion halves (0: none).
+    #[arg(long, default_value_t = TrainParams::default().pose_lowpass.half_wavelength)]
+    pub pose_lowpass: f64,
+    /// Chebyshev degree of the detail model `apply --coarse` runs.
+    #[arg(long, default_value_t = crease_deep::detail::DEFAULT_DEGREE)]
+    pub detail_degree: usize,
+    /// Random captures of each training frame the detail model learns from.
+    #[arg(long, default_value_t = crease_deep::detail::DEFAULT_CAPTURES_PER_FRAME)]
+    pub detail_captures: usize,
     /// Seed of every random choice (weights, batches): the same seed gives the same model.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -178,24 +191,79 @@ pub struct TrainArgs {
     /// A template OBJ whose `vt` gives the UV layout (required to have `vt`); default: computed (LSCM charts).
     #[arg(long)]
     pub uv: Option<PathBuf>,
-    /// cGAN epochs on (captured → gt) map pairs at --resolution (0: no cGAN; apply then writes coarse maps).
-    #[arg(long, default_value_t = 0)]
-    pub cgan_epochs: usize,
+    /// cGAN training steps (batches of random crops of the maps; 0: no cGAN). The cGAN is used by apply only
+    /// where it beat the maps without it on the held-out training sequence.
+    #[arg(long, default_value_t = CganConfig::default().steps)]
+    pub cgan_steps: usize,
     /// Filters of the generator's first layer (paper: 64).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = CganConfig::default().filters)]
     pub cgan_filters: usize,
     /// Filters of the discriminator's first layer (paper: 64).
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = CganConfig::default().disc_filters)]
     pub cgan_disc_filters: usize,
     /// Weight of the temporal term (paper: 50; 0 trains without it).
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, default_value_t = CganConfig::default().w_temporal)]
     pub cgan_w_temporal: f64,
+    /// U-Net levels per side (the map resolution must be a multiple of 2^depth).
+    #[arg(long, default_value_t = CganConfig::default().depth)]
+    pub cgan_depth: usize,
+    /// Side of the square map crops the cGAN trains on (a multiple of 2^depth, at most the resolution).
+    #[arg(long, default_value_t = CganConfig::default().crop)]
+    pub cgan_crop: usize,
     /// cGAN checkpoint directory, written after every epoch and resumed when present.
     #[arg(long)]
     pub checkpoint: Option<PathBuf>,
     /// No progress bar or summary lines (errors are still printed).
     #[arg(long)]
     pub quiet: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// Training flags (--data: the sequences; --out: where the models, eval.json and eval.md go).
+    #[command(flatten)]
+    pub train: TrainArgs,
+    /// Score every N-th frame.
+    #[arg(long, default_value_t = 1)]
+    pub step: usize,
+    /// Capture folders of each sequence the coarse path is scored on (those present).
+    #[arg(long, value_delimiter = ',', default_value = "captured")]
+    pub captures: Vec<String>,
+    /// Training-motions curve of the pose path: numbers of training sequences, e.g. 1,2,4,6.
+    #[arg(long, value_delimiter = ',')]
+    pub motions: Vec<usize>,
+    /// A further case scored by the model trained on every --data directory: NAME=DIR:CAPTURE,CAPTURE
+    /// (DIR holds gt/ and the capture folders).
+    #[arg(long, value_parser = parse_extra)]
+    pub extra: Vec<ExtraCase>,
+    /// Train on each directory's first half and score its second half instead of leaving one out.
+    #[arg(long)]
+    pub split: bool,
+    /// Hold out only these directories (by folder name, e.g. seed_7); default: each in turn.
+    #[arg(long, value_delimiter = ',')]
+    pub held_out: Vec<String>,
+    /// Also Table 1 in spirit on the last directory held out: the cGAN (with the --cgan-* flags) from a capture
+    /// and from a subspace reconstruction, with and without the temporal term.
+    #[arg(long)]
+    pub table1: bool,
+    /// Write the Fig. 11 strip (capture | ours | gt maps) of this frame (1-based) of every held-out directory
+    /// into OUT/strips.
+    #[arg(long)]
+    pub strip: Option<usize>,
+}
+
+fn parse_extra(s: &str) -> std::result::Result<ExtraCase, String> {
+    let (name, rest) = s
+        .split_once('=')
+        .ok_or_else(|| format!("`{s}`: expected NAME=DIR:CAPTURE,…"))?;
+    let (dir, caps) = rest
+        .rsplit_once(':')
+        .ok_or_else(|| format!("`{s}`: expected NAME=DIR:CAPTURE,…"))?;
+    Ok(ExtraCase {
+        name: name.to_string(),
+        dir: PathBuf::from(dir),
+        captures: caps.split(',').map(str::to_string).collect(),
+    })
 }
 
 #[derive(Args, Debug)]
@@ -260,6 +328,7 @@ pub fn deep(a: DeepArgs) -> Result<()> {
         DeepCommand::Register(a) => register(a),
         DeepCommand::Train(a) => train_cmd(a),
         DeepCommand::Apply(a) => apply_cmd(a),
+        DeepCommand::Eval(a) => eval_cmd(a),
     }
 }
 
@@ -344,10 +413,22 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
             seqs.last().map_or(0, |s| s.fine.len())
         ));
     }
-    let params = TrainParams {
+    let params = train_params(&a);
+    let t0 = Instant::now();
+    let out = train(&seqs, &params, &a.out, &progress)?;
+    progress.println(&format!(
+        "model written to {} in {:.1} s",
+        out.display(),
+        t0.elapsed().as_secs_f64()
+    ));
+    Ok(())
+}
+
+fn train_params(a: &TrainArgs) -> TrainParams {
+    TrainParams {
         k: a.k,
-        lags: a.lags,
-        pose_history: a.pose_history,
+        lags: a.lags.clone(),
+        pose_history: a.pose_history.clone(),
         ridge: a.ridge,
         pose_features: a.pose_features,
         mirror: a.mirror,
@@ -368,28 +449,62 @@ fn train_cmd(a: TrainArgs) -> Result<()> {
             cross_fit: a.lstm_cross_fit,
             early_stopping: a.lstm_early_stopping,
         },
-        pose_components: a.pose_components,
-        pose_smoothing: a.pose_smoothing,
+        pose_lowpass: PoseLowpass {
+            components: a.pose_components,
+            half_wavelength: a.pose_lowpass,
+        },
+        detail: DetailParams {
+            degree: a.detail_degree,
+            captures_per_frame: a.detail_captures,
+            seed: a.seed,
+        },
         resolution: a.resolution,
-        uv: a.uv,
-        cgan: (a.cgan_epochs > 0).then(|| CganConfig {
-            resolution: a.resolution,
+        uv: a.uv.clone(),
+        cgan: (a.cgan_steps > 0).then(|| CganConfig {
             filters: a.cgan_filters,
             disc_filters: a.cgan_disc_filters,
             w_temporal: a.cgan_w_temporal,
-            epochs: a.cgan_epochs,
+            depth: a.cgan_depth,
+            crop: a.cgan_crop,
+            steps: a.cgan_steps,
             seed: a.seed,
             ..Default::default()
         }),
-        checkpoint: a.checkpoint,
+        checkpoint: a.checkpoint.clone(),
+    }
+}
+
+fn eval_cmd(a: EvalArgs) -> Result<()> {
+    let progress = CliProgress::new(a.train.quiet);
+    let params = EvalParams {
+        train: train_params(&a.train),
+        step: a.step,
+        captures: a.captures,
+        motions: a.motions,
+        extra: a.extra,
+        split: a.split,
+        held_out: a.held_out,
+        table1: a.table1.then(|| CganConfig {
+            filters: a.train.cgan_filters,
+            disc_filters: a.train.cgan_disc_filters,
+            w_temporal: a.train.cgan_w_temporal,
+            depth: a.train.cgan_depth,
+            crop: a.train.cgan_crop,
+            steps: a.train.cgan_steps.max(1),
+            seed: a.train.seed,
+            ..Default::default()
+        }),
+        strip: a.strip,
+        strips: a.train.out.join("strips"),
+        work: a.train.out.join("models"),
     };
-    let t0 = Instant::now();
-    let out = train(&seqs, &params, &a.out, &progress)?;
-    progress.println(&format!(
-        "model written to {} in {:.1} s",
-        out.display(),
-        t0.elapsed().as_secs_f64()
-    ));
+    crease_core::fsutil::create_dir_all(&a.train.out)?;
+    let report = evaluate(&a.train.data, &params, &progress)?;
+    let md = markdown(&report);
+    let json = serde_json::to_string_pretty(&report)?;
+    crease_core::fsutil::write_atomic(&a.train.out.join("eval.json"), json.as_bytes())?;
+    crease_core::fsutil::write_atomic(&a.train.out.join("eval.md"), md.as_bytes())?;
+    println!("{md}");
     Ok(())
 }
 
@@ -408,12 +523,23 @@ fn apply_cmd(a: ApplyArgs) -> Result<()> {
     };
     let progress = CliProgress::new(a.quiet);
     let t0 = Instant::now();
-    let n = apply(&model, &input, &params, &a.out, &progress)?;
+    let summary = apply(&model, &input, &params, &a.out, &progress)?;
+    let n = summary.frames;
     progress.println(&format!(
         "wrote {n} frames to {} ({:.1} ms per frame)",
         a.out.display(),
         1e3 * t0.elapsed().as_secs_f64() / n.max(1) as f64
     ));
+    if !summary.fallback.is_empty() {
+        // Said even with --quiet: the maps of these frames are not what the model would make.
+        eprintln!(
+            "{} of {n} frames got the input's own normals (outside what the detail model learned; their OBJ says why):",
+            summary.fallback.len()
+        );
+        for (t, why) in summary.fallback.iter().take(10) {
+            eprintln!("  frame {}: {why}", t + 1);
+        }
+    }
     Ok(())
 }
 

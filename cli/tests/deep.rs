@@ -154,8 +154,12 @@ fn train_apply_writes_the_output_contract_deterministically() {
         "5",
         "--resolution",
         "32",
-        "--cgan-epochs",
-        "1",
+        "--cgan-steps",
+        "2",
+        "--cgan-depth",
+        "3",
+        "--cgan-crop",
+        "16",
         "--cgan-filters",
         "4",
         "--cgan-disc-filters",
@@ -165,7 +169,7 @@ fn train_apply_writes_the_output_contract_deterministically() {
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
-    assert_eq!(manifest["version"], 8);
+    assert_eq!(manifest["version"], 9);
     // The synthetic shapes are affine in the two pose numbers that move (a, b): the subspace keeps only
     // components with non-negligible variance, so k is capped at that rank.
     assert_eq!(manifest["k"], 2);
@@ -282,16 +286,17 @@ fn apply_rolls_out_the_autoregressive_regressor_and_blends_it_by_default() {
         "16",
         "--ar-state",
         "3",
-        // This test is about the regressors: their reconstruction as it is, not the smoothed shape
-        // `apply --pose` draws by default (the ripples below are what the smoothing removes).
-        "--pose-smoothing",
+        // This test is about the regressors: their reconstruction as it is.
+        "--pose-lowpass",
+        "0",
+        "--cgan-steps",
         "0",
     ]);
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
     assert_eq!(manifest["regressor"], "blend", "the default");
-    assert_eq!(manifest["pose_smoothing"]["steps"], 0);
+    assert_eq!(manifest["pose_lowpass"]["half_wavelength"], 0.0);
     assert_eq!(manifest["blend"]["weight"], 0.5);
     // k is capped at the data's rank (2), and the fed-back state at k.
     assert_eq!(manifest["autoregressive"]["k_state"], 2);
@@ -474,6 +479,8 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
         "4",
         "--resolution",
         "32",
+        "--cgan-steps",
+        "0",
     ]);
 
     // Pose file with the wrong frame count for its meshes.

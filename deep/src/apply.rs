@@ -4,13 +4,12 @@
 //! that is what lets the job system split apply into frame chunks.
 
 use crate::contract;
-use crate::detail_filter::{DetailFilter, Umbrella};
 use crate::model::{Model, RegressorKind};
-use crate::normal_map::{bake_coarse, convert_space, world_from_vertex_normals, NormalMap, Space};
-use crate::pose::read_pose_file;
-use crate::raster::TexelMap;
+use crate::normal_maps::raster::TexelMap;
+use crate::normal_maps::{convert_space, world_from_vertex_normals, NormalMap, Space};
+use crate::regression::pose::read_pose_file;
 use crease_core::mesh::io::open_sequence;
-use crease_core::mesh::{geometry, Frame, FrameSource, Topology};
+use crease_core::mesh::{geometry, Frame, FrameSource};
 use crease_core::progress::Progress;
 use crease_core::vec3::V3;
 use crease_core::{Error, Result};
@@ -81,9 +80,9 @@ pub fn shapes_from_poses(
         .collect())
 }
 
-/// The shapes `apply --pose` writes for the frames in `range`: the regression's coefficients, made smooth by the
-/// model's `pose_smoothing` (format 8 on; [`crate::pose_smoothing`]), or reconstructed as they are. Frames
-/// outside `range` stay empty (a chunk smooths only its own frames).
+/// The shapes `apply --pose` writes for the frames in `range`: the regression's coefficients, reconstructed
+/// and low-passed as the model's `pose_lowpass` says ([`crate::regression::pose_lowpass`]). Frames outside
+/// `range` stay empty (a chunk smooths only its own frames).
 pub fn pose_shapes(
     model: &Model,
     pose_path: &Path,
@@ -92,15 +91,16 @@ pub fn pose_shapes(
 ) -> Result<Vec<Frame>> {
     let coeffs = coefficients_from_poses(model, pose_path, regressor)?;
     let range = range.unwrap_or(0..coeffs.len());
-    let smoothing = model.manifest.pose_smoothing.as_ref();
-    let filter = smoothing.and_then(|s| s.filter(&model.topology));
+    let lowpass = model.manifest.pose_lowpass;
     Ok(coeffs
         .iter()
         .enumerate()
-        .map(|(t, c)| match smoothing {
-            _ if !range.contains(&t) => Vec::new(),
-            Some(s) => s.shape(&model.subspace, filter.as_ref(), c),
-            None => model.subspace.reconstruct(c),
+        .map(|(t, c)| {
+            if range.contains(&t) {
+                lowpass.shape(&model.topology, &model.subspace, c)
+            } else {
+                Vec::new()
+            }
         })
         .collect())
 }
@@ -139,7 +139,7 @@ pub fn coefficients_from_poses(
                 _ => return Err(model.missing_regressor(regressor)),
             };
             let linear: Vec<Vec<f64>> = controls.iter().map(|c| model.linear.predict(c)).collect();
-            crate::blend::mix(&linear, &ar.rollout(&controls), blend.weight)
+            crate::regression::blend::mix(&linear, &ar.rollout(&controls), blend.weight)
         }
         RegressorKind::Lstm => {
             let net = model
@@ -160,7 +160,9 @@ pub fn coefficients_from_poses(
                         controls.iter().map(|c| model.linear.predict(c)).collect();
                     Some(match ar {
                         None => lin,
-                        Some(ar) => crate::blend::mix(&lin, &ar.rollout(&controls), weight),
+                        Some(ar) => {
+                            crate::regression::blend::mix(&lin, &ar.rollout(&controls), weight)
+                        }
                     })
                 }
                 None => None,
@@ -194,14 +196,24 @@ pub fn open_coarse(model: &Model, dir: &Path) -> Result<Box<dyn FrameSource>> {
     Ok(opened.source)
 }
 
-/// Runs the model on `input` and writes frames (all, or `params.frames`) into `out`.
+/// What an apply wrote: how many frames, and which of them got the input's own normals and why.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ApplySummary {
+    pub frames: usize,
+    /// (0-based frame, reason) of every frame the detail model's guard sent back to the input's normals.
+    pub fallback: Vec<(usize, String)>,
+}
+
+/// Runs the model on `input` and writes frames (all, or `params.frames`) into `out`. A coarse frame whose scale
+/// the model was not trained for is an error naming it; one the detail model's guard rejects gets the input's
+/// own normals, and its OBJ says so (`# normals: …`), as does the summary.
 pub fn apply(
     model: &Model,
     input: &ApplyInput,
     params: &ApplyParams,
     out: &Path,
     progress: &dyn Progress,
-) -> Result<usize> {
+) -> Result<ApplySummary> {
     let shapes = match input {
         ApplyInput::Pose(p) => CoarseShapes::Frames(pose_shapes(
             model,
@@ -228,141 +240,126 @@ pub fn apply(
     let enhancer = if params.no_cgan {
         None
     } else {
-        crate::enhance::Enhancer::for_model(model)?
+        crate::cgan::enhance::Enhancer::for_model(model)?.filter(|e| match input {
+            ApplyInput::Coarse(_) => e.spec.use_coarse,
+            ApplyInput::Pose(_) => e.spec.use_pose,
+        })
     };
-    // The detail filter learned captured → fine; a regression's reconstruction is no capture (it sharpens the
-    // mixed-in folds: docs/deepwrinkles.md, "Pose-only normals taken apart"), so poses get the map of their
-    // (smoothed) shape.
-    let op = crate::detail_filter::Umbrella::new(&model.topology);
-    let detail = match input {
-        ApplyInput::Coarse(_) => model.detail.as_ref().map(|f| (f, &op)),
-        ApplyInput::Pose(_) => None,
+    let source = match input {
+        ApplyInput::Coarse(d) => Source::Capture(d.as_path()),
+        ApplyInput::Pose(_) => Source::Pose,
     };
     contract::prepare(out)?;
     let writer = contract::FrameWriter::new(&model.topology, &model.layout);
     progress.begin("apply", range.len() as u64);
-    let one_frame = |t: usize, scratch: &mut ApplyScratch| -> Result<()> {
+    let one_frame = |t: usize, scratch: &mut contract::FrameScratch| -> Result<Option<String>> {
         if progress.cancelled() {
             return Err(Error::Cancelled);
         }
         let c = shapes.frame(t)?;
-        let map = frame_map_with(
+        let f = frame_map(
             model,
             &texels,
             &c,
-            detail,
+            source,
+            t,
             enhancer.as_ref(),
             params.space,
-            scratch,
         )?;
-        writer.write(out, t, &c, &map, &mut scratch.files)?;
+        writer.write(out, t, &c, &f.map, &f.note, scratch)?;
         progress.advance("apply", 1);
-        Ok(())
+        Ok(f.fallback)
     };
-    // Each frame needs its predecessor's map only through the cGAN's input, never its output, so frames are
-    // independent and their files the same bytes in any order. Without a cGAN they run in parallel (each
-    // thread with its own buffers, so memory stays at a frame per thread); the cGAN's own loops use every
-    // core, so with one the frames run one after another.
-    if enhancer.is_none() && rayon::current_num_threads() > 1 {
+    // Frames are independent (the cGAN sees one frame's map, never another's output), so their files are the
+    // same bytes in any order. Without a cGAN they run in parallel (each thread with its own buffers); the
+    // cGAN's own loops use every core, so with one the frames run one after another.
+    let fallbacks: Vec<Option<String>> = if enhancer.is_none() && rayon::current_num_threads() > 1 {
         use rayon::prelude::*;
         range
             .clone()
             .into_par_iter()
-            .try_for_each_init(ApplyScratch::default, |s, t| one_frame(t, s))?;
+            .map_init(contract::FrameScratch::default, |s, t| one_frame(t, s))
+            .collect::<Result<_>>()?
     } else {
-        let mut scratch = ApplyScratch::default();
-        for t in range.clone() {
-            one_frame(t, &mut scratch)?;
-        }
-    }
+        let mut scratch = contract::FrameScratch::default();
+        range
+            .clone()
+            .map(|t| one_frame(t, &mut scratch))
+            .collect::<Result<_>>()?
+    };
     contract::sync_frames(out, range.clone())?;
     progress.end("apply");
     if params.frames.is_none() {
         contract::finish(out, n, params.space, res, "crease deep apply")?;
     }
-    Ok(range.len())
+    Ok(ApplySummary {
+        frames: range.len(),
+        fallback: range
+            .zip(fallbacks)
+            .filter_map(|(t, f)| f.map(|r| (t, r)))
+            .collect(),
+    })
 }
 
-/// Buffers one thread of `apply` reuses from frame to frame.
-#[derive(Debug, Default)]
-pub struct ApplyScratch {
-    filter: crate::detail_filter::FilterScratch,
-    fine: Vec<V3>,
-    files: contract::FrameScratch,
+/// Where a frame's coarse shape came from.
+#[derive(Debug, Clone, Copy)]
+pub enum Source<'a> {
+    /// The regression (`apply --pose`).
+    Pose,
+    /// A capture read from this path (`apply --coarse`): the detail model runs on it.
+    Capture(&'a Path),
 }
 
-/// The map of a captured mesh's predicted fine shape: the vertex normals of `filter`'s prediction interpolated
-/// over the coarse mesh's faces (the coarse mesh stays the surface the map belongs to).
-pub fn detail_map(
-    texels: &TexelMap,
-    topo: &Topology,
-    op: &Umbrella,
-    filter: &DetailFilter,
-    coarse: &[V3],
-) -> NormalMap {
-    detail_map_with(
-        texels,
-        topo,
-        op,
-        filter,
-        coarse,
-        &mut ApplyScratch::default(),
-    )
+/// One frame's map, the note its OBJ carries, and the guard's reason when it fell back.
+pub struct FrameMap {
+    pub map: NormalMap,
+    pub note: String,
+    pub fallback: Option<String>,
 }
 
-/// [`detail_map`] with `scratch`'s buffers.
-pub fn detail_map_with(
-    texels: &TexelMap,
-    topo: &Topology,
-    op: &Umbrella,
-    filter: &DetailFilter,
-    coarse: &[V3],
-    scratch: &mut ApplyScratch,
-) -> NormalMap {
-    filter.apply_into(op, coarse, &mut scratch.fine, &mut scratch.filter);
-    world_from_vertex_normals(texels, topo, &geometry::vertex_normals(topo, &scratch.fine))
-}
-
-/// One frame's map: the coarse map (or, with a detail filter, the map of the predicted fine shape), enhanced by
-/// the cGAN when the model has one, in the asked space.
+/// One frame's map: from a capture, the detail model's normals (or, past its guard, the capture's own); from
+/// the regression, the shape's own normals; then `enhancer` (the cGAN, where the caller decided to use it; not
+/// on a frame that fell back), in the asked space.
 pub fn frame_map(
     model: &Model,
     texels: &TexelMap,
     coarse: &[V3],
-    detail: Option<(&DetailFilter, &Umbrella)>,
-    enhancer: Option<&crate::enhance::Enhancer>,
+    source: Source,
+    t: usize,
+    enhancer: Option<&crate::cgan::enhance::Enhancer>,
     space: Space,
-) -> Result<NormalMap> {
-    frame_map_with(
-        model,
-        texels,
-        coarse,
-        detail,
-        enhancer,
-        space,
-        &mut ApplyScratch::default(),
-    )
-}
-
-/// [`frame_map`] with `scratch`'s buffers.
-pub fn frame_map_with(
-    model: &Model,
-    texels: &TexelMap,
-    coarse: &[V3],
-    detail: Option<(&DetailFilter, &Umbrella)>,
-    enhancer: Option<&crate::enhance::Enhancer>,
-    space: Space,
-    scratch: &mut ApplyScratch,
-) -> Result<NormalMap> {
-    let mut map = match detail {
-        Some((f, op)) => detail_map_with(texels, &model.topology, op, f, coarse, scratch),
-        None => bake_coarse(texels, &model.topology, coarse),
+) -> Result<FrameMap> {
+    let topo = &model.topology;
+    let (normals, mut note, fallback) = match source {
+        Source::Capture(path) => {
+            let what = format!("{} frame {}", path.display(), t + 1);
+            let h = model.detail.check_scale(topo, coarse, &what)?;
+            match model.detail.normals(topo, coarse, h) {
+                (n, None) => (n, "the detail model's".to_string(), None),
+                (n, Some(why)) => (
+                    n,
+                    format!("the input's own (the detail model fell back: {why})"),
+                    Some(why.to_string()),
+                ),
+            }
+        }
+        Source::Pose => (
+            geometry::vertex_normals(topo, coarse),
+            "the pose regression's shape".to_string(),
+            None,
+        ),
     };
-    if let Some(e) = enhancer {
+    let mut map = world_from_vertex_normals(texels, topo, &normals);
+    if let (Some(e), None) = (enhancer, &fallback) {
         map = e.enhance(&map)?;
+        note.push_str(", enhanced by the cGAN");
     }
     if space == Space::Tangent {
-        map = convert_space(&map, texels, &model.topology, coarse, &model.layout, true);
+        map = convert_space(&map, texels, topo, coarse, &model.layout, true);
     }
-    Ok(map)
+    Ok(FrameMap {
+        map,
+        note,
+        fallback,
+    })
 }

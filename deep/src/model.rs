@@ -6,13 +6,13 @@
 //! loader checks the version first and each file against the manifest, so a model from another version or a
 //! damaged file is a clear error, never a silently different model.
 
-use crate::autoregress::{AutoregressiveLinear, ShapeHistory};
-use crate::detail_filter::DetailFilter;
-use crate::lstm::{LstmConfig, LstmRegressor};
-use crate::pose::ControlSpec;
-use crate::regress::LinearRegression;
+use crate::detail::{DetailModel, DetailSpec};
+use crate::normal_maps::uv::{write_obj_with_uv, UvLayout};
+use crate::regression::autoregress::{AutoregressiveLinear, ShapeHistory};
+use crate::regression::linear::LinearRegression;
+use crate::regression::lstm::{LstmConfig, LstmRegressor};
+use crate::regression::pose::ControlSpec;
 use crate::subspace::Subspace;
-use crate::uv::{write_obj_with_uv, UvLayout};
 use crease_core::mesh::Topology;
 use crease_core::{npy, Error, Result};
 use faer::Mat;
@@ -22,29 +22,13 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 /// Format written by this build. Bump when the layout or meaning of any file changes.
-/// Version 2 added the autoregressive regressor (`autoregressive.npy`, `ar_scale.npy`, `ar_start.npy`).
-/// Version 3 made the cGAN generator residual (`cgan.residual` in the manifest) and added the decayed pose
-/// history to the control vector (`control.history`): an older crease would have read such a generator as a
-/// plain one, or built control vectors of the wrong length, so it must refuse the model instead.
-/// Version 4 added the blend regressor (`blend` in the manifest: its weight); a version 3 crease could not
-/// parse a manifest whose `regressor` is `blend`, so it must see a version it refuses by name.
-/// Version 5 added pose features (`control.features`: rigid features of the pose, [`crate::pose_features`]); a
-/// version 4 crease would have ignored the field and built raw control vectors of the wrong length.
-/// Version 6 added the mesh-space detail filter (`detail` in the manifest, `detail.npy`) that `apply --coarse`
-/// runs before drawing the map; a version 5 crease would have ignored it and written the plain coarse maps.
-/// Version 7 made the LSTM a residual one (`lstm.residual_of` in the manifest: the regressor whose
-/// coefficients `lstm.safetensors` corrects); a version 6 crease would have ignored the field and run the
-/// correction alone as if it were the shape. Older LSTMs have no such field and run as before.
-/// Version 8 added the pose-only shape's smoothing (`pose_smoothing` in the manifest: leading components kept
-/// and low-pass steps, [`crate::pose_smoothing`]) that `apply --pose` runs before drawing mesh and map; a
-/// version 7 crease would have ignored it and written the unsmoothed shapes. Older models have none and run
-/// as before.
-pub const MODEL_VERSION: u32 = 8;
-/// Oldest format this build still reads: a version 1 model differs only by lacking the autoregressive
-/// regressor, so it still runs with the linear or LSTM one; the generator of a version 1 or 2 model has no
-/// `residual` field and runs as the plain generator it was trained as; models before version 4 have no blend
-/// weight and refuse the blend regressor by name.
-pub const MODEL_VERSION_MIN: u32 = 1;
+/// Version 9 replaced the detail filter by the detail model learned from the model's own random captures
+/// (`detail` in the manifest, `detail.npy`: conditioned weights and a guard) and the pose-only shape's
+/// smoothing by a cotangent diffusion (`pose_lowpass`). Older models held a filter and a smoothing tied to one
+/// data set's capture; they are refused by version, to be retrained.
+pub const MODEL_VERSION: u32 = 9;
+/// Oldest format this build reads.
+pub const MODEL_VERSION_MIN: u32 = 9;
 pub const MODEL_FORMAT: &str = "crease-deep-model";
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -55,7 +39,7 @@ pub enum RegressorKind {
     /// Pose and the model's own previous shape coefficients, rolled out from the first frame.
     Autoregressive,
     Lstm,
-    /// Weighted mean of the linear map and the autoregressive rollout ([`crate::blend`]).
+    /// Weighted mean of the linear map and the autoregressive rollout ([`crate::regression::blend`]).
     Blend,
 }
 
@@ -108,35 +92,22 @@ pub struct Manifest {
     pub autoregressive: Option<ArSpec>,
     /// The blend regressor's weight and how it was chosen; absent before version 4.
     #[serde(default)]
-    pub blend: Option<crate::blend::BlendSpec>,
-    /// The mesh-space detail filter ([`crate::detail_filter`], weights in `detail.npy`); absent before version 6.
-    #[serde(default)]
-    pub detail: Option<DetailSpec>,
-    /// How `apply --pose` smooths the regression's shape ([`crate::pose_smoothing`]); absent before version 8
-    /// (the reconstruction as it is).
-    #[serde(default)]
-    pub pose_smoothing: Option<crate::pose_smoothing::PoseSmoothing>,
+    pub blend: Option<crate::regression::blend::BlendSpec>,
+    /// The detail model `apply --coarse` runs ([`crate::detail`], weights in `detail.npy`).
+    pub detail: DetailSpec,
+    /// How `apply --pose` low-passes the regression's shape ([`crate::regression::pose_lowpass`]).
+    pub pose_lowpass: crate::regression::pose_lowpass::PoseLowpass,
     /// The LSTM's output unit per coefficient: one shared value (the RMS of all training coefficients,
-    /// [`crate::lstm::output_scale`]) since this session; each coefficient's own standard deviation in models
+    /// [`crate::regression::lstm::output_scale`]) since this session; each coefficient's own standard deviation in models
     /// trained before, which load and run with their stored units unchanged.
     pub coeff_scale: Vec<f64>,
     /// Normal map resolution the model (and its cGAN) works at.
     pub resolution: usize,
-    /// The cGAN's configuration, when the model has one (`cgan.safetensors`).
-    pub cgan: Option<serde_json::Value>,
+    /// The cGAN, when the model has one (`cgan.safetensors`): its configuration and where `apply` uses it.
+    pub cgan: Option<crate::cgan::CganSpec>,
     /// Free-form training summary (data, losses, timings) for people.
     pub training: serde_json::Value,
     pub files: BTreeMap<String, FileEntry>,
-}
-
-/// The scalar part of the detail filter: its degree, its ridge weight and how it did on its training pairs.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct DetailSpec {
-    pub degree: usize,
-    pub ridge: f64,
-    /// Mean |fine − coarse|² per vertex of the training pairs (m²), before and after the filter.
-    pub train_mse_before: f64,
-    pub train_mse_after: f64,
 }
 
 /// The scalar part of the autoregressive regressor's [`ShapeHistory`].
@@ -168,8 +139,8 @@ pub struct Model {
     pub linear: LinearRegression,
     pub autoregressive: Option<AutoregressiveLinear>,
     pub lstm: Option<LstmRegressor>,
-    /// The mesh-space detail filter `apply --coarse` runs (version 6 on).
-    pub detail: Option<DetailFilter>,
+    /// The detail model `apply --coarse` runs.
+    pub detail: DetailModel,
     /// Directory the model was loaded from (for components that load lazily, like the cGAN).
     pub dir: PathBuf,
 }
@@ -328,11 +299,14 @@ pub fn write_core_parts(
     w.record("template.obj")
 }
 
-/// Writes the detail filter's weights (`detail.npy`: interior row, boundary row); its [`DetailSpec`] goes into
+/// Writes the detail model's weights (`detail.npy`: interior row, boundary row); its [`DetailSpec`] goes into
 /// the manifest.
-pub fn write_detail(w: &mut ModelWriter, f: &DetailFilter) -> Result<()> {
-    let weights: Vec<f64> = f.interior.iter().chain(&f.boundary).copied().collect();
-    w.put("detail.npy", &npy::to_bytes(&[2, f.degree + 1], &weights))
+pub fn write_detail(w: &mut ModelWriter, m: &DetailModel) -> Result<()> {
+    let weights: Vec<f64> = m.interior.iter().chain(&m.boundary).copied().collect();
+    w.put(
+        "detail.npy",
+        &npy::to_bytes(&[2, m.interior.len()], &weights),
+    )
 }
 
 /// Writes the autoregressive regressor's arrays; its [`ArSpec`] goes into the manifest.
@@ -510,66 +484,51 @@ impl Model {
             }
             None => None,
         };
-        if manifest.cgan.is_some() {
+        if let Some(c) = &manifest.cgan {
             read("cgan.safetensors")?;
+            c.config
+                .validate()
+                .and_then(|_| c.config.check_resolution(manifest.resolution))
+                .map_err(|e| Error::format(&mpath, None, format!("`cgan`: {e}")))?;
         }
-        let detail = match &manifest.detail {
-            Some(spec) => {
-                let (shape, weights) =
-                    npy::from_bytes::<f64>(&p("detail.npy"), &read("detail.npy")?)?;
-                if shape != [2, spec.degree + 1] {
-                    return Err(Error::format(
-                        p("detail.npy"),
-                        None,
-                        format!(
-                            "shape {shape:?} does not fit the manifest's degree {} ([2, {}])",
-                            spec.degree,
-                            spec.degree + 1
-                        ),
-                    ));
-                }
-                let (interior, boundary) = weights.split_at(spec.degree + 1);
-                let f = DetailFilter {
-                    degree: spec.degree,
-                    interior: interior.to_vec(),
-                    boundary: boundary.to_vec(),
-                };
-                f.check()
-                    .map_err(|e| Error::format(p("detail.npy"), None, e))?;
-                Some(f)
+        let detail = {
+            let (shape, weights) = npy::from_bytes::<f64>(&p("detail.npy"), &read("detail.npy")?)?;
+            if shape.len() != 2 || shape[0] != 2 {
+                return Err(Error::format(
+                    p("detail.npy"),
+                    None,
+                    format!("shape {shape:?} is not [2, n]"),
+                ));
             }
-            None => None,
+            let (interior, boundary) = weights.split_at(shape[1]);
+            let m = DetailModel {
+                spec: manifest.detail.clone(),
+                interior: interior.to_vec(),
+                boundary: boundary.to_vec(),
+            };
+            m.check().map_err(|e| {
+                Error::format(
+                    p("detail.npy"),
+                    None,
+                    format!("does not fit the manifest's `detail`: {e}"),
+                )
+            })?;
+            m
         };
+        manifest
+            .pose_lowpass
+            .check()
+            .map_err(|e| Error::format(&mpath, None, format!("`pose_lowpass`: {e}")))?;
         match &manifest.blend {
-            Some(b) => crate::blend::check_weight(b.weight)
+            Some(b) => crate::regression::blend::check_weight(b.weight)
                 .map_err(|e| Error::format(&mpath, None, format!("`blend.weight`: {e}")))?,
-            None if manifest.version >= 4 => {
+            None => {
                 return Err(Error::format(
                     &mpath,
                     None,
-                    format!(
-                        "format version {} manifest without the `blend` field it requires",
-                        manifest.version
-                    ),
+                    "manifest without the `blend` field it requires",
                 ))
             }
-            None => {}
-        }
-        match &manifest.pose_smoothing {
-            Some(ps) => ps
-                .check()
-                .map_err(|e| Error::format(&mpath, None, format!("`pose_smoothing`: {e}")))?,
-            None if manifest.version >= 8 => {
-                return Err(Error::format(
-                    &mpath,
-                    None,
-                    format!(
-                        "format version {} manifest without the `pose_smoothing` field it requires",
-                        manifest.version
-                    ),
-                ))
-            }
-            None => {}
         }
         if manifest.blend.is_some() && manifest.autoregressive.is_none() {
             return Err(Error::format(

@@ -1,25 +1,26 @@
-//! `crease deep train`: from training sequences (registered fine meshes, coarse meshes, poses) to a model.
+//! `crease deep train`: from training sequences (registered fine meshes and poses) to a model.
 //!
-//! Each training directory holds `gt/` (the registered fine shapes: the subspace is learned from them),
-//! `captured/` (the coarse input the cGAN learns to enrich) and `pose.json`. The data's meshes already share
-//! the template's topology; raw scans go through `crease deep register` first.
+//! Each training directory holds `gt/` (the registered fine shapes: the subspace, the detail model and the
+//! cGAN learn from them) and `pose.json`. A `captured/` beside them is not read: the detail model and the
+//! cGAN learn from captures of `gt/` they make themselves ([`crate::detail::captures`]), so that no one
+//! capture's way of losing detail is learned. The meshes already share the template's topology; raw scans
+//! go through `crease deep register` first.
 
-use crate::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
-use crate::blend::{BlendSpec, WeightFit};
-use crate::detail_filter::{
-    fit_system, DetailFilter, FramePair, Umbrella, DEFAULT_DEGREE, DEFAULT_RIDGE,
-};
-use crate::lstm::{windows, LstmConfig, LstmRegressor};
-use crate::mirror::{reflect_pose, MirrorMode, Reflection};
+use crate::detail::{DetailData, DetailModel, DetailParams};
 use crate::model::{
-    write_autoregressive, write_core_parts, write_detail, ArSpec, DetailSpec, Manifest,
-    ModelWriter, RegressorKind, MODEL_FORMAT, MODEL_VERSION,
+    write_autoregressive, write_core_parts, write_detail, ArSpec, Manifest, ModelWriter,
+    RegressorKind, MODEL_FORMAT, MODEL_VERSION,
 };
-use crate::pose::{read_pose_file, read_pose_names, ControlSpec};
-use crate::pose_features::{PoseFeatureMode, PoseFeatures};
-use crate::regress::LinearRegression;
+use crate::normal_maps::uv::{auto_atlas, read_obj_uv, UvLayout};
+use crate::regression::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
+use crate::regression::blend::{BlendSpec, WeightFit};
+use crate::regression::linear::LinearRegression;
+use crate::regression::lstm::{windows, LstmConfig, LstmRegressor};
+use crate::regression::pose::{read_pose_file, read_pose_names, ControlSpec};
+use crate::regression::pose_features::{PoseFeatureMode, PoseFeatures};
+use crate::regression::pose_lowpass::PoseLowpass;
+use crate::subspace::mirror::{reflect_pose, MirrorMode, Reflection};
 use crate::subspace::Subspace;
-use crate::uv::{auto_atlas, read_obj_uv, UvLayout};
 use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::{Frame, Sequence, Topology};
 use crease_core::progress::Progress;
@@ -28,46 +29,25 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
+#[derive(Debug, Clone)]
 pub struct TrainingSequence {
     pub dir: PathBuf,
     pub topology: Arc<Topology>,
     pub fine: Vec<Frame>,
-    pub coarse: Vec<Frame>,
     pub poses: Vec<Vec<f64>>,
-    /// `pose_vector_names` of the pose file, when it has them ([`crate::pose_features`]).
+    /// `pose_vector_names` of the pose file, when it has them ([`crate::regression::pose_features`]).
     pub pose_names: Option<Vec<String>>,
 }
 
-/// Loads `dir/gt`, `dir/captured` and `dir/pose.json`, checking they agree on frames and topology.
+/// Loads `dir/gt` and `dir/pose.json`, checking they agree on the frame count.
 pub fn load_training_dir(dir: &Path) -> Result<TrainingSequence> {
     let gt = Sequence::load(open_sequence(&dir.join("gt"))?.source.as_ref())?;
-    let captured = Sequence::load(open_sequence(&dir.join("captured"))?.source.as_ref())?;
-    if captured.frames.len() != gt.frames.len() {
-        return Err(Error::param(
-            "data",
-            format!(
-                "{}: gt has {} frames, captured {}",
-                dir.display(),
-                gt.frames.len(),
-                captured.frames.len()
-            ),
-        ));
-    }
-    if captured.topology.triangles() != gt.topology.triangles()
-        || captured.topology.n_vertices() != gt.topology.n_vertices()
-    {
-        return Err(Error::mesh(format!(
-            "{}: gt and captured do not share one topology",
-            dir.display()
-        )));
-    }
     let poses = read_pose_file(&dir.join("pose.json"), Some(gt.frames.len()))?;
     let pose_names = read_pose_names(&dir.join("pose.json"))?;
     Ok(TrainingSequence {
         dir: dir.to_path_buf(),
         topology: gt.topology,
         fine: gt.frames,
-        coarse: captured.frames,
         poses,
         pose_names,
     })
@@ -78,21 +58,21 @@ pub struct TrainParams {
     /// Subspace size (capped by the number of training frames).
     pub k: usize,
     pub lags: Vec<usize>,
-    /// Time constants (frames) of the decayed pose history features ([`crate::pose_history`]); none: no
+    /// Time constants (frames) of the decayed pose history features ([`crate::regression::pose_history`]); none: no
     /// history features.
     pub pose_history: Vec<f64>,
     /// Ridge weight of the linear regression, relative to the mean diagonal of ΘᵀΘ.
     pub ridge: f64,
-    /// What the pose numbers become before the regression ([`crate::pose_features`]).
+    /// What the pose numbers become before the regression ([`crate::regression::pose_features`]).
     pub pose_features: PoseFeatureMode,
-    /// Reflection that augments the subspace and regression data ([`crate::mirror`]).
+    /// Reflection that augments the subspace and regression data ([`crate::subspace::mirror`]).
     pub mirror: MirrorMode,
     /// Regressor used by `apply --pose`. The linear and autoregressive ones are always trained (seconds);
     /// `Lstm` adds the network.
     pub regressor: RegressorKind,
     /// Leading shape coefficients the autoregressive regressor feeds back (capped at the subspace size).
     pub ar_state: usize,
-    /// Steps of the autoregressive regressor's fit on its own rollout ([`crate::rollout_fit`]) after the
+    /// Steps of the autoregressive regressor's fit on its own rollout ([`crate::regression::rollout_fit`]) after the
     /// ridge fit; 0 keeps the ridge fit.
     pub ar_rollout_iters: usize,
     /// Weight of the autoregressive rollout in the blend regressor (the linear map gets 1 − weight), unless
@@ -102,16 +82,19 @@ pub struct TrainParams {
     /// instead of taking `blend_weight`.
     pub blend_fit: bool,
     pub lstm: LstmConfig,
-    /// Leading subspace coefficients and λ|μ low-pass steps of the shape `apply --pose` draws
-    /// ([`crate::pose_smoothing`]; 0 and 0: the reconstruction as it is).
-    pub pose_components: usize,
-    pub pose_smoothing: usize,
+    /// How the shape `apply --pose` draws is made smooth ([`crate::regression::pose_lowpass`]).
+    pub pose_lowpass: PoseLowpass,
+    /// The detail model `apply --coarse` runs ([`crate::detail`]).
+    pub detail: DetailParams,
     pub resolution: usize,
     /// A template OBJ whose `vt` must give the layout; without it one is computed from the first mean shape.
     pub uv: Option<PathBuf>,
-    /// cGAN training on (captured → gt) map pairs at `resolution`, when asked for.
+    /// The cGAN ([`crate::cgan`]), trained on random captures of the training frames and used where it beats
+    /// the maps without it on the held-out training sequence; `None`: no cGAN. `crease deep train` and job
+    /// specs train one ([`crate::cgan::CganConfig::default`]) unless told `--cgan-steps 0`; the library's
+    /// default here is none, so that a caller pays for the network only when it asks.
     pub cgan: Option<crate::cgan::CganConfig>,
-    /// Where cGAN checkpoints go after every epoch; an existing checkpoint there is resumed.
+    /// Where cGAN checkpoints go as it trains; an existing checkpoint there is resumed.
     pub checkpoint: Option<PathBuf>,
 }
 
@@ -140,11 +123,11 @@ impl Default for TrainParams {
             blend_weight: 0.5,
             blend_fit: false,
             lstm: LstmConfig::default(),
-            // The regression's folds are mostly other frames' folds: low-passing its shape by 160 λ|μ steps
-            // lowered the map normal error of `apply --pose` on every split of sleeve-train (17.4–18.1° →
-            // 16.2–17.6°) and the vertex error too (docs/deepwrinkles.md, "Pose-only normals taken apart").
-            pose_components: crate::pose_smoothing::DEFAULT_COMPONENTS,
-            pose_smoothing: crate::pose_smoothing::DEFAULT_STEPS,
+            pose_lowpass: PoseLowpass {
+                components: 0,
+                half_wavelength: 0.0,
+            },
+            detail: DetailParams::default(),
             resolution: 256,
             uv: None,
             cgan: None,
@@ -164,16 +147,24 @@ impl TrainParams {
         if !(self.ridge.is_finite() && self.ridge >= 0.0) {
             return Err(Error::param("ridge", "must be a non-negative number"));
         }
-        crate::blend::check_weight(self.blend_weight)?;
-        if self.pose_smoothing > crate::pose_smoothing::MAX_STEPS {
+        crate::regression::blend::check_weight(self.blend_weight)?;
+        self.pose_lowpass
+            .check()
+            .map_err(|e| Error::param("pose_lowpass", e))?;
+        if !(1..=64).contains(&self.detail.degree)
+            || !(1..=16).contains(&self.detail.captures_per_frame)
+        {
             return Err(Error::param(
-                "pose_smoothing",
+                "detail",
                 format!(
-                    "{} steps is more than {}",
-                    self.pose_smoothing,
-                    crate::pose_smoothing::MAX_STEPS
+                    "degree {} (1..=64) or captures per frame {} (1..=16) out of range",
+                    self.detail.degree, self.detail.captures_per_frame
                 ),
             ));
+        }
+        if let Some(c) = &self.cgan {
+            c.validate()?;
+            c.check_resolution(self.resolution)?;
         }
         if !(16..=4096).contains(&self.resolution) {
             return Err(Error::param(
@@ -359,7 +350,7 @@ pub fn fit(
     let (mut lstm, mut lstm_losses, mut lstm_s) = (None, Vec::new(), 0.0);
     let (mut lstm_held_out, mut lstm_best_epoch) = (Vec::new(), None);
     // One shared output unit (not one per coefficient): the network's loss is then the vertex MSE.
-    let mut coeff_scale = crate::lstm::output_scale(&targets);
+    let mut coeff_scale = crate::regression::lstm::output_scale(&targets);
     if params.regressor == RegressorKind::Lstm {
         let t2 = Instant::now();
         let cfg = &params.lstm;
@@ -406,10 +397,10 @@ pub fn fit(
             .filter(|(i, _)| !held(*i))
             .flat_map(|(_, t)| t.iter().cloned())
             .collect();
-        coeff_scale = crate::lstm::output_scale(&train_targets);
+        coeff_scale = crate::regression::lstm::output_scale(&train_targets);
         let mut net = LstmRegressor::new(cfg.clone(), control.len(), k, coeff_scale.clone())?;
         progress.begin("lstm", cfg.epochs as u64);
-        let lr = crate::lstm::cosine_lr(cfg.lr, cfg.epochs);
+        let lr = crate::regression::lstm::cosine_lr(cfg.lr, cfg.epochs);
         let note = |epoch: usize, loss: f64, held: Option<f64>| {
             progress.advance("lstm", 1);
             if (epoch + 1).is_multiple_of(25) || epoch == 0 {
@@ -466,7 +457,7 @@ impl Fitted {
         Ok(match kind {
             RegressorKind::Linear => linear(),
             RegressorKind::Autoregressive => self.autoregressive.rollout(&controls),
-            RegressorKind::Blend => crate::blend::mix(
+            RegressorKind::Blend => crate::regression::blend::mix(
                 &linear(),
                 &self.autoregressive.rollout(&controls),
                 self.blend.weight,
@@ -505,7 +496,7 @@ pub fn base_coefficients(
         RegressorKind::Linear => lin(),
         RegressorKind::Autoregressive => autoregressive.rollout(controls),
         RegressorKind::Blend => {
-            crate::blend::mix(&lin(), &autoregressive.rollout(controls), blend_weight)
+            crate::regression::blend::mix(&lin(), &autoregressive.rollout(controls), blend_weight)
         }
         RegressorKind::Lstm => {
             return Err(Error::param(
@@ -602,7 +593,7 @@ fn fit_autoregressive(
     let a_refs: Vec<&[Vec<f64>]> = seqs.iter().map(|(_, a)| *a).collect();
     let history = ShapeHistory::fit(&a_refs, params.ar_state.min(k), 2)?;
     let mut ar = AutoregressiveLinear::fit(seqs, history, params.ridge, 0)?;
-    let report = crate::rollout_fit::refine(
+    let report = crate::regression::rollout_fit::refine(
         &mut ar,
         seqs,
         params.ridge,
@@ -624,12 +615,13 @@ pub fn train(
     let mean_shape = crate::subspace::unflatten(&fitted.subspace.mean);
     let layout = layout_for(params.uv.as_deref(), &topo, &mean_shape)?;
     let t_detail = Instant::now();
-    let (detail, detail_spec) = fit_detail(seqs, &topo)?;
+    let detail = fit_detail(seqs, &topo, &params.detail)?;
     progress.note(&format!(
-        "detail filter: degree {}, training residual {:.3e} → {:.3e} m² per vertex in {:.1} s",
-        detail_spec.degree,
-        detail_spec.train_mse_before,
-        detail_spec.train_mse_after,
+        "detail model: degree {}, ridge {:.0e}; held-out sequence's random captures {:.2}° → {:.2}° in {:.1} s",
+        detail.spec.degree,
+        detail.spec.ridge,
+        detail.spec.held_out_capture_deg,
+        detail.spec.held_out_model_deg,
         t_detail.elapsed().as_secs_f64()
     ));
     let mut w = ModelWriter::new(out)?;
@@ -640,26 +632,42 @@ pub fn train(
         net.save(&w.staging_path("lstm.safetensors"))?;
         w.record("lstm.safetensors")?;
     }
-    let mut cgan_value = None;
+    let mut cgan_spec = None;
     let mut cgan_summary = serde_json::Value::Null;
     if let Some(cfg) = &params.cgan {
-        let cfg = crate::cgan::CganConfig {
-            resolution: params.resolution,
-            ..cfg.clone()
+        let fine: Vec<&[Frame]> = seqs.iter().map(|s| s.fine.as_slice()).collect();
+        // The pose path of the sequence the cGAN holds out, from a regression fitted without it.
+        let pose_shapes = match seqs.split_last() {
+            Some((held, rest)) if !rest.is_empty() => {
+                let f = fit(rest, params, progress)?;
+                let coeffs = f.coefficients(params.regressor, &held.poses)?;
+                Some(
+                    coeffs
+                        .iter()
+                        .map(|c| params.pose_lowpass.shape(&topo, &f.subspace, c))
+                        .collect(),
+                )
+            }
+            _ => None,
         };
-        cgan_summary = train_cgan(
-            seqs,
-            &topo,
-            &layout,
-            &cfg,
-            Some(&detail),
+        let inputs = crate::cgan::training::CganInputs {
+            topo: &topo,
+            layout: &layout,
+            resolution: params.resolution,
+            fine,
+            detail: &detail,
+            pose_shapes,
+        };
+        let (spec, summary) = crate::cgan::training::train_cgan(
+            &inputs,
+            cfg,
             params.checkpoint.as_deref(),
             &w.staging_path("cgan.safetensors"),
             progress,
         )?;
         w.record("cgan.safetensors")?;
-        cgan_value =
-            Some(serde_json::to_value(&cfg).map_err(|e| Error::param("cgan", e.to_string()))?);
+        cgan_spec = Some(spec);
+        cgan_summary = summary;
     }
     let manifest = Manifest {
         format: MODEL_FORMAT.into(),
@@ -672,14 +680,11 @@ pub fn train(
         lstm: fitted.lstm.as_ref().map(|n| n.config.clone()),
         autoregressive: Some(ArSpec::of(&fitted.autoregressive.history)),
         blend: Some(fitted.blend.clone()),
-        detail: Some(detail_spec),
-        pose_smoothing: Some(crate::pose_smoothing::PoseSmoothing::new(
-            params.pose_components,
-            params.pose_smoothing,
-        )),
+        detail: detail.spec.clone(),
+        pose_lowpass: params.pose_lowpass,
         coeff_scale: fitted.coeff_scale.clone(),
         resolution: params.resolution,
-        cgan: cgan_value,
+        cgan: cgan_spec,
         training: serde_json::json!({
             "data": seqs.iter().map(|s| s.dir.display().to_string()).collect::<Vec<_>>(),
             "frames": seqs.iter().map(|s| s.fine.len()).sum::<usize>(),
@@ -697,106 +702,17 @@ pub fn train(
     w.publish(manifest)
 }
 
-/// The mesh-space detail filter ([`crate::detail_filter`]) fitted on every training frame's (captured, gt) pair
-/// with the default degree and ridge, and its summary for the manifest. The mirrored frames are not used: the
-/// filter is the same in any reflection of the mesh.
+/// The detail model ([`crate::detail`]) fitted on random captures of every training frame, the last training
+/// sequence held out to choose its ridge. The mirrored frames are not used: the model is the same in any
+/// reflection of the mesh.
 pub fn fit_detail(
     seqs: &[TrainingSequence],
     topo: &Topology,
-) -> Result<(DetailFilter, DetailSpec)> {
-    let pairs: Vec<FramePair> = seqs
-        .iter()
-        .flat_map(|s| {
-            s.coarse
-                .iter()
-                .zip(&s.fine)
-                .map(|(c, f)| (c.as_slice(), f.as_slice()))
-        })
-        .collect();
-    let (degree, ridge) = (DEFAULT_DEGREE, DEFAULT_RIDGE);
-    let system = fit_system(topo, &pairs, degree)?;
-    let filter = system.solve(ridge)?;
-    let count = (pairs.len() * topo.n_vertices()).max(1) as f64;
-    let spec = DetailSpec {
-        degree,
-        ridge,
-        train_mse_before: (system.target_sq[0] + system.target_sq[1]) / count,
-        train_mse_after: system.residual(&filter).max(0.0) / count,
+    params: &DetailParams,
+) -> Result<DetailModel> {
+    let data = DetailData {
+        topo,
+        sequences: seqs.iter().map(|s| s.fine.as_slice()).collect(),
     };
-    Ok((filter, spec))
-}
-
-/// Trains the cGAN on every training frame (input map → gt map), with per-epoch checkpoints, and writes the
-/// generator's weights to `weights_out`. Returns the per-epoch losses and timings. The input map is the one
-/// `apply --coarse` draws: with a detail filter, the normals of the captured mesh's predicted fine shape (so
-/// the generator learns what the filter leaves), else the captured mesh's own.
-#[allow(clippy::too_many_arguments)]
-pub fn train_cgan(
-    seqs: &[TrainingSequence],
-    topo: &Topology,
-    layout: &UvLayout,
-    cfg: &crate::cgan::CganConfig,
-    detail: Option<&DetailFilter>,
-    checkpoint: Option<&Path>,
-    weights_out: &Path,
-    progress: &dyn Progress,
-) -> Result<serde_json::Value> {
-    use crate::cgan::Cgan;
-    let texels = crate::raster::TexelMap::new(layout, cfg.resolution, cfg.resolution);
-    let t0 = Instant::now();
-    let mut data = Vec::new();
-    for s in seqs {
-        let mut pairs = crate::cgan_data::map_pairs(topo, &texels, &s.coarse, &s.fine, 8.0)?;
-        if let Some(f) = detail {
-            let op = Umbrella::new(topo);
-            for (pair, c) in pairs.iter_mut().zip(&s.coarse) {
-                pair.0 = crate::apply::detail_map(&texels, topo, &op, f, c);
-            }
-        }
-        data.extend(crate::cgan_data::samples(&pairs));
-    }
-    let prep_s = t0.elapsed().as_secs_f64();
-    let mut gan = match checkpoint {
-        Some(dir) if dir.join("state.json").exists() => {
-            let g = Cgan::resume(cfg.clone(), dir)?;
-            progress.note(&format!(
-                "cgan: resuming from {} after epoch {}",
-                dir.display(),
-                g.epoch
-            ));
-            g
-        }
-        _ => Cgan::new(cfg.clone())?,
-    };
-    let steps_per_epoch = data.len().div_ceil(cfg.batch) as u64;
-    progress.begin(
-        "cgan",
-        steps_per_epoch * (cfg.epochs.saturating_sub(gan.epoch)) as u64,
-    );
-    let t1 = Instant::now();
-    let epochs_before = gan.epoch;
-    let history = gan.train(
-        &data,
-        |_, _, _| progress.advance("cgan", 1),
-        |g, epoch, l| {
-            progress.note(&format!(
-                "cgan epoch {epoch}: L1 {:.4} temporal {:.4} GAN {:.3} D {:.3}",
-                l.l1, l.temporal, l.gan, l.disc
-            ));
-            if let Some(dir) = checkpoint {
-                g.save_checkpoint(dir)?;
-            }
-            Ok(())
-        },
-    )?;
-    progress.end("cgan");
-    let train_s = t1.elapsed().as_secs_f64();
-    gan.save_generator(weights_out)?;
-    Ok(serde_json::json!({
-        "samples": data.len(),
-        "map_preparation_s": prep_s,
-        "training_s": train_s,
-        "s_per_epoch": train_s / (gan.epoch - epochs_before).max(1) as f64,
-        "epochs": history,
-    }))
+    crate::detail::fit(&data, params)
 }

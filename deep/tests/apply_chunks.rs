@@ -13,7 +13,6 @@ use std::path::Path;
 fn sequence(dir: &Path, frames: usize, phase: f64) -> TrainingSequence {
     let (topo, _) = support::tube(16, 8, |_, _| 0.07);
     let mut fine = Vec::new();
-    let mut coarse = Vec::new();
     let mut poses = Vec::new();
     for t in 0..frames {
         let a = (0.4 * t as f64 + phase).sin();
@@ -24,13 +23,11 @@ fn sequence(dir: &Path, frames: usize, phase: f64) -> TrainingSequence {
             })
             .1,
         );
-        coarse.push(support::tube(16, 8, |_, x| 0.07 + 0.01 * a * (6.0 * x).sin()).1);
     }
     TrainingSequence {
         dir: dir.to_path_buf(),
         topology: topo,
         fine,
-        coarse,
         poses,
         pose_names: None,
     }
@@ -65,7 +62,7 @@ fn chunked_apply_equals_the_single_run_byte_for_byte() {
         k: 4,
         lags: vec![1, 2],
         regressor: RegressorKind::Lstm,
-        lstm: crease_deep::lstm::LstmConfig {
+        lstm: crease_deep::regression::lstm::LstmConfig {
             layers: 1,
             hidden: 8,
             epochs: 3,
@@ -75,7 +72,10 @@ fn chunked_apply_equals_the_single_run_byte_for_byte() {
         cgan: Some(CganConfig {
             filters: 4,
             disc_filters: 4,
-            epochs: 1,
+            depth: 3,
+            crop: 16,
+            batch: 2,
+            steps: 3,
             ..Default::default()
         }),
         ..Default::default()
@@ -90,7 +90,9 @@ fn chunked_apply_equals_the_single_run_byte_for_byte() {
     let input = ApplyInput::Pose(pose);
     let full = tmp.path().join("full");
     assert_eq!(
-        apply(&model, &input, &ApplyParams::default(), &full, &NoProgress).unwrap(),
+        apply(&model, &input, &ApplyParams::default(), &full, &NoProgress)
+            .unwrap()
+            .frames,
         12
     );
     let chunked = tmp.path().join("chunked");
@@ -100,14 +102,17 @@ fn chunked_apply_equals_the_single_run_byte_for_byte() {
             ..Default::default()
         };
         assert_eq!(
-            apply(&model, &input, &p, &chunked, &NoProgress).unwrap(),
+            apply(&model, &input, &p, &chunked, &NoProgress)
+                .unwrap()
+                .frames,
             r.len()
         );
     }
     let a = read_tree(&full);
     assert_eq!(a.len(), 24);
     assert_eq!(a, read_tree(&chunked));
-    // The cGAN changed the maps: without it they differ.
+    // The maps change with the cGAN exactly when the model decided to use it from poses.
+    let use_pose = model.manifest.cgan.as_ref().unwrap().use_pose;
     let plain = tmp.path().join("plain");
     apply(
         &model,
@@ -120,7 +125,22 @@ fn chunked_apply_equals_the_single_run_byte_for_byte() {
         &NoProgress,
     )
     .unwrap();
-    assert_ne!(read_tree(&plain)[12..], a[12..]);
+    assert_eq!(read_tree(&plain)[12..] != a[12..], use_pose);
+    // The coarse path too, detail model and guard included.
+    let capture = tmp.path().join("capture");
+    support::write_sequence(&capture, &seqs[1].topology, &seqs[1].fine);
+    let input = ApplyInput::Coarse(capture);
+    let full = tmp.path().join("full-coarse");
+    apply(&model, &input, &ApplyParams::default(), &full, &NoProgress).unwrap();
+    let chunked = tmp.path().join("chunked-coarse");
+    for r in [0..7, 7..12] {
+        let p = ApplyParams {
+            frames: Some(r),
+            ..Default::default()
+        };
+        apply(&model, &input, &p, &chunked, &NoProgress).unwrap();
+    }
+    assert_eq!(read_tree(&full), read_tree(&chunked));
     // A frame range outside the input is refused.
     let bad = ApplyParams {
         frames: Some(10..13),

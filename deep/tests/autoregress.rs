@@ -1,8 +1,10 @@
 //! Autoregressive regression (§3.3 with the previous shape coefficients in the control vector): on a system
 //! whose state is its history, the rollout from pose alone recovers what a pose-only map cannot.
 
-use crease_deep::autoregress::{AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory};
-use crease_deep::regress::LinearRegression;
+use crease_deep::regression::autoregress::{
+    AutoregressiveLinear, ControlsAndCoefficients, ShapeHistory,
+};
+use crease_deep::regression::linear::LinearRegression;
 
 /// A leaky integrator of the pose: a_t = 0.8 a_{t−1} + 0.5 pose_t, two coefficients (the second a copy scaled
 /// by −2), so the shape at a pose depends on the poses before it.

@@ -39,7 +39,7 @@ fn stored_rollout_equals_a_hand_rolled_loop_and_beats_the_pose_only_map() {
     let dir = tmp.path().join("model");
     train(&seqs, &params(), &dir, &NoProgress).unwrap();
     let model = Model::load(&dir).unwrap();
-    assert_eq!(model.manifest.version, 8);
+    assert_eq!(model.manifest.version, crease_deep::model::MODEL_VERSION);
     assert_eq!(
         model.manifest.regressor,
         RegressorKind::Blend,
@@ -125,7 +125,7 @@ fn stored_rollout_equals_a_hand_rolled_loop_and_beats_the_pose_only_map() {
 }
 
 #[test]
-fn a_version_1_model_is_read_and_refuses_the_autoregressive_regressor_by_name() {
+fn models_of_older_versions_are_refused_by_version_and_missing_regressors_by_name() {
     let tmp = tempfile::tempdir().unwrap();
     let seqs = vec![
         sequence(&tmp.path().join("a"), 30, 0.21, 0.0),
@@ -133,53 +133,31 @@ fn a_version_1_model_is_read_and_refuses_the_autoregressive_regressor_by_name() 
     ];
     let dir = tmp.path().join("model");
     train(&seqs, &params(), &dir, &NoProgress).unwrap();
-    // What version 1 wrote: no autoregressive entry, its files absent, the linear regressor by default.
-    let old = tmp.path().join("v1");
-    std::fs::create_dir_all(&old).unwrap();
-    let mut manifest: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
-    let m = manifest.as_object_mut().unwrap();
-    m.insert("version".into(), 1.into());
-    m.insert("regressor".into(), "linear".into());
-    m.remove("autoregressive");
-    m.remove("blend");
-    let files = m["files"].as_object_mut().unwrap();
-    for f in ["autoregressive.npy", "ar_scale.npy", "ar_start.npy"] {
-        files.remove(f);
-    }
-    for f in files.keys() {
-        std::fs::copy(dir.join(f), old.join(f)).unwrap();
-    }
-    std::fs::write(
-        old.join("manifest.json"),
-        serde_json::to_string_pretty(&manifest).unwrap(),
-    )
-    .unwrap();
-
-    let v1 = Model::load(&old).unwrap();
-    assert!(v1.autoregressive.is_none());
-    let v2 = Model::load(&dir).unwrap();
+    let v = Model::load(&dir).unwrap();
     let pose = seqs[0].dir.join("pose.json");
-    assert_eq!(
-        shapes_from_poses(&v1, &pose, v1.manifest.regressor).unwrap(),
-        shapes_from_poses(&v2, &pose, RegressorKind::Linear).unwrap(),
-        "the version 1 model runs its linear regressor as before"
-    );
-    let e = shapes_from_poses(&v1, &pose, RegressorKind::Autoregressive)
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("manifest.json")
-            && e.contains("no autoregressive regressor")
-            && e.contains("version 1"),
-        "{e}"
-    );
-    // No LSTM was trained: asking for it is refused the same way.
-    let e = shapes_from_poses(&v2, &pose, RegressorKind::Lstm)
+    // No LSTM was trained: asking for it is refused naming the model.
+    let e = shapes_from_poses(&v, &pose, RegressorKind::Lstm)
         .unwrap_err()
         .to_string();
     assert!(
         e.contains("manifest.json") && e.contains("no lstm regressor"),
+        "{e}"
+    );
+    // A model of an older format (its detail and pose low-pass were tied to one data set's capture) is refused
+    // by version, with what to do.
+    let path = dir.join("manifest.json");
+    let mut manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    manifest["version"] = (crease_deep::model::MODEL_VERSION - 1).into();
+    std::fs::write(&path, manifest.to_string()).unwrap();
+    let e = Model::load(&dir).err().unwrap().to_string();
+    assert!(
+        e.contains("manifest.json")
+            && e.contains(&format!(
+                "version {}",
+                crease_deep::model::MODEL_VERSION - 1
+            ))
+            && e.contains("retrain"),
         "{e}"
     );
 }

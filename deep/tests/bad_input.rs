@@ -7,7 +7,7 @@ use crease_core::mesh::io::write_obj;
 use crease_core::progress::NoProgress;
 use crease_deep::apply::{apply, ApplyInput, ApplyParams};
 use crease_deep::model::Model;
-use crease_deep::pose::read_pose_file;
+use crease_deep::regression::pose::read_pose_file;
 use crease_deep::train::{layout_for, train, TrainParams, TrainingSequence};
 use std::path::Path;
 
@@ -28,7 +28,6 @@ fn sequence(dir: &Path, frames: usize, phase: f64) -> TrainingSequence {
     TrainingSequence {
         dir: dir.to_path_buf(),
         topology: topo,
-        coarse: fine.clone(),
         fine,
         poses,
         pose_names: None,
@@ -128,13 +127,13 @@ fn models_meshes_and_uv_requirements_are_checked() {
     let old = copy("old");
     let m = std::fs::read_to_string(old.join("manifest.json"))
         .unwrap()
-        .replace("\"version\": 8", "\"version\": 99");
+        .replace("\"version\": 9", "\"version\": 99");
     std::fs::write(old.join("manifest.json"), m).unwrap();
     let e = err(Model::load(&old));
     assert!(
         e.contains("manifest.json")
             && e.contains("version 99")
-            && e.contains("reads versions 1 to 8"),
+            && e.contains("reads versions 9 to 9"),
         "{e}"
     );
     let damaged = copy("damaged");

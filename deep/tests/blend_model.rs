@@ -1,8 +1,7 @@
 //! The blend regressor inside a stored model: `crease deep train` stores its weight (0.5 by default, or fitted
 //! by an inner leave-one-out with `blend_fit`) in the manifest (format version 4) and makes it the default;
 //! `apply --pose` mixes the linear map and the autoregressive rollout by it, so weights 0 and 1 give exactly
-//! the two parts; older models are read and refuse the blend by name, and a bad weight is refused naming the
-//! field.
+//! the two parts; a manifest without its weight, or with a bad one, is refused naming the field.
 
 mod support;
 
@@ -62,7 +61,7 @@ fn the_blend_mixes_the_stored_parts_by_its_weight_and_its_ends_are_the_parts() {
     let dir = tmp.path().join("model");
     train(&seqs, &fitted_params, &dir, &NoProgress).unwrap();
     let model = Model::load(&dir).unwrap();
-    assert_eq!(model.manifest.version, 8);
+    assert_eq!(model.manifest.version, crease_deep::model::MODEL_VERSION);
     let blend = model.manifest.blend.clone().expect("a blend weight");
     assert_eq!(blend.method, "inner-leave-one-out");
     assert_eq!(blend.fold_weights.len(), 2, "one weight per inner fold");
@@ -148,7 +147,7 @@ fn the_blend_mixes_the_stored_parts_by_its_weight_and_its_ends_are_the_parts() {
 }
 
 #[test]
-fn older_models_are_read_and_refuse_the_blend_by_name() {
+fn a_manifest_without_its_blend_weight_is_refused_by_name() {
     let tmp = tempfile::tempdir().unwrap();
     let seqs = vec![
         leaky_sequence(&tmp.path().join("a"), 30, 0.21, 0.0),
@@ -156,47 +155,16 @@ fn older_models_are_read_and_refuse_the_blend_by_name() {
     ];
     let dir = tmp.path().join("model");
     train(&seqs, &params(), &dir, &NoProgress).unwrap();
-    let v4 = Model::load(&dir).unwrap();
-    // What version 3 wrote: the same files, no blend weight, the autoregressive regressor by default.
-    let old = tmp.path().join("v3");
-    copy_model(&dir, &old);
-    edit_manifest(&old, |m| {
-        m["version"] = 3.into();
-        m["regressor"] = "autoregressive".into();
-        m.as_object_mut().unwrap().remove("blend");
-    });
-    let v3 = Model::load(&old).unwrap();
-    assert!(v3.manifest.blend.is_none());
-    let pose = seqs[0].dir.join("pose.json");
-    for r in [RegressorKind::Linear, RegressorKind::Autoregressive] {
-        assert_eq!(
-            shapes_from_poses(&v3, &pose, r).unwrap(),
-            shapes_from_poses(&v4, &pose, r).unwrap(),
-            "{} runs as before",
-            r.name()
-        );
-    }
-    let e = shapes_from_poses(&v3, &pose, RegressorKind::Blend)
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("manifest.json") && e.contains("no blend regressor") && e.contains("version 3"),
-        "{e}"
-    );
-    assert!(v3.check_regressor(RegressorKind::Blend).is_err());
-    assert!(v4.check_regressor(RegressorKind::Blend).is_ok());
-
-    // A version 4 (or later) manifest without its blend weight is damaged, not an older model.
-    let broken = tmp.path().join("v4-no-blend");
+    let model = Model::load(&dir).unwrap();
+    assert!(model.check_regressor(RegressorKind::Blend).is_ok());
+    // A manifest without its blend weight is damaged.
+    let broken = tmp.path().join("no-blend");
     copy_model(&dir, &broken);
     edit_manifest(&broken, |m| {
         m.as_object_mut().unwrap().remove("blend");
     });
     let e = Model::load(&broken).err().expect("refused").to_string();
-    assert!(
-        e.contains("manifest.json") && e.contains("version 8") && e.contains("`blend`"),
-        "{e}"
-    );
+    assert!(e.contains("manifest.json") && e.contains("`blend`"), "{e}");
 
     // The name parses, and an unknown one lists it.
     assert_eq!("blend".parse::<RegressorKind>(), Ok(RegressorKind::Blend));

@@ -4,9 +4,9 @@
 mod support;
 
 use crease_core::vec3::V3;
-use crease_deep::lstm::{windows, LstmConfig, LstmRegressor};
-use crease_deep::pose::ControlSpec;
-use crease_deep::regress::LinearRegression;
+use crease_deep::regression::linear::LinearRegression;
+use crease_deep::regression::lstm::{windows, LstmConfig, LstmRegressor};
+use crease_deep::regression::pose::ControlSpec;
 use crease_deep::subspace::{vertex_error, Subspace};
 
 /// A tube whose radius bulges with a pose signal and a lagged copy of it (history matters).
@@ -149,7 +149,7 @@ fn lstm_loss_falls_and_training_is_deterministic() {
 /// own standard deviation the small ones dominate the loss and the large one is learned worse.
 #[test]
 fn lstm_shared_output_unit_learns_the_large_component() {
-    use crease_deep::lstm::{cosine_lr, output_scale};
+    use crease_deep::regression::lstm::{cosine_lr, output_scale};
     let n = 90;
     let poses: Vec<Vec<f64>> = (0..n)
         .map(|t| {
@@ -159,7 +159,7 @@ fn lstm_shared_output_unit_learns_the_large_component() {
         .collect();
     let spec = ControlSpec::fit(&[&poses], vec![]).unwrap();
     let controls = spec.controls(&poses).unwrap();
-    let mut rng = crease_deep::seed::Rng::new(5);
+    let mut rng = crease_deep::nn::seed::Rng::new(5);
     let targets: Vec<Vec<f64>> = poses
         .iter()
         .map(|p| {

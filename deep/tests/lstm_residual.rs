@@ -8,8 +8,8 @@ mod support;
 
 use crease_core::progress::NoProgress;
 use crease_deep::apply::shapes_from_poses;
-use crease_deep::lstm::LstmConfig;
 use crease_deep::model::{Model, RegressorKind};
+use crease_deep::regression::lstm::LstmConfig;
 use crease_deep::train::{fit, train, TrainParams, TrainingSequence};
 use std::path::Path;
 
@@ -133,7 +133,7 @@ fn the_residual_lstm_starts_as_the_blend_and_learns_what_the_linear_maps_cannot(
 }
 
 #[test]
-fn a_stored_residual_lstm_adds_to_the_blend_and_a_version_6_one_runs_alone() {
+fn a_stored_residual_lstm_adds_to_the_blend_and_a_plain_one_runs_alone() {
     let tmp = tempfile::tempdir().unwrap();
     let seqs = vec![
         sequence(&tmp.path().join("a"), 40, 0.21, 0.0),
@@ -150,7 +150,6 @@ fn a_stored_residual_lstm_adds_to_the_blend_and_a_version_6_one_runs_alone() {
     };
     train(&seqs, &five, &dir, &NoProgress).unwrap();
     let v7 = Model::load(&dir).unwrap();
-    assert_eq!(v7.manifest.version, 8);
     assert_eq!(
         v7.manifest.lstm.as_ref().unwrap().residual_of,
         Some(RegressorKind::Blend)
@@ -163,8 +162,9 @@ fn a_stored_residual_lstm_adds_to_the_blend_and_a_version_6_one_runs_alone() {
     );
     assert!(lstm != blend, "5 epochs changed the network");
 
-    // What version 6 wrote: no `residual_of`; the same weights then are the shape's coefficients themselves.
-    let old = tmp.path().join("v6");
+    // The same weights in a model whose LSTM is not residual (`--lstm-residual none`): they are then the
+    // shape's coefficients themselves.
+    let old = tmp.path().join("plain");
     std::fs::create_dir_all(&old).unwrap();
     for e in std::fs::read_dir(&dir).unwrap() {
         let p = e.unwrap().path();
@@ -172,15 +172,13 @@ fn a_stored_residual_lstm_adds_to_the_blend_and_a_version_6_one_runs_alone() {
     }
     let mpath = old.join("manifest.json");
     let mut m: serde_json::Value = serde_json::from_slice(&std::fs::read(&mpath).unwrap()).unwrap();
-    m["version"] = 6.into();
-    for f in ["residual_of", "cross_fit", "early_stopping"] {
-        m["lstm"].as_object_mut().unwrap().remove(f);
-    }
+    m["lstm"]["residual_of"] = serde_json::Value::Null;
     std::fs::write(&mpath, m.to_string()).unwrap();
-    let v6 = Model::load(&old).unwrap();
-    assert_eq!(v6.manifest.lstm.as_ref().unwrap().residual_of, None);
-    let alone = run(&v6, RegressorKind::Lstm);
-    // v7 = mean + B (blend + net), v6 = mean + B net, blend = mean + B blend: v7 − blend = v6 − mean.
+    let plain = Model::load(&old).unwrap();
+    assert_eq!(plain.manifest.lstm.as_ref().unwrap().residual_of, None);
+    let alone = run(&plain, RegressorKind::Lstm);
+    // residual = mean + B (blend + net), plain = mean + B net, blend = mean + B blend: residual − blend =
+    // plain − mean.
     let mean = crease_deep::subspace::unflatten(&v7.subspace.mean);
     let mut worst: f64 = 0.0;
     for ((a, b), c) in lstm.iter().zip(&blend).zip(&alone) {

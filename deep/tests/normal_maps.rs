@@ -3,12 +3,12 @@
 mod support;
 
 use crease_core::mesh::geometry::vertex_normals;
-use crease_deep::bake::map_normal_error;
-use crease_deep::normal_map::{
+use crease_deep::normal_maps::bake::map_normal_error;
+use crease_deep::normal_maps::raster::TexelMap;
+use crease_deep::normal_maps::uv::{auto_atlas, read_obj_uv, write_obj_with_uv};
+use crease_deep::normal_maps::{
     angle_deg, bake_coarse, bake_fine, convert_space, sample_vertex_normals, FineSurface, NormalMap,
 };
-use crease_deep::raster::TexelMap;
-use crease_deep::uv::{auto_atlas, read_obj_uv, write_obj_with_uv};
 
 #[test]
 fn auto_atlas_of_a_tube_samples_back_its_own_normals() {

@@ -7,9 +7,9 @@ mod support;
 
 use crease_core::progress::NoProgress;
 use crease_deep::apply::shapes_from_poses;
-use crease_deep::mirror::MirrorMode;
 use crease_deep::model::{Model, RegressorKind};
-use crease_deep::pose_features::{PoseFeatureMode, PoseFeatures};
+use crease_deep::regression::pose_features::{PoseFeatureMode, PoseFeatures};
+use crease_deep::subspace::mirror::MirrorMode;
 use crease_deep::train::{train, TrainParams, TrainingSequence};
 use std::path::Path;
 
@@ -99,7 +99,7 @@ fn rigid_features_fit_a_twist_that_raw_poses_cannot() {
         m_rigid.manifest.control.features,
         PoseFeatures::Rigid { objects: 1 }
     );
-    assert_eq!(m_rigid.manifest.version, 8);
+    assert_eq!(m_rigid.manifest.version, crease_deep::model::MODEL_VERSION);
     // The pose number read back is the raw one: apply checks its length, not the feature count.
     assert_eq!(m_rigid.manifest.control.pose_dim(), 6);
     assert!(
@@ -161,7 +161,6 @@ fn mirroring_teaches_the_twist_the_other_way() {
             dir: s.dir.clone(),
             topology: s.topology.clone(),
             fine: s.fine.clone(),
-            coarse: s.coarse.clone(),
             poses: s.poses.clone(),
             pose_names: None,
         })

@@ -2,7 +2,7 @@
 
 mod support;
 
-use crease_deep::register::{
+use crease_deep::registration::{
     boundary_pairs, read_scan, synth_scan, write_scan, RegisterParams, Registration,
 };
 use crease_deep::subspace::vertex_error;
@@ -202,11 +202,11 @@ fn scans_round_trip_with_their_boundary_colour_and_bad_files_are_named() {
 
 #[test]
 fn scan_noise_variance_is_measured_along_the_normal() {
-    use crease_deep::kdtree::KdTree;
-    use crease_deep::point_normals::noise_variance;
+    use crease_deep::registration::kdtree::KdTree;
+    use crease_deep::registration::point_normals::noise_variance;
     // A plane sampled on a jittered grid with Gaussian noise of σ = 0.05 along its normal only: the estimate is
     // σ² (within sampling error), and zero noise gives (nearly) zero.
-    let mut rng = crease_deep::seed::Rng::new(9);
+    let mut rng = crease_deep::nn::seed::Rng::new(9);
     let mut gauss = || {
         let (u1, u2) = (rng.uniform().max(1e-12), rng.uniform());
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()

@@ -33,7 +33,7 @@ fn info(n: usize, files: Vec<String>) -> InputInfo {
 #[test]
 fn train_and_apply_specs_parse_with_the_cli_defaults() {
     let train = spec(
-        "task = \"train\"\ndata = [\"/data/b\"]\n[deep.params]\nk = 50\ncgan_epochs = 2\n",
+        "task = \"train\"\ndata = [\"/data/b\"]\n[deep.params]\nk = 50\ncgan_steps = 2\n",
         "",
     )
     .unwrap();
@@ -41,9 +41,9 @@ fn train_and_apply_specs_parse_with_the_cli_defaults() {
         DeepSpec::Train { data, params } => {
             assert_eq!(data, &["/data/b"]);
             assert_eq!(params.k, 50);
-            assert_eq!(params.cgan_epochs, 2);
+            assert_eq!(params.cgan_steps, 2);
             assert_eq!(params.resolution, 256, "crease deep train's default");
-            assert_eq!(params.cgan_filters, 64);
+            assert_eq!(params.cgan_filters, 8);
             assert_eq!(params.regressor, Regressor::Blend);
             assert_eq!((params.ar_state, params.ar_rollout_iters), (10, 20));
             assert_eq!((params.blend_weight, params.blend_fit), (0.5, false));
@@ -77,7 +77,7 @@ fn bad_deep_specs_name_the_field() {
         ),
         (
             spec(
-                "task = \"train\"\n[deep.params]\ncgan_epochs = 1\nresolution = 48\n",
+                "task = \"train\"\n[deep.params]\ncgan_steps = 1\nresolution = 48\n",
                 "",
             ),
             "deep.params.resolution",
@@ -148,7 +148,7 @@ fn an_unknown_deep_parameter_is_named() {
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains("unknown field `kk`") && err.contains("cgan_epochs"),
+        err.contains("unknown field `kk`") && err.contains("cgan_steps"),
         "{err}"
     );
 }

@@ -62,13 +62,17 @@ fn training_dir(root: &Path, name: &str, frames: usize, phase: f64) -> PathBuf {
 }
 
 /// `crease deep train` flags and the `[deep.params]` table of the same tiny model (32² maps, a few steps).
-const TRAIN_FLAGS: [&str; 12] = [
+const TRAIN_FLAGS: [&str; 16] = [
     "--k",
     "6",
     "--resolution",
     "32",
-    "--cgan-epochs",
-    "1",
+    "--cgan-steps",
+    "2",
+    "--cgan-depth",
+    "3",
+    "--cgan-crop",
+    "16",
     "--cgan-filters",
     "4",
     "--cgan-disc-filters",
@@ -77,7 +81,7 @@ const TRAIN_FLAGS: [&str; 12] = [
     "7",
 ];
 const TRAIN_PARAMS: &str =
-    "k = 6\nresolution = 32\ncgan_epochs = 1\ncgan_filters = 4\ncgan_disc_filters = 4\nseed = 7\n";
+    "k = 6\nresolution = 32\ncgan_steps = 2\ncgan_depth = 3\ncgan_crop = 16\ncgan_filters = 4\ncgan_disc_filters = 4\nseed = 7\n";
 
 fn crease(args: &[&str]) {
     let o = Command::new(bin()).args(args).output().unwrap();

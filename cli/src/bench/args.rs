@@ -78,17 +78,14 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 256)]
     pub deep_resolution: usize,
     /// Filters of the generator's (and discriminator's) first layer in `--deep`, one or more sizes timed in turn
-    /// (paper and `crease deep train --cgan-filters` default: 64; 16: the smaller generator).
-    #[arg(long, value_delimiter = ',', default_value = "16,64")]
+    /// (`crease deep train --cgan-filters` default: 8; the paper's: 64).
+    #[arg(long, value_delimiter = ',', default_value = "8,16")]
     pub deep_filters: Vec<usize>,
-    /// A training directory (captured/, gt/) whose first frames `--deep` uses; default: a synthetic tube of the
-    /// sleeve's size.
+    /// A training directory (gt/) whose first frames `--deep` uses; default: a synthetic tube of the sleeve's
+    /// size.
     #[arg(long)]
     pub deep_data: Option<PathBuf>,
     /// Timed cGAN training steps in `--deep` per generator size (0: inference only).
     #[arg(long, default_value_t = 3)]
     pub deep_train_steps: usize,
-    /// Frames of the epoch whose training time `--deep` reports (sleeve-train: 240 in two sequences).
-    #[arg(long, default_value_t = 240)]
-    pub deep_epoch_frames: usize,
 }

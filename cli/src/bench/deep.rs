@@ -1,22 +1,25 @@
-//! `crease bench --deep`: the cost of DeepWrinkles inference per frame on one core (`--threads
-//! 1`; the aim is ≤ 50 ms at 256²), split into the two steps `crease deep apply` runs per frame — rasterising the coarse
-//! mesh's normal map in UV space and the cGAN generator's forward pass — and the cGAN's training time per epoch.
+//! `crease bench --deep`: the cost of DeepWrinkles inference per frame (the aim: ≤ 50 ms at 256² on one core,
+//! `--threads 1`), split into the steps `crease deep apply --coarse` runs per frame — the detail model's fine
+//! shape drawn into the map, the cGAN generator's forward pass, writing the frame — and the cGAN's training
+//! time.
 //!
-//! The generator's weights are freshly initialised, not trained: a forward pass costs the same whatever the
-//! weights. The mesh is a training directory's captured frame (`--deep-data`), or by default a synthetic tube
-//! with the sleeve's size (80 × 92 = 7,360 vertices). Separately, what `apply --coarse` does per frame with a
-//! default model (no cGAN): the detail filter's map (the inference of the default model) and writing the frame's OBJ and
-//! PNG (bytes, files, sync apart), the PNG encoder's settings against each other, and every `--deep-filters` size.
+//! Weights are made up or freshly initialised, not trained: a forward pass costs the same whatever the
+//! weights. The mesh is a training directory's first gt frames (`--deep-data`; a random capture of them is the
+//! coarse input), or by default a synthetic tube with the sleeve's size (80 × 92 = 7,360 vertices). Also timed:
+//! writing the frame's OBJ and PNG (bytes, files, sync apart), the PNG encoder's settings against each other,
+//! and every `--deep-filters` size.
 
 use super::args::BenchArgs;
 use anyhow::{bail, Context, Result};
 use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::Topology;
 use crease_core::vec3::V3;
+use crease_deep::cgan::data::TrainingSet;
 use crease_deep::cgan::{Cgan, CganConfig};
-use crease_deep::normal_map::bake_coarse;
-use crease_deep::raster::TexelMap;
-use crease_deep::uv::auto_atlas;
+use crease_deep::nn::seed::Rng;
+use crease_deep::normal_maps::raster::TexelMap;
+use crease_deep::normal_maps::uv::auto_atlas;
+use crease_deep::normal_maps::{bake_coarse, world_from_vertex_normals};
 use serde_json::json;
 use std::path::Path;
 use std::time::Instant;
@@ -50,21 +53,23 @@ fn tube(na: usize, nr: usize, ripple: f64) -> (Topology, Vec<V3>) {
 /// Two consecutive frames of one mesh.
 type FramePair = [Vec<V3>; 2];
 
-/// Frames 0 and 1 of `dir/captured` and `dir/gt` (coarse, fine).
+/// Frames 0 and 1 of `dir/gt` (fine) and a random capture of each (coarse).
 fn training_frames(dir: &Path) -> Result<(Topology, FramePair, FramePair)> {
-    let c = open_sequence(&dir.join("captured"))?.source;
     let f = open_sequence(&dir.join("gt"))?.source;
-    if c.n_frames() < 2 || f.n_frames() < 2 {
+    if f.n_frames() < 2 {
         bail!(
-            "{}: --deep-data needs at least 2 frames in captured/ and gt/",
+            "{}: --deep-data needs at least 2 frames in gt/",
             dir.display()
         );
     }
-    Ok((
-        (**c.topology()).clone(),
-        [c.read_frame(0)?, c.read_frame(1)?],
-        [f.read_frame(0)?, f.read_frame(1)?],
-    ))
+    let topo = (**f.topology()).clone();
+    let fine = [f.read_frame(0)?, f.read_frame(1)?];
+    let capture = |t: usize| {
+        let h = crease_core::shape::mean_edge_length(&topo, &fine[t]);
+        crease_deep::detail::training_capture(&topo, &fine[t], h, 1, 0, t, 0).0
+    };
+    let coarse = [capture(0), capture(1)];
+    Ok((topo, coarse, fine))
 }
 
 fn median_ms(mut v: Vec<f64>) -> f64 {
@@ -113,7 +118,6 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
         .deep_filters
         .iter()
         .map(|&filters| CganConfig {
-            resolution: res,
             filters,
             disc_filters: filters,
             seed: 1,
@@ -122,6 +126,7 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
         .collect();
     for c in &configs {
         c.validate()?;
+        c.check_resolution(res)?;
     }
     let (topo, coarse, fine, source) = match &a.deep_data {
         Some(dir) => {
@@ -153,30 +158,19 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
         100.0 * texels.coverage()
     );
 
-    // Inference of the default model (`apply --coarse`, no cGAN): the detail filter's fine shape (degree 40;
-    // its cost does not depend on the weights) drawn into the map, with the buffers apply reuses per frame.
-    let op = crease_deep::detail_filter::Umbrella::new(&topo);
-    let degree = crease_deep::detail_filter::DEFAULT_DEGREE;
-    let filter = crease_deep::detail_filter::DetailFilter {
-        degree,
-        interior: (0..=degree).map(|j| 0.1 / (1.0 + j as f64)).collect(),
-        boundary: (0..=degree).map(|j| 0.05 / (1.0 + j as f64)).collect(),
-    };
-    let mut scratch = crease_deep::apply::ApplyScratch::default();
+    // Inference of the default model's detail (`apply --coarse`): the detail model's fine shape at the default
+    // degree (its cost does not depend on the weights; the guard is wide open so every frame runs the filter)
+    // drawn into the map, with the scale check apply makes.
+    let detail = bench_detail_model();
+    let h = detail.check_scale(&topo, &coarse[0], "bench")?;
     let mut dmap =
-        crease_deep::apply::detail_map_with(&texels, &topo, &op, &filter, &coarse[0], &mut scratch);
+        world_from_vertex_normals(&texels, &topo, &detail.normals(&topo, &coarse[0], h).0);
     let detail_ms = time_ms(a.repeats, || {
-        dmap = crease_deep::apply::detail_map_with(
-            &texels,
-            &topo,
-            &op,
-            &filter,
-            &coarse[0],
-            &mut scratch,
-        );
+        let h = detail.check_scale(&topo, &coarse[0], "bench")?;
+        dmap = world_from_vertex_normals(&texels, &topo, &detail.normals(&topo, &coarse[0], h).0);
         Ok(())
     })?;
-    // `apply --pose`'s map: the coarse mesh's own normals (no detail filter).
+    // `apply --pose`'s map: the coarse mesh's own normals (no detail model).
     let mut map = bake_coarse(&texels, &topo, &coarse[0]);
     let raster_ms = time_ms(a.repeats, || {
         map = bake_coarse(&texels, &topo, &coarse[0]);
@@ -194,13 +188,14 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
     let written = (|| -> Result<(f64, f64, f64, usize)> {
         let mut bytes = 0;
         let encode_ms = time_ms(a.repeats, || {
-            let (obj, png) = writer.encode(&scratch_dir, 0, &coarse[0], &dmap, &mut files)?;
+            let (obj, png) =
+                writer.encode(&scratch_dir, 0, &coarse[0], &dmap, "bench", &mut files)?;
             bytes = obj.len() + png.len();
             Ok(())
         })?;
         let mut frame = 0;
         let files_ms = time_ms(a.repeats, || {
-            writer.write(&scratch_dir, frame, &coarse[0], &dmap, &mut files)?;
+            writer.write(&scratch_dir, frame, &coarse[0], &dmap, "bench", &mut files)?;
             frame += 1;
             Ok(())
         })?;
@@ -221,8 +216,7 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
     let _ = std::fs::remove_dir_all(&scratch_dir);
     let (encode_ms, files_ms, sync_ms, frame_bytes) = written?;
     println!(
-        "  inference, default model (apply --coarse, no cGAN): detail filter + map {detail_ms:.2} ms per frame (target ≤ 50 ms at 256² on one core: {})",
-        verdict(detail_ms)
+        "  inference, the detail model's map (apply --coarse without a cGAN): {detail_ms:.2} ms per frame"
     );
     println!(
         "  inference, apply --pose's map (rasterise the coarse normals): {raster_ms:.2} ms per frame"
@@ -240,7 +234,7 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
     // PNG encoder settings (the bytes differ, the pixels do not): what the default costs against the others.
     let mut png_variants = Vec::new();
     {
-        use crease_deep::normal_map::{PngScratch, PngSettings};
+        use crease_deep::normal_maps::{PngScratch, PngSettings};
         use image::codecs::png::{CompressionType as C, FilterType as F};
         let mut ps = PngScratch::default();
         let mut line = Vec::new();
@@ -280,35 +274,33 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
             Ok(())
         })?;
         println!(
-            "  generator forward, {} filters: {forward_ms:.1} ms per frame (+ rasterise {raster_ms:.2} ms; target ≤ 50 ms at 256² on one core: {})",
+            "  generator forward, {} filters: {forward_ms:.1} ms per frame; with the detail model's map {:.1} ms (target ≤ 50 ms at 256² on one core: {})",
             config.filters,
-            verdict(forward_ms + raster_ms)
+            forward_ms + detail_ms,
+            verdict(forward_ms + detail_ms)
         );
         let train_step_ms = if a.deep_train_steps == 0 {
             None
         } else {
-            // Training: one step (discriminator + generator, batch 1) per training frame.
-            let pairs = crease_deep::cgan_data::map_pairs(
-                &topo,
-                &texels,
-                &[coarse[0].clone(), coarse[1].clone()],
-                &[fine[0].clone(), fine[1].clone()],
-                8.0,
-            )?;
-            let samples = crease_deep::cgan_data::samples(&pairs);
-            gan.step(&[&samples[1]])?; // warm-up
-            let mut i = 0;
-            let step_ms = time_ms(a.deep_train_steps, || {
-                gan.step(&[&samples[i % samples.len()]])?;
-                i += 1;
+            // Training: one step (discriminator + generator) on a batch of random crops.
+            let normals = crease_deep::cgan::data::shape_normals(&topo, &coarse[..], &fine[..]);
+            let set = TrainingSet::new(&topo, &texels, vec![normals], config.crop);
+            let mut rng = Rng::new(1);
+            let mut step = || -> Result<()> {
+                let batch = set.batch(&mut rng, config.batch, config.crop)?;
+                gan.train_step(&batch)?;
                 Ok(())
-            })?;
+            };
+            step()?; // warm-up
+            let step_ms = time_ms(a.deep_train_steps, step)?;
             println!(
-                "  training, {} filters: {step_ms:.0} ms per step (batch 1, median of {}) → {:.0} s per epoch of {} frames",
+                "  training, {} filters: {step_ms:.0} ms per step (batch {} of {}² crops, median of {}) → {:.0} s for the default {} steps",
                 config.filters,
+                config.batch,
+                config.crop,
                 a.deep_train_steps,
-                step_ms * 1e-3 * a.deep_epoch_frames as f64,
-                a.deep_epoch_frames
+                step_ms * 1e-3 * config.steps as f64,
+                config.steps
             );
             Some(step_ms)
         };
@@ -321,7 +313,7 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
 
     if let Some(path) = &a.json {
         let first = &generators[0];
-        let epoch_s = |ms: Option<f64>| ms.map(|ms| ms * 1e-3 * a.deep_epoch_frames as f64);
+        let train_s = |ms: Option<f64>| ms.map(|ms| ms * 1e-3 * configs[0].steps as f64);
         let doc = json!({ "deep": {
             "source": source,
             "vertices": topo.n_vertices(),
@@ -334,7 +326,7 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
             "coverage": texels.coverage(),
             "raster_ms": raster_ms,
             "forward_ms": first.forward_ms,
-            "per_frame_ms": raster_ms + first.forward_ms,
+            "per_frame_ms": detail_ms + first.forward_ms,
             "detail_map_ms": detail_ms,
             "encode_frame_ms": encode_ms,
             "write_files_ms": files_ms,
@@ -347,13 +339,39 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
                 "filters": g.filters,
                 "forward_ms": g.forward_ms,
                 "train_step_ms": g.train_step_ms,
-                "epoch_s": epoch_s(g.train_step_ms),
+                "training_s": train_s(g.train_step_ms),
             })).collect::<Vec<_>>(),
             "train_step_ms": first.train_step_ms,
-            "epoch_frames": a.deep_epoch_frames,
-            "epoch_s": epoch_s(first.train_step_ms),
+            "training_steps": configs[0].steps,
+            "training_s": train_s(first.train_step_ms),
         }});
         crease_core::fsutil::write_atomic(path, serde_json::to_string_pretty(&doc)?.as_bytes())?;
     }
     Ok(())
+}
+
+/// A detail model of the default degree with made-up weights and a guard that lets every frame through: what
+/// the benchmark times does not depend on the values.
+fn bench_detail_model() -> crease_deep::detail::DetailModel {
+    use crease_deep::detail::{DetailModel, DetailSpec, Guard, DEFAULT_DEGREE, SIGNATURE_LEN};
+    let n = (DEFAULT_DEGREE + 1) * (SIGNATURE_LEN + 1);
+    DetailModel {
+        spec: DetailSpec {
+            degree: DEFAULT_DEGREE,
+            ridge: 1e-6,
+            captures_per_frame: 1,
+            seed: 1,
+            signature_mean: vec![0.0; SIGNATURE_LEN],
+            signature_std: vec![1.0; SIGNATURE_LEN],
+            guard: Guard {
+                edge_length: [1e-9, 1e9],
+                max_signature_distance: f64::INFINITY,
+                max_detail: f64::INFINITY,
+            },
+            held_out_capture_deg: 0.0,
+            held_out_model_deg: 0.0,
+        },
+        interior: (0..n).map(|j| 0.1 / (1.0 + j as f64)).collect(),
+        boundary: (0..n).map(|j| 0.05 / (1.0 + j as f64)).collect(),
+    }
 }

@@ -3,8 +3,7 @@
 
 use crease_core::mesh::Topology;
 use crease_core::vec3::V3;
-use crease_deep::cgan::Sample;
-use crease_deep::normal_map::NormalMap;
+use crease_deep::normal_maps::uv::UvLayout;
 use std::sync::Arc;
 
 /// Quad grid of `nx` × `ny` vertices split into triangles (a, b, c), (a, c, d), like the sleeve data.
@@ -55,7 +54,7 @@ pub fn tube(na: usize, nr: usize, radius: impl Fn(f64, f64) -> f64) -> (Arc<Topo
 
 /// A training directory's worth of tube frames whose bulge follows a leaky integral of the pose
 /// (s_t = 0.8 s_{t−1} + 0.5 pose_t): the same pose gives different shapes depending on the poses before it, as
-/// on the sleeve. Writes `dir/pose.json`; the meshes stay in memory (fine = coarse).
+/// on the sleeve. Writes `dir/pose.json`; the meshes stay in memory.
 pub fn leaky_sequence(
     dir: &std::path::Path,
     frames: usize,
@@ -79,7 +78,7 @@ pub fn leaky_sequence(
     pose_sequence(dir, topo, fine, poses, None)
 }
 
-/// A training sequence of in-memory frames (fine = coarse) and their poses; writes `dir/pose.json` (with the
+/// A training sequence of in-memory frames and their poses; writes `dir/pose.json` (with the
 /// pose names when given) the way `crease deep train` expects it beside the meshes.
 pub fn pose_sequence(
     dir: &std::path::Path,
@@ -97,7 +96,6 @@ pub fn pose_sequence(
     crease_deep::train::TrainingSequence {
         dir: dir.to_path_buf(),
         topology,
-        coarse: fine.clone(),
         fine,
         poses,
         pose_names: names.map(|n| n.iter().map(|s| s.to_string()).collect()),
@@ -117,35 +115,81 @@ pub fn mean_vertex_error(a: &[Vec<[f64; 3]>], b: &[Vec<[f64; 3]>]) -> f64 {
     s / n
 }
 
-/// cGAN samples on `res`² maps: input a smooth tilted map, target the same with a ripple, the ripple's phase
-/// moving with t (temporal data, so `prev_target` differs from `target`).
-pub fn ripple_samples(n: usize, res: usize) -> Vec<Sample> {
-    let map = |t: usize, ripple: f32| {
-        let mut m = NormalMap {
-            width: res,
-            height: res,
-            n: vec![[0.0; 3]; res * res],
-            covered: vec![false; res * res],
-        };
-        for y in 0..res {
-            for x in 0..res {
-                let k = y * res + x;
-                let u = x as f32 / res as f32;
-                let tilt = 0.3 * (u * 3.0 + t as f32 * 0.2).sin();
-                let r = ripple * (u * 25.0 + t as f32 * 0.5).sin();
-                let v = [tilt + r, 0.1, 1.0];
+/// A sheet of `n` × `n` vertices with planar UVs, and per frame t (of `frames`) the vertex normals of a smooth
+/// tilt moving with t (the input) and of the same tilt twice as steep (the target, a local function of the
+/// input that a small convolutional network can learn from crops): cGAN training data.
+pub struct RippleData {
+    pub topo: Arc<Topology>,
+    pub layout: UvLayout,
+    pub frames: Vec<(Vec<V3>, Vec<V3>)>,
+}
+
+pub fn ripple_data(n: usize, frames: usize) -> RippleData {
+    let (topo, p) = sheet(n, |_, _| 0.0);
+    let layout = UvLayout {
+        uv: p.iter().map(|q| [q[0], q[1]]).collect(),
+        corners: topo.triangles().to_vec(),
+    };
+    let normals = |t: usize, steep: f64| -> Vec<V3> {
+        p.iter()
+            .map(|q| {
+                let u = q[0];
+                let tilt = 0.3 * (u * 6.0 + t as f64 * 0.4).sin();
+                let v = [steep * tilt, 0.1, 1.0];
                 let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                m.n[k] = [v[0] / l, v[1] / l, v[2] / l];
-                m.covered[k] = x > 1 && y > 1;
+                [v[0] / l, v[1] / l, v[2] / l]
+            })
+            .collect()
+    };
+    RippleData {
+        topo,
+        layout,
+        frames: (0..frames)
+            .map(|t| (normals(t, 1.0), normals(t, 2.0)))
+            .collect(),
+    }
+}
+
+pub fn write_pc2(path: &std::path::Path, frames: &[Vec<V3>]) {
+    let mut b = Vec::new();
+    b.extend_from_slice(b"POINTCACHE2\0");
+    b.extend_from_slice(&1i32.to_le_bytes());
+    b.extend_from_slice(&(frames[0].len() as i32).to_le_bytes());
+    b.extend_from_slice(&1f32.to_le_bytes());
+    b.extend_from_slice(&1f32.to_le_bytes());
+    b.extend_from_slice(&(frames.len() as i32).to_le_bytes());
+    for f in frames {
+        for p in f {
+            for c in p {
+                b.extend_from_slice(&(*c as f32).to_le_bytes());
             }
         }
-        m
-    };
-    (0..n)
-        .map(|t| Sample {
-            input: map(t, 0.0),
-            target: map(t, 0.4),
-            prev_target: map(t.saturating_sub(1), 0.4),
+    }
+    std::fs::write(path, b).unwrap();
+}
+
+/// `dir/mesh.obj` + `dir/frames.pc2`, the layout `crease deep apply --coarse` reads. Returns the frames as
+/// they read back (f32).
+pub fn write_sequence(dir: &std::path::Path, topo: &Topology, frames: &[Vec<V3>]) -> Vec<Vec<V3>> {
+    std::fs::create_dir_all(dir).unwrap();
+    let mut obj = String::new();
+    for p in &frames[0] {
+        obj.push_str(&format!(
+            "v {} {} {}\n",
+            p[0] as f32, p[1] as f32, p[2] as f32
+        ));
+    }
+    for t in topo.triangles() {
+        obj.push_str(&format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
+    }
+    std::fs::write(dir.join("mesh.obj"), obj).unwrap();
+    write_pc2(&dir.join("frames.pc2"), frames);
+    frames
+        .iter()
+        .map(|f| {
+            f.iter()
+                .map(|p| p.map(|c| c as f32 as f64))
+                .collect::<Vec<_>>()
         })
         .collect()
 }

@@ -32,11 +32,12 @@ pub fn model_files(deep: &DeepSpec) -> Vec<String> {
         "autoregressive.npy",
         "ar_scale.npy",
         "ar_start.npy",
+        "detail.npy",
     ];
     if params.regressor == Regressor::Lstm {
         names.push("lstm.safetensors");
     }
-    if params.cgan_epochs > 0 {
+    if params.cgan_steps > 0 {
         names.push("cgan.safetensors");
     }
     names.push("manifest.json");
@@ -122,7 +123,7 @@ fn inspect_apply(
 ) -> Result<InputInfo, JobError> {
     use crease_deep::apply::open_coarse;
     use crease_deep::model::Model;
-    use crease_deep::pose::read_pose_file;
+    use crease_deep::regression::pose::read_pose_file;
     let model = Model::load(model_dir).map_err(|e| JobError::input(model_uri, e))?;
     let n = match from {
         ApplyFrom::Pose => {

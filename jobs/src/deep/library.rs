@@ -4,11 +4,13 @@
 use super::spec::{DeepSpec, DeepTrainParams, MapSpace, Mirror, PoseFeatures, Regressor};
 use crate::error::JobError;
 use crease_deep::cgan::CganConfig;
-use crease_deep::lstm::LstmConfig;
-use crease_deep::mirror::MirrorMode;
+use crease_deep::detail::DetailParams;
+use crease_deep::regression::lstm::LstmConfig;
+use crease_deep::regression::pose_lowpass::PoseLowpass;
+use crease_deep::subspace::mirror::MirrorMode;
 use crease_deep::model::RegressorKind;
-use crease_deep::normal_map::Space;
-use crease_deep::pose_features::PoseFeatureMode;
+use crease_deep::normal_maps::Space;
+use crease_deep::regression::pose_features::PoseFeatureMode;
 use crease_deep::train::TrainParams;
 use std::path::PathBuf;
 
@@ -79,16 +81,24 @@ pub fn train_params(p: &DeepTrainParams, uv: Option<PathBuf>) -> TrainParams {
             // Residual of the blend, cross-fitted, early stopping: as `crease deep train`.
             ..LstmConfig::default()
         },
-        pose_components: p.pose_components,
-        pose_smoothing: p.pose_smoothing,
+        pose_lowpass: PoseLowpass {
+            components: p.pose_components,
+            half_wavelength: p.pose_lowpass,
+        },
+        detail: DetailParams {
+            degree: p.detail_degree,
+            captures_per_frame: p.detail_captures,
+            seed: p.seed,
+        },
         resolution: p.resolution,
         uv,
-        cgan: (p.cgan_epochs > 0).then(|| CganConfig {
-            resolution: p.resolution,
+        cgan: (p.cgan_steps > 0).then(|| CganConfig {
             filters: p.cgan_filters,
             disc_filters: p.cgan_disc_filters,
             w_temporal: p.cgan_w_temporal,
-            epochs: p.cgan_epochs,
+            depth: p.cgan_depth,
+            crop: p.cgan_crop,
+            steps: p.cgan_steps,
             seed: p.seed,
             ..Default::default()
         }),
@@ -99,8 +109,9 @@ pub fn train_params(p: &DeepTrainParams, uv: Option<PathBuf>) -> TrainParams {
 /// The spec field a library parameter error is about (`lstm.layers` → `deep.params.lstm_layers`).
 fn param_field(name: &str) -> String {
     let field = match name {
-        "cgan.resolution" => "resolution".to_string(),
         "cgan" => "cgan_filters".to_string(),
+        "cgan.depth" => "cgan_depth".to_string(),
+        "cgan.crop" => "cgan_crop".to_string(),
         n => n.replace('.', "_"),
     };
     format!("deep.params.{field}")
@@ -129,7 +140,7 @@ mod tests {
     use serde::de::DeserializeOwned;
     use serde::Serialize;
 
-    /// The spec's defaults are `crease deep train`'s: the library's defaults, no cGAN, seed 1.
+    /// The spec's defaults are `crease deep train`'s: the library's defaults, seed 1.
     #[test]
     fn spec_defaults_are_the_librarys() {
         let t = TrainParams::default();
@@ -146,8 +157,10 @@ mod tests {
                 t.lstm.epochs,
                 t.lstm.lr,
             ),
-            (t.pose_components, t.pose_smoothing, t.resolution, t.uv),
-            (c.filters, c.disc_filters, c.w_temporal),
+            (t.pose_lowpass.components, t.pose_lowpass.half_wavelength),
+            (t.detail.degree, t.detail.captures_per_frame),
+            (t.resolution, t.uv),
+            (c.filters, c.disc_filters, c.w_temporal, c.depth, c.crop, c.steps),
         );
         let got = (
             (
@@ -174,16 +187,20 @@ mod tests {
                 d.lstm_epochs,
                 d.lstm_lr,
             ),
+            (d.pose_components, d.pose_lowpass),
+            (d.detail_degree, d.detail_captures),
+            (d.resolution, None::<PathBuf>),
             (
-                d.pose_components,
-                d.pose_smoothing,
-                d.resolution,
-                None::<PathBuf>,
+                d.cgan_filters,
+                d.cgan_disc_filters,
+                d.cgan_w_temporal,
+                d.cgan_depth,
+                d.cgan_crop,
+                d.cgan_steps,
             ),
-            (d.cgan_filters, d.cgan_disc_filters, d.cgan_w_temporal),
         );
         assert_eq!(got, want);
-        assert_eq!((d.seed, d.cgan_epochs, &d.uv), (1, 0, &None));
+        assert_eq!((d.seed, &d.uv), (1, &None));
     }
 
     /// Every variant is spelled in a spec as the library spells it, and converts to that variant.

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "task", rename_all = "kebab-case", deny_unknown_fields)]
 pub enum DeepSpec {
-    /// Train a model on `input` and `data` (each with `gt/`, `captured/`, `pose.json`): one task.
+    /// Train a model on `input` and `data` (each with `gt/` and `pose.json`): one task.
     Train {
         /// Further training directories (URIs), after `input`.
         #[serde(default)]
@@ -118,21 +118,25 @@ pub struct DeepTrainParams {
     pub lstm_epochs: usize,
     pub lstm_lr: f64,
     pub pose_components: usize,
-    pub pose_smoothing: usize,
+    pub pose_lowpass: f64,
+    pub detail_degree: usize,
+    pub detail_captures: usize,
     pub seed: u64,
     pub resolution: usize,
     /// URI of an OBJ whose `vt` gives the UV layout (it must have `vt`); default: computed.
     pub uv: Option<String>,
     /// 0: no cGAN.
-    pub cgan_epochs: usize,
+    pub cgan_steps: usize,
     pub cgan_filters: usize,
     pub cgan_disc_filters: usize,
     pub cgan_w_temporal: f64,
+    pub cgan_depth: usize,
+    pub cgan_crop: usize,
 }
 
 impl Default for DeepTrainParams {
     /// `crease deep train`'s defaults (the library's `TrainParams`, `LstmConfig` and `CganConfig` defaults,
-    /// which the `deep` feature's tests compare them with), with no cGAN and seed 1.
+    /// which the `deep` feature's tests compare them with), seed 1.
     fn default() -> Self {
         DeepTrainParams {
             k: 200,
@@ -152,14 +156,18 @@ impl Default for DeepTrainParams {
             lstm_epochs: 300,
             lstm_lr: 1e-3,
             pose_components: 0,
-            pose_smoothing: 160,
+            pose_lowpass: 0.0,
+            detail_degree: 16,
+            detail_captures: 1,
             seed: 1,
             resolution: 256,
             uv: None,
-            cgan_epochs: 0,
-            cgan_filters: 64,
-            cgan_disc_filters: 64,
+            cgan_steps: 1500,
+            cgan_filters: 8,
+            cgan_disc_filters: 8,
             cgan_w_temporal: 50.0,
+            cgan_depth: 5,
+            cgan_crop: 64,
         }
     }
 }

@@ -162,7 +162,7 @@ pub fn apply(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
     params.frames = Some(frames.clone());
     let staging = Staging::new(&env.ctx.cache_dir, "apply")?;
     let clock = Instant::now();
-    deep_apply(&model, &input, &params, &staging.0, env.progress())
+    let applied = deep_apply(&model, &input, &params, &staging.0, env.progress())
         .map_err(|e| TaskError::from_core("deep-apply", e))?;
     let seconds = clock.elapsed().as_secs_f64();
     let mut written = Vec::new();
@@ -175,6 +175,8 @@ pub fn apply(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
     let summary = json!({
         "frames": [frames.start, frames.end],
         "ms_per_frame": 1e3 * seconds / frames.len().max(1) as f64,
+        // Frames the detail model's guard gave the input's own normals (their OBJ says why too).
+        "fallback_frames": applied.fallback.iter().map(|(t, _)| t + 1).collect::<Vec<_>>(),
     });
     Ok((summary, written))
 }

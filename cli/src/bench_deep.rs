@@ -1,5 +1,5 @@
-//! `crease bench --deep`: the cost of DeepWrinkles inference per frame (issue 12 target: ≤ 50 ms at 256² on one
-//! core, `--threads 1`), split into the two steps `crease deep apply` runs per frame — rasterising the coarse
+//! `crease bench --deep`: the cost of DeepWrinkles inference per frame on one core (`--threads
+//! 1`; the aim is ≤ 50 ms at 256²), split into the two steps `crease deep apply` runs per frame — rasterising the coarse
 //! mesh's normal map in UV space and the cGAN generator's forward pass — and the cGAN's training time per epoch.
 //!
 //! The generator's weights are freshly initialised, not trained: a forward pass costs the same whatever the

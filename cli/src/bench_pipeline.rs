@@ -11,7 +11,7 @@
 //!    coordinator and workers all live in this process);
 //! 3. **per-task costs and storage traffic**: the stretch job's tasks executed one at a time in process, each
 //!    with its work time and the bytes it read and wrote (`rchar`/`wchar` of /proc/self/io), per task kind and
-//!    per frame — the figures the scaling estimate in docs/benchmarks.md ("Scaling") is built from.
+//!    per frame — the figures the farm-sizing estimate in docs/benchmarks.md ("Sizing a farm") is built from.
 
 use crate::bench::BenchArgs;
 use crate::bench_jobs::{self, path_str};

@@ -1,4 +1,4 @@
-//! `crease eval`: fold fidelity of a result against ground truth (DESIGN.md §9), with the captured baseline
+//! `crease eval`: fold fidelity of a result against ground truth (docs/fidelity.md), with the captured baseline
 //! beside every figure, so a claim about folds can be reproduced with one command.
 
 use crate::progress::CliProgress;

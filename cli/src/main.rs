@@ -27,6 +27,7 @@ mod run;
 mod security_args;
 mod threads;
 mod urls;
+mod view;
 mod watch;
 
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
@@ -48,7 +49,7 @@ enum Command {
     Run(run::RunArgs),
     /// Write the procedural demo sequence (OBJ frames) and its anchors file.
     Demo(run::DemoArgs),
-    /// Fold fidelity of a result against ground truth (DESIGN.md §9), beside the captured baseline.
+    /// Fold fidelity of a result against ground truth, beside the captured baseline (docs/fidelity.md).
     Eval(eval::EvalArgs),
     /// Paper-scale benchmark: seconds per frame per stage, peak memory, both weight modes.
     Bench(bench::BenchArgs),
@@ -81,8 +82,10 @@ enum Command {
     Export(export::ExportArgs),
     /// DeepWrinkles (Lähner et al. 2018): register templates to scans, train, apply.
     Deep(deep::DeepArgs),
-    /// Bake a detailed sequence into normal maps on its coarse input (DESIGN §7 output layout).
+    /// Bake a detailed sequence into normal maps on its coarse input (the layout `crease deep apply` writes).
     Bake(deep::BakeArgs),
+    /// Show an output folder (or any sequence) in the browser: the dashboard's 3D viewer and report.
+    View(view::ViewArgs),
 }
 
 fn lossy(args: &[std::ffi::OsString]) -> Vec<String> {
@@ -137,6 +140,7 @@ fn main() {
         Command::Export(a) => export::export_cmd(a),
         Command::Deep(a) => deep::deep(a),
         Command::Bake(a) => deep::bake(a),
+        Command::View(a) => view::view(a),
     };
     if let Err(e) = result {
         eprintln!("error: {}", error_text::one_line(&e));

@@ -10,7 +10,7 @@ use crease_core::folds::AnchorSet;
 use crease_core::fsutil;
 use crease_core::mesh::io::{open_sequence, write_obj_sequence};
 use crease_core::mesh::FrameSource;
-use crease_core::spacetime::stretch::StretchRotation;
+use crease_core::spacetime::position::stretch::StretchRotation;
 use crease_core::spacetime::{deform, Coefficients, DeformParams, Pinning, WeightMode};
 use crease_core::synth::{self, DemoSpec};
 use serde_json::json;
@@ -73,13 +73,13 @@ pub struct DeformArgs {
     /// Shape projection: the fraction of the capture filter's low-pass of the positioned displacement removed
     /// before the fold restoration, so folds add only what the capture smoothed away and the garment, its
     /// rims included, keeps the captured shape. 0 = off, at most 1; only with the shape screen on.
-    #[arg(long, default_value_t = crease_core::spacetime::shape_projection::DEFAULT_SHAPE_PROJECTION)]
+    #[arg(long, default_value_t = crease_core::spacetime::shape::projection::DEFAULT_SHAPE_PROJECTION)]
     pub shape_projection: f64,
     /// Where the shape projection sits relative to the last stretch pass: `last` (after it), `around` (before
     /// and after it), `screen-to-projected` (the last pass's screen pulls toward the projected shape, then the
     /// projection). docs/fidelity.md, "The projection and the last stretch pass".
     #[arg(long, default_value = "last")]
-    pub projection_order: crease_core::spacetime::shape_projection::ProjectionOrder,
+    pub projection_order: crease_core::spacetime::shape::projection::ProjectionOrder,
     /// Frames per positioning operator: 1 factorises every frame's own system (exact); k > 1 positions each
     /// block of k frames with the first frame's factor (one factorisation per k frames; 7 keeps the public
     /// cases within the quality targets, docs/benchmarks.md "issue14-fused (second stop)").
@@ -94,13 +94,13 @@ pub struct DeformArgs {
     #[arg(long, value_parser = parse_strain_limit)]
     pub strain_limit: Option<f64>,
     /// Gauss–Seidel sweeps of the strain limit (it stops once a sweep moves nothing).
-    #[arg(long, default_value_t = crease_core::spacetime::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS)]
+    #[arg(long, default_value_t = crease_core::spacetime::position::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS)]
     pub strain_limit_sweeps: usize,
     /// The strain limit's reference lengths: `sequence` (per edge, its longest captured length over the
     /// sequence; the default with --input) or `frame` (the frame's own captured lengths: an input that is its
     /// own rest state; the default of the built-in demo).
     #[arg(long)]
-    pub strain_reference: Option<crease_core::spacetime::strain_limit::StrainReference>,
+    pub strain_reference: Option<crease_core::spacetime::position::strain_limit::StrainReference>,
 }
 
 fn parse_strain_limit(s: &str) -> Result<f64, String> {
@@ -161,7 +161,7 @@ impl DeformArgs {
 
             strain_limit: self
                 .strain_limit
-                .unwrap_or(crease_core::spacetime::strain_limit::DEFAULT_STRAIN_LIMIT),
+                .unwrap_or(crease_core::spacetime::position::strain_limit::DEFAULT_STRAIN_LIMIT),
             strain_limit_sweeps: self.strain_limit_sweeps,
             strain_reference: self.strain_reference.unwrap_or_default(),
         }
@@ -355,9 +355,9 @@ pub fn run(a: RunArgs) -> Result<()> {
     if a.input.is_none() && a.deform.strain_reference.is_none() {
         // The demo's input is its own rest state in every frame: its stretch is measured against the input
         // frame's triangles, and so is its strain limit.
-        params.strain_reference = crease_core::spacetime::strain_limit::StrainReference::Frame;
+        params.strain_reference = crease_core::spacetime::position::strain_limit::StrainReference::Frame;
         if a.deform.strain_limit.is_none() {
-            params.strain_limit = crease_core::spacetime::strain_limit::REST_STATE_STRAIN_LIMIT;
+            params.strain_limit = crease_core::spacetime::position::strain_limit::REST_STATE_STRAIN_LIMIT;
         }
     }
     params.validate()?;

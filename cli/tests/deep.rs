@@ -1,5 +1,5 @@
-//! `crease deep train|apply` and `crease bake` end to end on tiny synthetic sleeves: the DESIGN §7 output
-//! contract, determinism, and the bad inputs of issue 12 item 9.
+//! `crease deep train|apply` and `crease bake` end to end on tiny synthetic sleeves: the output layout
+//! (meshes and normal maps), determinism, and bad inputs.
 
 use crease_core::mesh::io::write_obj;
 use crease_core::mesh::Topology;

@@ -15,6 +15,9 @@ const RUN_TESTED: &[&str] = &[
     "docs/formats.md",
     "docs/folds.md",
     "docs/cluster.md",
+    "docs/fidelity.md",
+    "docs/benchmarks.md",
+    "docs/export.md",
 ];
 
 fn root() -> PathBuf {
@@ -210,4 +213,59 @@ fn folds_blocks_run() {
 #[test]
 fn cluster_blocks_run() {
     run_blocks("docs/cluster.md");
+}
+
+#[test]
+fn fidelity_blocks_run() {
+    run_blocks("docs/fidelity.md");
+}
+
+#[test]
+fn benchmarks_blocks_run() {
+    run_blocks("docs/benchmarks.md");
+}
+
+#[test]
+fn export_blocks_run() {
+    run_blocks("docs/export.md");
+}
+
+/// The relative links of the documentation point at files of the repository, and the pages name nothing outside
+/// it: no developer machine paths, no design notes that are not part of the repository.
+#[test]
+fn links_resolve_and_nothing_outside_the_repository_is_named() {
+    let root = root();
+    let mut files = doc_files();
+    files.push("bench/results/README.md".to_string());
+    for file in files {
+        let text = std::fs::read_to_string(root.join(&file)).unwrap();
+        for (n, line) in text.lines().enumerate() {
+            let at = format!("{file}:{}", n + 1);
+            assert!(!line.contains("/work/"), "{at}: a machine path: {line}");
+            let design_notes = ["DES", "IGN"].concat();
+            assert!(
+                !line.contains(&design_notes),
+                "{at}: names a file outside the repository: {line}"
+            );
+            let mut rest = line;
+            while let Some(i) = rest.find("](") {
+                rest = &rest[i + 2..];
+                let Some(end) = rest.find(')') else { break };
+                let target = &rest[..end];
+                rest = &rest[end..];
+                if target.contains("://")
+                    || target.starts_with('#')
+                    || target.starts_with("mailto:")
+                {
+                    continue;
+                }
+                let path = target.split('#').next().unwrap();
+                let base = Path::new(&file).parent().unwrap();
+                assert!(
+                    root.join(base).join(path).exists(),
+                    "{at}: the link `{target}` points at no file"
+                );
+            }
+        }
+    }
 }

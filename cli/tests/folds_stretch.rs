@@ -74,7 +74,7 @@ fn stretch_folds_on_the_captured_sleeve_fixture() {
     assert_eq!(report["complete"], true);
     assert_eq!(report["fold_detection"]["source"], "stretch");
     assert_eq!(report["fold_detection"]["anchors"], n_anchors);
-    // Per frame: the folds traced and the seeds tried to find them (issue 11, item 4). Every fold took a
+    // Per frame: the folds traced and the seeds tried to find them. Every fold took a
     // seed; a frame with anchors has folds; the anchors file itself does not carry these figures.
     let per_frame = report["fold_detection"]["per_frame"].as_array().unwrap();
     assert_eq!(per_frame.len(), ins.len());

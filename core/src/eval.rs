@@ -1,4 +1,4 @@
-//! Fidelity of a result against ground truth (DESIGN.md §9): how well the folds put back into a captured sequence
+//! Fidelity of a result against ground truth (docs/fidelity.md): how well the folds put back into a captured sequence
 //! agree with the folds a real cloth simulator made.
 //!
 //! Three sequences with the same frames take part: the **input** (the "captured" sequence, folds smoothed
@@ -201,7 +201,7 @@ pub struct Figures {
     pub fold_fraction: f64,
 }
 
-/// "Shape kept" figures (DESIGN §9) of the output and of the ground truth, both against the input.
+/// "Shape kept" figures (docs/fidelity.md) of the output and of the ground truth, both against the input.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct ShapeComparison {
     pub output: ShapeStats,

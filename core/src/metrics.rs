@@ -290,7 +290,7 @@ mod tests {
     fn singular_values_of_known_maps() {
         let rest = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
         // Rigid rotation + translation: isometric.
-        let r = crate::spacetime::so3::exp([0.3, -0.5, 0.2]);
+        let r = crate::spacetime::blend::so3::exp([0.3, -0.5, 0.2]);
         let out = rest.map(|p| vec3::add(vec3::mat_vec(&r, p), [1.0, 2.0, 3.0]));
         let (a, b) = triangle_singular_values(rest, out);
         assert!((a - 1.0).abs() < 1e-12 && (b - 1.0).abs() < 1e-12);

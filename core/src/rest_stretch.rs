@@ -4,8 +4,8 @@
 //! data that is not the cloth's rest state: the capture low-passed the cloth, and a folded region comes out
 //! shorter than the cloth it shows (the public sleeve's ground truth measures p99 179% per triangle against
 //! it). Folds that give that length back must "stretch" the captured triangles, so per-triangle stretch against
-//! the same captured frame measures the capture's smoothing as much as any defect (docs/fidelity.md, "What
-//! real-data stretch is measured against").
+//! the same captured frame measures the capture's smoothing as much as any defect (docs/fidelity.md,
+//! "Measuring a result").
 //!
 //! Cloth barely stretches but folds and unfolds freely, so a captured edge is at most as long as the cloth
 //! between its ends, and it reaches that length in the frames where the region lies flat. Per edge, the

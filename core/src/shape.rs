@@ -1,4 +1,4 @@
-//! "Shape kept" figures (DESIGN §9): how far a result moved the garment itself, as opposed to adding folds.
+//! "Shape kept" figures (docs/fidelity.md): how far a result moved the garment itself, as opposed to adding folds.
 //!
 //! Folds are short-wavelength; the garment's pose and outline are long-wavelength. So the displacement
 //! d = output − captured is split with the very low-pass filter that produced the captured data from the
@@ -19,11 +19,9 @@ use serde::{Deserialize, Serialize};
 /// pairs as well. See [`TaubinFilter::capture`].
 pub const CAPTURE_STEPS: usize = 80;
 
-/// Steps of the drift filter ([`TaubinFilter::captured`]): the data's whole capture filter, as DESIGN §9 defines
-/// drift ("the same Taubin filter that made `captured/`"). Drift was measured with 40 steps (20 pairs, half the
-/// capture filter) until 2026-12-02; that let part of every fold through as "drift" and inflated the ground
-/// truth's own figure (sleeve drift max 0.44 with 40 steps, 0.30 with 80), so figures from before that date are
-/// not comparable.
+/// Steps of the drift filter ([`TaubinFilter::captured`]): the whole capture filter. Half of it would let part
+/// of every fold through as "drift" and inflate the ground truth's own figure (sleeve drift max 0.44 with 40
+/// steps, 0.30 with 80).
 pub const DRIFT_STEPS: usize = CAPTURE_STEPS;
 
 /// Taubin's λ|μ low-pass filter with uniform (umbrella) weights.
@@ -37,7 +35,7 @@ pub struct TaubinFilter {
 }
 
 impl TaubinFilter {
-    /// The drift filter (DESIGN §9): λ 0.5, μ −0.53, [`DRIFT_STEPS`] alternating steps — the filter that made
+    /// The drift filter (docs/fidelity.md): λ 0.5, μ −0.53, [`DRIFT_STEPS`] alternating steps — the filter that made
     /// `captured/` ([`Self::capture`]).
     pub fn captured(topo: &Topology) -> Self {
         Self::new(topo, 0.5, -0.53, DRIFT_STEPS)

@@ -123,7 +123,7 @@ pub fn folded_demo_image(triangles: usize, width: u32, height: u32) -> Result<Rg
         shape_cutoff: 0.0,
         // Popa's stretch passes, not crease's fold-keeping default: the truth stays what it was whatever the
         // reconstruction's defaults become.
-        stretch_rotation: crate::spacetime::stretch::StretchRotation::Polar,
+        stretch_rotation: crate::spacetime::position::stretch::StretchRotation::Polar,
         // Nor crease's fold restoration, which reads the captured surface the truth is made from.
         fold_restore: 0.0,
         // Nor its strain limit.

@@ -111,7 +111,7 @@ mod tests {
 
     #[test]
     fn eigen_of_a_rotated_diagonal_matrix() {
-        let r = crate::spacetime::so3::exp([0.3, -0.8, 0.5]);
+        let r = crate::spacetime::blend::so3::exp([0.3, -0.8, 0.5]);
         let d = [[5.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 0.5]];
         let m = vec3::mat_mul(&vec3::mat_mul(&r, &d), &vec3::transpose(&r));
         let (vals, vecs) = symmetric_eigen(m);
@@ -141,7 +141,7 @@ mod tests {
         assert!(dir[1].abs() > 0.9, "hanging sheet seen along {dir:?}");
         assert!(up[2] > 0.999, "{up:?}");
         // Tilted and yawed: still face-on (the camera axis is within 20° of the sheet's normal).
-        let r = crate::spacetime::so3::exp([0.2, 0.1, 0.6]);
+        let r = crate::spacetime::blend::so3::exp([0.2, 0.1, 0.6]);
         let turned: Vec<V3> = hanging.iter().map(|q| vec3::mat_vec(&r, *q)).collect();
         let normal = vec3::mat_vec(&r, [0.0, 1.0, 0.0]);
         let (dir, _) = view_for(&turned, None);

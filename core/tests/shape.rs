@@ -1,4 +1,4 @@
-//! The deformation adds folds without moving the garment (issue 11, "shape is kept"): checked on a real hanging
+//! The deformation adds folds without moving the garment ("shape is kept"): checked on a real hanging
 //! sheet (the public drape's captured frames 1–16 at half resolution, `fixtures/drape-coarse`) with the folds
 //! the stretch detector finds in it.
 
@@ -8,7 +8,8 @@ use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::{geometry, MemorySink, Sequence};
 use crease_core::progress::NoProgress;
 use crease_core::shape::{ShapeAccumulator, TaubinFilter};
-use crease_core::spacetime::{deform, so3, DeformParams};
+use crease_core::spacetime::blend::so3;
+use crease_core::spacetime::{deform, DeformParams};
 use crease_core::vec3::{self, V3};
 use std::path::Path;
 
@@ -225,7 +226,7 @@ fn shape_of(seq: &Sequence, out: &[Vec<V3>]) -> crease_core::shape::ShapeStats {
     acc.stats()
 }
 
-/// The sleeve's open cuffs keep their shape (issue 11, "drift ≤ 2× the ground truth's"): on the public sleeve
+/// The sleeve's open cuffs keep their shape (drift ≤ 2× the ground truth's): on the public sleeve
 /// the output's largest low-frequency drift was on the two rims, which flapped by up to 0.7 edges (along the
 /// surface normal) where the real cloth's rims drift by 0.05. Checked on the sleeve fixture (captured frames
 /// 20–23 with their ground truth) with the folds the stretch detector finds: the default output's drift, mean
@@ -233,7 +234,7 @@ fn shape_of(seq: &Sequence, out: &[Vec<V3>]) -> crease_core::shape::ShapeStats {
 /// the shape projection lowers the drift against the behaviour before it (`shape_projection` 0). Four frames
 /// are too few for the rims to flap as they do over the whole sequence (frames 9–44), so without the
 /// projection this fixture is within the bound as well (0.31 against 0.55): the 48-frame figures are in
-/// docs/fidelity.md.
+/// bench/results/2026-12-02-shape-projection.md.
 #[test]
 fn sleeve_rims_drift_no_more_than_twice_the_ground_truth() {
     let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cli/tests/fixtures");

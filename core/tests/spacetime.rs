@@ -4,14 +4,15 @@ use crease_core::folds::{Anchor, AnchorSet};
 use crease_core::mesh::{MemorySink, Sequence};
 use crease_core::progress::NoProgress;
 use crease_core::spacetime::blend::CrossFade;
-use crease_core::spacetime::operator::SpaceTimeOperator;
-use crease_core::spacetime::per_anchor::LocalCg;
+use crease_core::spacetime::weights::operator::SpaceTimeOperator;
+use crease_core::spacetime::weights::per_anchor::LocalCg;
 use crease_core::spacetime::position::PositionSystem;
 use crease_core::spacetime::stages::position_frame;
-use crease_core::spacetime::stretch::StretchRotation;
+use crease_core::spacetime::position::stretch::StretchRotation;
 use crease_core::spacetime::weights::{solve_window, WindowProblem};
 use crease_core::spacetime::windows::{plan_windows, Window};
-use crease_core::spacetime::{deform, so3, Coefficients, DeformParams, WeightMode};
+use crease_core::spacetime::blend::so3;
+use crease_core::spacetime::{deform, Coefficients, DeformParams, WeightMode};
 use crease_core::synth::{self, DemoSpec};
 use crease_core::vec3;
 use std::sync::Arc;
@@ -181,8 +182,8 @@ fn single_anchor_rotates_its_triangle_and_decays() {
         window: n,
         shift: n,
         stretch_passes: 0,
-        // The positioning of one rotated triangle as such: the shape projection (on by default since issue 11)
-        // takes away the wide part of a lone anchor's turn, which a capture would have seen.
+        // The positioning of one rotated triangle as such: the shape projection (on by default) takes
+        // away the wide part of a lone anchor's turn, which a capture would have seen.
         shape_projection: 0.0,
         ..Default::default()
     };
@@ -397,7 +398,7 @@ fn local_cg_matches_whole_window_cg() {
     cg.solve(&op, node, 10.0, 1e-3, 1000).unwrap();
     let mut b = vec![[0.0; 3]; op.n_nodes()];
     b[node as usize] = [10.0, 0.0, 0.0];
-    let (x, _) = crease_core::spacetime::fused::solve3(&op, &b, 1e-3, 1000).unwrap();
+    let (x, _) = crease_core::spacetime::weights::fused::solve3(&op, &b, 1e-3, 1000).unwrap();
     let mut dense = vec![0.0; op.n_nodes()];
     for (g, w) in cg.column() {
         dense[g as usize] = w;
@@ -475,8 +476,8 @@ fn stretch_passes_lower_max_stretch() {
     let params = DeformParams {
         stretch_passes: 2,
         stretch_rotation: StretchRotation::Polar,
-        // The passes as such: the shape projection (on by default since issue 11) ends the last pass and
-        // changes its figure (docs/fidelity.md, "The shape projection").
+        // The passes as such: the shape projection (on by default) ends the last pass and changes
+        // its figure (docs/fidelity.md).
         shape_projection: 0.0,
         ..Default::default()
     };
@@ -524,7 +525,7 @@ fn anchored_passes_keep_the_folds_that_polar_passes_erase() {
         let params = DeformParams {
             stretch_passes: passes,
             stretch_rotation: rotation,
-            // The passes as such, without the shape projection that ends the last one (issue 11).
+            // The passes as such, without the shape projection that ends the last one.
             shape_projection: 0.0,
             ..Default::default()
         };

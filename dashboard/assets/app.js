@@ -1,24 +1,13 @@
 // crease dashboard: renders the JSON API (/api/...) and stays current through one server-sent event stream
 // (/api/events). No polling: a view is redrawn when an event says something changed. All text from the
 // server is inserted as text (textContent), never as HTML.
-"use strict";
+import { el } from "/assets/dom.js";
 
 const STATES = ["all", "queued", "running", "waiting", "done", "failed", "cancelled"];
 const TERMINAL = new Set(["done", "failed", "cancelled"]);
 const state = { jobs: new Map(), workers: [], filter: "all", job: null, refetch: null };
-
-function el(tag, attrs, ...children) {
-  const e = document.createElement(tag);
-  for (const [k, v] of Object.entries(attrs || {})) {
-    if (k === "class") e.className = v;
-    else if (k === "text") e.textContent = v;
-    else if (k.startsWith("on")) e.addEventListener(k.slice(2), v);
-    else if (k.startsWith("data-")) e.setAttribute(k, v);
-    else e[k] = v;
-  }
-  for (const c of children) if (c != null) e.append(c);
-  return e;
-}
+// `crease view` serves this page for one local folder: no queue, no live updates.
+const LOCAL = document.body.dataset.mode === "local";
 
 function fmtTime(unix) {
   return unix > 0 ? new Date(unix * 1000).toLocaleString() : "";
@@ -147,17 +136,6 @@ function kv(rows) {
     el("tr", {}, el("th", { text: k }), el("td", {}, v instanceof Node ? v : String(v ?? ""))))));
 }
 
-// Flattens report figures ({a: {b: 1}} -> "a.b": 1) for a key/value table.
-function flatten(obj, prefix, out) {
-  for (const [k, v] of Object.entries(obj || {})) {
-    const key = prefix ? `${prefix}.${k}` : k;
-    if (v && typeof v === "object" && !Array.isArray(v)) flatten(v, key, out);
-    else if (Array.isArray(v)) out.push([key, v.map((x) => typeof x === "number" ? +x.toPrecision(4) : JSON.stringify(x)).join(", ")]);
-    else out.push([key, typeof v === "number" ? +v.toPrecision(6) : v]);
-  }
-  return out;
-}
-
 function attemptLog(a) {
   const head = `attempt ${a.attempt} · ${a.worker || "?"} · ${a.outcome || "running"}` +
     (a.finished_unix > 0 && a.started_unix > 0 ? ` · ${fmtSecs(a.finished_unix - a.started_unix)}` : "");
@@ -206,18 +184,69 @@ function renderJob(j) {
         ["output", j.output], ["message", j.message]]),
       actionButtons(j)),
   ];
+  const p = panelsFor(j.id, `${j.id}:${j.finished_unix || 0}:${j.report ? "report" : "none"}`, !!j.report);
+  parts.push(el("h2", { text: "Viewer" }), p.viewerBox);
   if (j.files.length) parts.push(el("h2", { text: "Pictures" }), images);
-  if (j.report) {
-    parts.push(el("h2", { text: "Report" }));
-    if (j.report.error) parts.push(el("p", { class: "error", text: j.report.error }));
-    else parts.push(el("div", { id: "report" }, kv(flatten({ summary: j.report.summary, fold_detection: j.report.fold_detection }, "", []))));
-  }
+  parts.push(el("h2", { text: "Report" }), p.reportBox);
   parts.push(el("h2", { text: "Tasks by stage" }), ...j.stages.map(stageSection));
   view.replaceChildren(...parts);
   for (const key of open) {
     const d = view.querySelector(`tr[data-task="${CSS.escape(key)}"] details`);
     if (d) d.open = true;
   }
+}
+
+// ---------------------------------------------------------------- viewer and report panels
+
+const viewBase = (id) => `/api/jobs/${encodeURIComponent(id)}/view/`;
+
+// The viewer and report of the page shown, kept across live redraws (a WebGL canvas and its loaded frames
+// are not rebuilt for every event) and replaced when the job's output changes.
+const panels = { key: null, viewer: null, viewerBox: null, reportBox: null };
+
+function closePanels() {
+  if (panels.viewer) panels.viewer.destroy();
+  Object.assign(panels, { key: null, viewer: null, viewerBox: null, reportBox: null });
+}
+
+function panelsFor(id, key, hasReport) {
+  if (panels.key === key) return panels;
+  closePanels();
+  panels.key = key;
+  panels.viewerBox = el("div", { id: "viewer", class: "viewer", "data-job": id });
+  panels.reportBox = el("div", { class: "report-box" }, el("p", { class: "muted", text: "loading the report…" }));
+  import("/assets/viewer.js")
+    .then((m) => m.openViewer(panels.viewerBox, viewBase(id)))
+    .then((v) => { if (panels.key === key) panels.viewer = v; else v.destroy(); }, () => { /* shown in the box */ });
+  loadReport(id, key, panels.reportBox, hasReport);
+  return panels;
+}
+
+// The report of the output: report.json and eval.json are fetched only when meta.json says they exist (or,
+// when the viewer cannot open the output here, when the job page says the report exists).
+async function loadReport(id, key, box, hasReport) {
+  const base = viewBase(id);
+  const orNull = (name) => api(base + name).catch(() => null);
+  try {
+    const meta = await orNull("meta.json");
+    const files = meta ? meta.files : { "report.json": hasReport, "eval.json": false };
+    const [m, r, e] = await Promise.all([import("/assets/report.js"),
+      files["report.json"] ? orNull("report.json") : null, files["eval.json"] ? orNull("eval.json") : null]);
+    if (panels.key !== key) return;
+    box.replaceChildren(r || e ? m.renderReport(r, e, meta, base)
+      : el("p", { class: "muted", id: "no-report", text: "No report.json yet: the report appears when the job is done." }));
+  } catch (err) {
+    if (panels.key === key) box.replaceChildren(el("p", { class: "error", text: `report: ${err.message}` }));
+  }
+}
+
+// crease view: one local folder, no queue.
+function renderLocal(id) {
+  const view = document.getElementById("view");
+  const p = panelsFor(id, `local:${id}`, false);
+  const title = el("h1", { id: "local-title", text: "crease view" });
+  api(viewBase(id) + "meta.json").then((m) => { title.textContent = m.name; }, (e) => problem(`${id}: ${e.message}`));
+  view.replaceChildren(title, el("h2", { text: "Viewer" }), p.viewerBox, el("h2", { text: "Report" }), p.reportBox);
 }
 
 async function loadJob(id) {
@@ -250,8 +279,14 @@ function renderWorkers() {
 
 function route() {
   const h = location.hash || "#/";
+  if (LOCAL) {
+    const m = h.match(/^#\/view\/([A-Za-z0-9_-]+)$/);
+    renderLocal(m ? m[1] : "local");
+    return;
+  }
   const m = h.match(/^#\/jobs\/([A-Za-z0-9_-]+)$/);
   state.job = m ? m[1] : null;
+  if (!m) closePanels();
   document.getElementById("nav-jobs").classList.toggle("on", !m && h !== "#/workers");
   document.getElementById("nav-workers").classList.toggle("on", h === "#/workers");
   if (m) loadJob(m[1]);
@@ -298,4 +333,6 @@ function connect() {
 }
 
 window.addEventListener("hashchange", route);
-window.addEventListener("DOMContentLoaded", () => { route(); connect(); });
+// Module scripts run once the document is parsed: no need to wait for DOMContentLoaded.
+route();
+if (!LOCAL) connect();

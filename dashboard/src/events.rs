@@ -142,11 +142,7 @@ mod tests {
         );
         let scheduler = Scheduler::open(CoordinatorConfig::default()).unwrap();
         let (id, _) = scheduler.submit(&spec, "toml").await.unwrap();
-        let s = AppState {
-            scheduler: std::sync::Arc::clone(&scheduler),
-            tokens: Default::default(),
-            https: false,
-        };
+        let s = AppState::new(std::sync::Arc::clone(&scheduler), Default::default(), false);
         let mut sent = Sent::new();
         // Nothing sent yet: the job is new to this stream.
         assert_eq!(changed_jobs(&s, &mut sent).len(), 1);

@@ -74,24 +74,39 @@ pub async fn get(State(s): State<AppState>, Path((id, name)): Path<(String, Stri
             )
         }
     };
-    match store.exists(&key).await {
+    stored(
+        &store,
+        &key,
+        format!("job {id} has no {name} (yet)"),
+        MAX_BYTES,
+        "image/png",
+    )
+    .await
+}
+
+/// The object at `key` as the answer, byte for byte: 404 with `missing` when it is not there, 413 past
+/// `max` bytes (refused rather than buffered), 502 when storage fails. The viewer's raw JSON files are served
+/// the same way.
+pub async fn stored(
+    store: &Storage,
+    key: &str,
+    missing: String,
+    max: usize,
+    content_type: &'static str,
+) -> Response {
+    match store.exists(key).await {
         Ok(true) => {}
-        Ok(false) => {
-            return error(
-                StatusCode::NOT_FOUND,
-                format!("job {id} has no {name} (yet)"),
-            )
-        }
+        Ok(false) => return error(StatusCode::NOT_FOUND, missing),
         Err(e) => return error(StatusCode::BAD_GATEWAY, e.to_string()),
     }
-    match store.get(&key).await {
-        Ok(bytes) if bytes.len() > MAX_BYTES => error(
+    match store.get(key).await {
+        Ok(bytes) if bytes.len() > max => error(
             StatusCode::PAYLOAD_TOO_LARGE,
-            format!("{} is larger than {MAX_BYTES} bytes", store.describe(&key)),
+            format!("{} is larger than {max} bytes", store.describe(key)),
         ),
         Ok(bytes) => (
             [
-                (header::CONTENT_TYPE, "image/png"),
+                (header::CONTENT_TYPE, content_type),
                 (header::CACHE_CONTROL, "private, no-cache"),
             ],
             bytes,

@@ -7,7 +7,8 @@
 //! It is a thin face over [`Scheduler`]: every figure comes from the same calls the gRPC service makes. With
 //! client tokens configured every route but the login form and the static assets needs a client token
 //! ([`auth`]); with `--tls-cert`/`--tls-key` it serves HTTPS only ([`tls`]). Files come from a job's output
-//! location by fixed names only ([`files`]).
+//! location by fixed names only ([`files`]). The job page's 3D before/after viewer reads its frames from
+//! [`viewer`], which `crease view` also mounts on a local folder without a coordinator ([`local`]).
 
 pub mod api;
 pub mod assets;
@@ -15,8 +16,11 @@ pub mod auth;
 pub mod events;
 pub mod files;
 pub mod json;
+pub mod local;
 pub mod tls;
+pub mod viewer;
 
+use axum::extract::FromRef;
 use axum::routing::{get, post};
 use axum::Router;
 use crease_coordinator::Scheduler;
@@ -30,6 +34,26 @@ pub struct AppState {
     pub tokens: crease_net::Tokens,
     /// Served over TLS: cookies are marked `Secure`.
     pub https: bool,
+    /// The viewer's data, looked up by job id in the queue.
+    pub viewer: Arc<viewer::Viewer>,
+}
+
+impl AppState {
+    pub fn new(scheduler: Arc<Scheduler>, tokens: crease_net::Tokens, https: bool) -> Self {
+        let viewer = viewer::Viewer::new(viewer::job_folders::JobFolders::new(scheduler.clone()));
+        AppState {
+            scheduler,
+            tokens,
+            https,
+            viewer,
+        }
+    }
+}
+
+impl FromRef<AppState> for Arc<viewer::Viewer> {
+    fn from_ref(s: &AppState) -> Self {
+        s.viewer.clone()
+    }
 }
 
 /// The dashboard's routes over `scheduler`; nothing outside them is served.
@@ -41,6 +65,7 @@ pub fn router(state: AppState) -> Router {
         .route("/api/jobs/{id}/cancel", post(api::cancel))
         .route("/api/jobs/{id}/resubmit", post(api::resubmit))
         .route("/api/jobs/{id}/files/{name}", get(files::get))
+        .route("/api/jobs/{id}/view/{name}", get(viewer::routes::file))
         .route("/api/workers", get(api::workers))
         .route("/api/events", get(events::stream))
         .route_layer(axum::middleware::from_fn_with_state(
@@ -64,11 +89,7 @@ pub async fn serve(
     addr: SocketAddr,
 ) -> std::io::Result<(SocketAddr, tokio::task::JoinHandle<()>)> {
     let security = scheduler.config().server_security.clone();
-    let state = AppState {
-        scheduler,
-        tokens: security.tokens.clone(),
-        https: security.tls.is_some(),
-    };
+    let state = AppState::new(scheduler, security.tokens.clone(), security.tls.is_some());
     let app = router(state);
     let listener = tokio::net::TcpListener::bind(addr).await?;
     let bound = listener.local_addr()?;

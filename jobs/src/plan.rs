@@ -1,4 +1,4 @@
-//! The planner: a job becomes a graph of tasks (DESIGN §8).
+//! The planner: a job becomes a graph of tasks.
 //!
 //! ```text
 //!   fold-detect (per frame chunk, or one) ─► fold-settle ─► fold-merge ─┐   (only when folds are detected;
@@ -26,7 +26,7 @@ use crate::inspect::InputInfo;
 use crate::keys;
 use crate::spec::JobSpec;
 use crate::task::{TaskDef, TaskOutput, TaskSpec};
-use crease_core::spacetime::per_anchor::plan_blocks;
+use crease_core::spacetime::weights::per_anchor::plan_blocks;
 use crease_core::spacetime::windows::{plan_windows, Window};
 use crease_core::spacetime::WeightMode;
 

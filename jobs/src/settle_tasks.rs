@@ -1,4 +1,4 @@
-//! Temporal coherence of detected folds split into tasks (issue 14): the detector's whole-sequence settle
+//! Temporal coherence of detected folds split into tasks: the detector's whole-sequence settle
 //! ([`crease_core::folds::temporal`]) becomes one `fold-settle` task per frame range, between the detection
 //! tasks and the expanding `fold-merge`:
 //!

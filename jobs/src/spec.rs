@@ -1,4 +1,4 @@
-//! The job spec users submit (TOML or JSON, DESIGN §3): where the input and output live, where the folds come
+//! The job spec users submit (TOML or JSON, docs/cluster.md): where the input and output live, where the folds come
 //! from, the deformation parameters, and how the work is partitioned across tasks.
 //!
 //! Every field except `input` and `output` has a default, and the deformation defaults are the paper defaults
@@ -70,7 +70,7 @@ pub enum FoldSpec {
     /// No folds: the output equals the input (useful to check a pipeline end to end).
     #[default]
     None,
-    /// An anchors file (JSON, DESIGN §3) an artist or another tool wrote.
+    /// An anchors file (JSON, docs/formats.md) an artist or another tool wrote.
     Anchors {
         /// URI of the anchors file.
         uri: String,

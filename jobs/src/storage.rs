@@ -1,5 +1,5 @@
-//! Inputs, intermediates and outputs through `object_store` URLs (DESIGN §8: bulk data travels through object
-//! storage; gRPC carries only task descriptions and small results).
+//! Inputs, intermediates and outputs through `object_store` URLs (bulk data travels through object storage;
+//! gRPC carries only task descriptions and small results).
 //!
 //! A [`Storage`] is a directory-like root (the job's output location, an input directory) addressed by a URI:
 //! a plain path, `file://…`, or any scheme `object_store` was built with. Objects under it are named by

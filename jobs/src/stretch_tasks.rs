@@ -1,4 +1,4 @@
-//! The stretch detector's part of the task graph (issue 14): step chunks → one phase task → tracing chunks →
+//! The stretch detector's part of the task graph: step chunks → one phase task → tracing chunks →
 //! settle ranges ([`crate::settle_tasks`]: temporal coherence) → the usual `fold-merge`, which reconciles the
 //! tracing chunks' seed memories ([`crease_core::folds::stretch::split`]).
 //!

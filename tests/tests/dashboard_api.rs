@@ -7,7 +7,6 @@ mod dashboard_support;
 
 use crease_e2e::*;
 use dashboard_support::*;
-use std::process::Command;
 
 fn assert_json_error(r: &Resp, status: u16) {
     assert_eq!(r.status, status, "{}\n{}", r.head, r.text());
@@ -265,28 +264,11 @@ fn the_api_serves_jobs_workers_files_actions_and_events_to_client_tokens_only() 
 fn with_tls_the_dashboard_is_https_only_and_its_cookie_is_secure() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let certs = d.join("certs");
-    let o = Command::new(bin())
-        .args(["certs", "--out", certs.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "crease certs: {}", stderr(&o));
-    let cert = certs.join("coordinator.pem");
-    let key = certs.join("coordinator.key");
     let port = free_port();
-    let _c = start(
-        d,
-        port,
-        &[
-            "--tls-cert",
-            cert.to_str().unwrap(),
-            "--tls-key",
-            key.to_str().unwrap(),
-        ],
-    );
+    let (_c, ca) = start_tls(d, port);
     let https = Dash {
         addr: format!("127.0.0.1:{port}"),
-        ca: Some(certs.join("ca.pem")),
+        ca: Some(ca),
     };
     let r = https.get("/api/jobs", Auth::Bearer(CLIENT_TOKEN));
     assert_eq!(r.status, 200, "{}", r.text());

@@ -9,36 +9,7 @@ mod dashboard_support;
 
 use crease_e2e::*;
 use dashboard_support::*;
-use std::path::{Path, PathBuf};
 use std::process::Command;
-
-fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf()
-}
-
-/// The venv's Python with Playwright, or a failure that says how to get it.
-fn playwright_python() -> PathBuf {
-    let chromium = Path::new("/usr/bin/chromium");
-    assert!(
-        chromium.exists(),
-        "/usr/bin/chromium is missing: run scripts/setup-tools (as root it installs Debian's chromium and \
-         chromium-driver packages)"
-    );
-    let python = workspace().join(".tools/venv/bin/python");
-    let ok = Command::new(&python)
-        .args(["-c", "import playwright.sync_api"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    assert!(
-        ok,
-        "{} cannot import playwright: run scripts/setup-tools",
-        python.display()
-    );
-    python
-}
 
 #[test]
 fn a_browser_watches_a_job_finish_sees_its_preview_and_cancels_another() {
@@ -54,8 +25,8 @@ fn a_browser_watches_a_job_finish_sees_its_preview_and_cancels_another() {
     let (job2, _) = job(d, "to-cancel");
     let artifacts = workspace().join("target/test-artifacts/dashboard");
     let _ = std::fs::remove_dir_all(&artifacts);
-    let out = Command::new(python)
-        .arg(workspace().join("tests/tests/browser/dashboard.py"))
+    let mut cmd = Command::new(python);
+    cmd.arg(workspace().join("tests/tests/browser/dashboard.py"))
         .args(["--url", &format!("http://127.0.0.1:{port}")])
         .args([
             "--coordinator",
@@ -67,18 +38,8 @@ fn a_browser_watches_a_job_finish_sees_its_preview_and_cancels_another() {
         .args(["--worker-token", WORKER_TOKEN])
         .args(["--job", job1.to_str().unwrap()])
         .args(["--job2", job2.to_str().unwrap()])
-        .args(["--out", artifacts.to_str().unwrap()])
-        .output()
-        .expect("run the browser script");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "browser script failed:\n{stdout}\n{}",
-        stderr(&out)
-    );
-    let result: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap_or_else(|e| {
-        panic!("browser script output is not its JSON summary ({e}): {stdout}")
-    });
+        .args(["--out", artifacts.to_str().unwrap()]);
+    let result = browser_script(cmd);
     assert!(result["preview_natural_width"].as_u64().unwrap() > 0);
     assert_eq!(c.status(result["job"].as_str().unwrap())["state"], "done");
     assert_eq!(

@@ -1,28 +1,27 @@
-//! Space-time deformation (Popa et al. 2009 §5): weights over space and time, rotation blending, vertex
-//! positioning, stretch reduction, and the streaming driver that runs them window by window.
+//! Space-time deformation (Popa et al. 2009 §5), one folder per step of the paper:
+//!
+//! - [`weights`] — §5.3 space-time rotation: the blending weights of every triangle and frame of a time window,
+//!   solved as one sparse SPD system (fused: three right-hand sides; per-anchor: one column per anchor);
+//! - [`windows`] — §5.3: the staggered windows of 10 frames shifted by 7 that the weights are solved on;
+//! - [`blend`] — §5.3: the windows' rotation-vector fields cross-faded into per-frame rotations (Alexa blend);
+//! - [`position`] — §5.4 vertex positioning (gradient-domain Poisson solve, its parallel factor solve) and §5.5
+//!   stretch reduction, ending with the strain limit;
+//! - [`shape`] — what keeps the captured shape and folds: the shape projection and the fold restoration;
+//! - [`kernels`] — hand-vectorised sweeps, bit for bit their scalar forms;
+//! - [`stages`] and [`deform`] — §5.2: the frame stages a cluster task runs, and the streaming driver that runs
+//!   them window by window on one machine; [`params`] — every setting of the deformation.
 
 pub mod blend;
-mod chunk_sgs;
-pub mod deconvolve;
 pub mod deform;
-pub mod factor_solve;
-pub mod fused;
-pub mod lean_cg;
-pub mod operator;
+mod kernels;
 pub mod params;
-pub mod per_anchor;
 pub mod position;
-pub mod restore;
-pub mod shape_projection;
-pub mod so3;
+pub mod shape;
 pub mod stages;
-mod stencil_sweep;
-pub mod strain_limit;
-pub mod stretch;
 pub mod weights;
 pub mod windows;
 
 pub use deform::{deform, DeformReport};
-pub use operator::Coefficients;
 pub use params::{DeformParams, WeightMode};
 pub use position::Pinning;
+pub use weights::operator::Coefficients;

@@ -1,12 +1,13 @@
 //! Parameters of the space-time deformation, with their paper defaults and validation.
 
-use super::operator::Coefficients;
+use super::weights::operator::Coefficients;
 use super::position::Pinning;
-use super::stretch::StretchRotation;
+use super::position::stretch::StretchRotation;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
-/// How the weight solve is organised (DESIGN §4).
+/// How the weight solve is organised: `fused` (three right-hand sides) or `per-anchor` (one CG column per
+/// anchor, spread over tasks).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum WeightMode {
@@ -40,7 +41,7 @@ impl std::fmt::Display for WeightMode {
     }
 }
 
-/// Default cutoff wavelength of the shape screen, in mean edge lengths (DESIGN §4; docs/fidelity.md).
+/// Default cutoff wavelength of the shape screen, in mean edge lengths (docs/fidelity.md).
 pub const DEFAULT_SHAPE_CUTOFF: f64 = 10.0;
 
 /// Everything the deformation needs besides the sequence and the anchors.
@@ -63,7 +64,7 @@ pub struct DeformParams {
     pub anchor_block: usize,
     /// Stretch-reduction passes after the first positioning.
     pub stretch_passes: usize,
-    /// Which rotation each stretch pass gives a triangle (see [`super::stretch`]).
+    /// Which rotation each stretch pass gives a triangle (see [`super::position::stretch`]).
     pub stretch_rotation: StretchRotation,
     /// Cutoff wavelength ℓ_c of the positioning's shape screen, in mean edge lengths (see
     /// [`super::position`]): displacements much longer than this are held to the captured shape, shorter ones
@@ -72,44 +73,43 @@ pub struct DeformParams {
     /// How the unscreened system (`shape_cutoff` 0) removes its translational null space; the screened one
     /// has none and keeps each component's area-weighted mean displacement at zero by itself.
     pub pinning: Pinning,
-    /// Fold restoration (see [`super::restore`]): Van Cittert steps of the deconvolution of the capture filter
+    /// Fold restoration (see [`super::shape::restore`]): Van Cittert steps of the deconvolution of the capture filter
     /// whose result is added along the captured normal where the deformation tilted the surface, giving back in
     /// place the fold amplitude the capture smoothed away (a fractional part is a last partial step; one step is
     /// the captured residue added once). 0 turns it off.
     pub fold_restore: f64,
-    /// Shape projection (see [`super::shape_projection`]): the fraction of the capture filter's low-pass of the
+    /// Shape projection (see [`super::shape::projection`]): the fraction of the capture filter's low-pass of the
     /// positioned displacement removed after the stretch passes, before the fold restoration, so the folds add
     /// only what the capture removed and the garment (its open rims included) keeps the captured shape. 0 turns
     /// it off; it acts only with the shape screen on (`shape_cutoff` > 0: `off` is the paper's unconstrained
     /// system).
     pub shape_projection: f64,
     /// Where the shape projection sits relative to the last stretch pass (see
-    /// [`super::shape_projection::ProjectionOrder`]).
-    pub projection_order: super::shape_projection::ProjectionOrder,
+    /// [`super::shape::projection::ProjectionOrder`]).
+    pub projection_order: super::shape::projection::ProjectionOrder,
     /// Frames per positioning operator (see [`super::position::PositionSystem::with_operator_block`]): 1
     /// (default) factorises every frame's own stiffness matrix, the exact least-squares fit; k > 1 positions
     /// each block of k frames (t − t mod k, …) with the factor of the block's first frame and the frame's own
     /// right-hand side, one numeric factorisation per k frames instead of one per frame. 7 keeps the four
-    /// public cases within the quality targets (docs/benchmarks.md, "issue14-fused (second stop)").
+    /// public cases within the quality targets (bench/results/2026-12-03-fused-positioning.md).
     pub operator_block: usize,
 
-    /// Strain limit (see [`super::strain_limit`]): the last step of the positioning shortens every edge
+    /// Strain limit (see [`super::position::strain_limit`]): the last step of the positioning shortens every edge
     /// longer than (1 + this) times its reference length back to it; a fraction, 0 turns it off.
     pub strain_limit: f64,
     /// Gauss–Seidel sweeps of the strain limit (it stops early once a sweep moves nothing).
     pub strain_limit_sweeps: usize,
     /// The strain limit's reference lengths: the sequence's longest captured edge lengths (default) or each
-    /// frame's own ([`super::strain_limit::StrainReference`]).
-    pub strain_reference: super::strain_limit::StrainReference,
+    /// frame's own ([`super::position::strain_limit::StrainReference`]).
+    pub strain_reference: super::position::strain_limit::StrainReference,
 }
 
 /// Most fold restoration steps accepted: the deconvolution then multiplies what the capture kept of a fold by
 /// at most 21, the inverse of a fold the capture kept 5% of; below that the residue is noise rather than cloth.
 pub const MAX_FOLD_RESTORE: f64 = 20.0;
 
-/// Default fold restoration steps (docs/fidelity-folds.md, "Restoring the folds the capture kept" and
-/// "The restoration undoes the capture filter"; docs/fidelity.md, "The shape projection": 8 since the
-/// projection, which took away the drift's share of the fold region and gave popping its headroom back).
+/// Default fold restoration steps (docs/fidelity.md): 8 with the shape projection, which takes away the drift's
+/// share of the fold region and leaves popping its headroom (bench/results/2026-12-02-shape-projection.md).
 pub const DEFAULT_FOLD_RESTORE: f64 = 8.0;
 
 impl Default for DeformParams {
@@ -127,12 +127,12 @@ impl Default for DeformParams {
             shape_cutoff: DEFAULT_SHAPE_CUTOFF,
             pinning: Pinning::Centroid,
             fold_restore: DEFAULT_FOLD_RESTORE,
-            shape_projection: super::shape_projection::DEFAULT_SHAPE_PROJECTION,
+            shape_projection: super::shape::projection::DEFAULT_SHAPE_PROJECTION,
             projection_order: Default::default(),
             operator_block: 1,
 
-            strain_limit: super::strain_limit::DEFAULT_STRAIN_LIMIT,
-            strain_limit_sweeps: super::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS,
+            strain_limit: super::position::strain_limit::DEFAULT_STRAIN_LIMIT,
+            strain_limit_sweeps: super::position::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS,
             strain_reference: Default::default(),
         }
     }
@@ -163,12 +163,12 @@ struct DeformFields {
     pinning: Option<Pinning>,
     fold_restore: Option<f64>,
     shape_projection: Option<f64>,
-    projection_order: Option<super::shape_projection::ProjectionOrder>,
+    projection_order: Option<super::shape::projection::ProjectionOrder>,
     operator_block: Option<usize>,
 
     strain_limit: Option<f64>,
     strain_limit_sweeps: Option<usize>,
-    strain_reference: Option<super::strain_limit::StrainReference>,
+    strain_reference: Option<super::position::strain_limit::StrainReference>,
 }
 
 #[derive(Deserialize, Default)]
@@ -228,12 +228,12 @@ impl DeformParams {
         (self.shape_cutoff > 0.0).then_some(self.shape_cutoff)
     }
 
-    /// What the positioning ends with: the shape projection ([`super::shape_projection`], only with the shape
-    /// screen on), then the fold restoration ([`super::restore`]).
-    pub fn restoration(&self) -> super::restore::Restoration {
-        super::restore::Restoration {
+    /// What the positioning ends with: the shape projection ([`super::shape::projection`], only with the shape
+    /// screen on), then the fold restoration ([`super::shape::restore`]).
+    pub fn restoration(&self) -> super::shape::restore::Restoration {
+        super::shape::restore::Restoration {
             steps: self.fold_restore,
-            reference_tilt: super::restore::REFERENCE_TILT_DEG.to_radians(),
+            reference_tilt: super::shape::restore::REFERENCE_TILT_DEG.to_radians(),
             projection: if self.shape_cutoff > 0.0 {
                 self.shape_projection
             } else {
@@ -248,8 +248,8 @@ impl DeformParams {
     pub fn strain_limiter(
         &self,
         source: &dyn crate::mesh::FrameSource,
-    ) -> Result<Option<super::strain_limit::StrainLimiter>> {
-        super::strain_limit::StrainLimiter::for_source(
+    ) -> Result<Option<super::position::strain_limit::StrainLimiter>> {
+        super::position::strain_limit::StrainLimiter::for_source(
             source,
             self.strain_limit,
             self.strain_limit_sweeps,
@@ -335,7 +335,7 @@ impl DeformParams {
                 ),
             ));
         }
-        let max_projection = super::shape_projection::MAX_SHAPE_PROJECTION;
+        let max_projection = super::shape::projection::MAX_SHAPE_PROJECTION;
         if !(self.shape_projection.is_finite()
             && (0.0..=max_projection).contains(&self.shape_projection))
         {
@@ -347,7 +347,7 @@ impl DeformParams {
                 ),
             ));
         }
-        super::strain_limit::validate(self.strain_limit, self.strain_limit_sweeps)?;
+        super::position::strain_limit::validate(self.strain_limit, self.strain_limit_sweeps)?;
         if self.stretch_passes > 20 {
             return Err(Error::param(
                 "stretch_passes",

@@ -1,9 +1,9 @@
 //! The deformation as separately callable stages, so the single-machine driver ([`super::deform`]) and a cluster
 //! of workers run the very same arithmetic (one implementation, bit-identical results):
 //!
-//! 1. **weights** of one window — fused: [`fused_window_field`] (3 right-hand sides, DESIGN §4); per-anchor:
-//!    [`anchor_block`] for each anchor-column block ([`anchor_blocks`]), the paper's formulation;
-//! 2. **reduce** of a per-anchor window — [`reduce_blocks`]: the partial blends summed in block order;
+//! 1. **weights** of one window and 2. their **reduce** — in [`super::weights`]: fused, one solve with three
+//!    right-hand sides; per-anchor, one solve per anchor-column block, the blocks' partial blends summed in
+//!    block order;
 //! 3. **cross-fade** of the windows covering a frame — [`crossfade_frame`] (Popa et al. 2009 §5.3);
 //! 4. **positioning + stretch reduction** of one frame — [`position_frame`] (§5.4, §5.5).
 //!
@@ -12,95 +12,17 @@
 //! order, as these functions do.
 
 use super::blend::{self, fade_into};
-use super::fused::CgStats;
-use super::lean_cg;
-use super::params::DeformParams;
-use super::per_anchor::{self, BlockWorkspace, PartialBlend};
+use super::position::strain_limit::StrainLimiter;
+use super::position::stretch::StretchRotation;
 use super::position::PositionSystem;
-use super::shape_projection::ProjectionOrder;
-use super::weights::WindowProblem;
+use super::shape::projection::{self, ProjectionOrder};
+use super::shape::restore::Restoration;
 use super::windows::{crossfade_weight, Window};
 use crate::error::{Error, Result};
 use crate::mesh::{Frame, FrameSource};
 use crate::metrics::{RestTriangles, StretchAccumulator, StretchStats};
 use crate::vec3::V3;
-use std::ops::Range;
 use std::time::Instant;
-
-/// Fused mode: the window's blended rotation-vector field X (one 3-vector per node, frame-major) from the
-/// 3-right-hand-side solve M X = c_a E Φ (the bandwidth-lean kernel, [`lean_cg`]).
-pub fn fused_window_field(
-    problem: &WindowProblem,
-    params: &DeformParams,
-) -> Result<(Vec<V3>, CgStats)> {
-    let b = problem.fused_rhs();
-    lean_cg::solve3_lean(
-        &problem.op,
-        &b,
-        params.cg_tolerance,
-        params.cg_max_iterations,
-    )
-}
-
-/// Per-anchor mode: the anchor-column ranges of a window's blocks (`params.anchor_block` columns each, in
-/// anchor order).
-pub fn anchor_blocks(problem: &WindowProblem, params: &DeformParams) -> Vec<Range<usize>> {
-    per_anchor::plan_blocks(problem.anchors.len(), params.anchor_block)
-}
-
-/// Per-anchor mode: solves the anchor columns `range` of the window (one CG column each) and returns their
-/// partial blend Σ_{a∈range} w_a φ_a — the unit of work a cluster worker runs.
-pub fn anchor_block(
-    problem: &WindowProblem,
-    range: Range<usize>,
-    params: &DeformParams,
-    ws: &mut BlockWorkspace,
-) -> Result<PartialBlend> {
-    let anchors = problem.anchors.get(range.clone()).ok_or_else(|| {
-        Error::param(
-            "anchor block",
-            format!(
-                "columns {range:?} are outside the window's {} anchors",
-                problem.anchors.len()
-            ),
-        )
-    })?;
-    per_anchor::solve_block(
-        &problem.op,
-        anchors,
-        params.cg_tolerance,
-        params.cg_max_iterations,
-        ws,
-    )
-}
-
-/// Per-anchor mode: the window field as the sum of its blocks' partial blends, added in the order given (pass
-/// them in block order), starting from zero. Also returns the merged CG statistics.
-pub fn reduce_blocks<'a>(
-    n_nodes: usize,
-    partials: impl IntoIterator<Item = &'a PartialBlend>,
-) -> Result<(Vec<V3>, CgStats, u64)> {
-    let mut field = vec![[0.0; 3]; n_nodes];
-    let mut cg = CgStats::default();
-    let mut updates = 0u64;
-    for p in partials {
-        if let Some(&bad) = p.nodes.iter().find(|&&g| g as usize >= n_nodes) {
-            return Err(Error::param(
-                "partial blend",
-                format!("node {bad} is outside the window's {n_nodes} nodes"),
-            ));
-        }
-        reduce_into(&mut field, &mut cg, &mut updates, p);
-    }
-    Ok((field, cg, updates))
-}
-
-/// Adds one partial blend (the next in block order) into a window field and its statistics.
-pub fn reduce_into(field: &mut [V3], cg: &mut CgStats, updates: &mut u64, p: &PartialBlend) {
-    per_anchor::accumulate(field, p);
-    per_anchor::merge_stats(cg, p);
-    *updates += p.node_updates;
-}
 
 /// The cross-faded rotation-vector field of frame `t`: Σ_k a_k(t) X_k(t) over the windows k covering `t`, in
 /// window order, starting from zero, with a_k the normalised tent weights of [`crossfade_weight`].
@@ -158,9 +80,9 @@ pub struct PositionedFrame {
 
 /// Positions frame `t` of `source` from its cross-faded rotation-vector field `phi` (Alexa blend, gradient-
 /// domain solve), then runs `passes` stretch-reduction passes reusing the frame's factorisation, measuring
-/// stretch after each step, and ends with `restore`: the shape projection ([`super::shape_projection`]) and the
-/// fold restoration ([`super::restore`]), then the strain limit (`limit`, [`super::strain_limit`]); the last
-/// stretch figures are those of the finished frame.
+/// stretch after each step, and ends with `restore`: the shape projection ([`projection`]) and the fold
+/// restoration ([`super::shape::restore`]), then the strain limit (`limit`, [`super::position::strain_limit`]);
+/// the last stretch figures are those of the finished frame.
 #[allow(clippy::too_many_arguments)]
 pub fn position_frame(
     system: &PositionSystem,
@@ -168,9 +90,9 @@ pub fn position_frame(
     t: usize,
     phi: &[V3],
     passes: usize,
-    rotation: super::stretch::StretchRotation,
-    restore: super::restore::Restoration,
-    limit: Option<&super::strain_limit::StrainLimiter>,
+    rotation: StretchRotation,
+    restore: Restoration,
+    limit: Option<&StrainLimiter>,
 ) -> Result<PositionedFrame> {
     let clock = Instant::now();
     let rest = source.read_frame(t)?;
@@ -238,7 +160,7 @@ pub fn position_frame(
                     ProjectionOrder::Last => None,
                     order => Some((
                         order,
-                        super::shape_projection::project(
+                        projection::project(
                             system.restore_mesh().capture_filter(),
                             &rest,
                             &out,
@@ -249,10 +171,10 @@ pub fn position_frame(
                 .flatten();
             out = match projected {
                 Some((ProjectionOrder::ScreenToProjected, p)) => {
-                    super::stretch::pass_toward(&fp, &out, rotation, &rotations, &p)
+                    super::position::stretch::pass_toward(&fp, &out, rotation, &rotations, &p)
                 }
-                Some((_, p)) => super::stretch::pass(&fp, &p, rotation, &rotations),
-                None => super::stretch::pass(&fp, &out, rotation, &rotations),
+                Some((_, p)) => super::position::stretch::pass(&fp, &p, rotation, &rotations),
+                None => super::position::stretch::pass(&fp, &out, rotation, &rotations),
             };
         }
         if restoring && last {
@@ -284,9 +206,12 @@ mod tests {
     use super::*;
     use crate::progress::NoProgress;
     use crate::spacetime::blend::CrossFade;
-    use crate::spacetime::weights::solve_window;
+    use crate::spacetime::weights::per_anchor::{BlockWorkspace, PartialBlend};
+    use crate::spacetime::weights::{
+        anchor_block, anchor_blocks, fused_window_field, reduce_blocks, solve_window, WindowProblem,
+    };
     use crate::spacetime::windows::plan_windows;
-    use crate::spacetime::WeightMode;
+    use crate::spacetime::{DeformParams, WeightMode};
     use crate::synth::{demo, DemoSpec};
 
     fn bits(v: &[V3]) -> Vec<u64> {

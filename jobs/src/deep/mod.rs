@@ -1,4 +1,4 @@
-//! DeepWrinkles jobs (`[deep]` in a job spec, DESIGN §7): training a crease-deep model, or applying one to a
+//! DeepWrinkles jobs (`[deep]` in a job spec, docs/deepwrinkles.md): training a crease-deep model, or applying one to a
 //! pose file or a coarse sequence, scheduled like every other job.
 //!
 //! A job with a `[deep]` section does not deform its input: `folds`, `deform` and `export` do not apply.
@@ -28,7 +28,7 @@ pub mod keys {
     pub fn model_file(name: &str) -> String {
         format!("{MODEL_DIR}/{name}")
     }
-    /// The DESIGN §7 output contract of apply.
+    /// The output layout of apply (docs/deepwrinkles.md).
     pub fn mesh(t: usize) -> String {
         format!("mesh/frame_{:04}.obj", t + 1)
     }

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
 /// What a deep job does. `input` is the first training directory (`train`), or the pose file or coarse
-/// sequence the model runs on (`apply`); `output` receives the model or the DESIGN §7 frames.
+/// sequence the model runs on (`apply`); `output` receives the model or the applied frames (meshes and normal maps).
 // A spec is parsed once per job and moved rarely: the training parameters' size does not matter here.
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -213,7 +213,7 @@ impl DeepSpec {
         if !job.export.formats.is_empty() {
             return Err(JobError::spec(
                 "export",
-                "a [deep] job writes meshes and normal maps (DESIGN §7), not an exported sequence; remove [export]",
+                "a [deep] job writes meshes and normal maps, not an exported sequence; remove [export]",
             ));
         }
         if job.deform != crease_core::spacetime::DeformParams::default() {

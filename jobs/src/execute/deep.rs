@@ -155,7 +155,7 @@ fn open_apply(env: &TaskEnv) -> Result<(Model, ApplyInput, ApplyParams), TaskErr
     Ok((model, input, params))
 }
 
-/// `deep/apply/fNNNNNN`: frames `frames` of the DESIGN §7 contract, `mesh/` and `normals/`.
+/// `deep/apply/fNNNNNN`: frames `frames` of apply's output layout, `mesh/` and `normals/`.
 pub fn apply(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>), TaskError> {
     let (model, input, mut params) = open_apply(env)?;
     params.frames = Some(frames.clone());

@@ -61,7 +61,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let mut seq_stretch = vec![StretchAccumulator::default(); params.stretch_passes + 1];
     let mut frame_stretch = vec![Vec::new(); n];
     let mut kept: Vec<(usize, Frame, Frame)> = Vec::new();
-    // "Shape kept" (DESIGN §9): every output frame against its input frame, measured by the positioning task
+    // "Shape kept" (docs/fidelity.md): every output frame against its input frame, measured by the positioning task
     // and merged here in frame order (the same figures for any chunking and any number of workers).
     let mut shape_kept = ShapeAccumulator::default();
     // Stretch against the least-compressed captured edge lengths (crease_core::rest_stretch): the rest lengths

@@ -11,8 +11,8 @@
 //! node indices (u32), zero padding to a multiple of 8 bytes, and n × 3 values (f64). `seconds` is the block's
 //! solve time, the only bytes that differ between two runs of the same block.
 
-use crease_core::spacetime::fused::CgStats;
-use crease_core::spacetime::per_anchor::PartialBlend;
+use crease_core::spacetime::weights::fused::CgStats;
+use crease_core::spacetime::weights::per_anchor::PartialBlend;
 use crease_core::vec3::V3;
 
 const MAGIC: &[u8; 8] = b"CREASEPB";
@@ -131,7 +131,7 @@ pub fn decode(bytes: &[u8], n_nodes: usize) -> Result<(PartialBlend, BlockStats)
 }
 
 /// Adds a block's stored result straight into a window field and its statistics, as [`decode`] followed by
-/// [`stages::reduce_into`] would, bit for bit, but without building the block's node and value lists: the reduce
+/// [`weights::reduce_into`] would, bit for bit, but without building the block's node and value lists: the reduce
 /// sums tens of blocks of a few MB each, and decoding each into fresh vectors first was most of its time.
 /// Every node index is checked before anything is added, so a malformed result leaves `field` untouched.
 pub fn add_into(
@@ -167,7 +167,7 @@ pub fn add_into(
         x[1] += f(v, 1);
         x[2] += f(v, 2);
     }
-    // As `per_anchor::merge_stats` and `stages::reduce_into`.
+    // As `per_anchor::merge_stats` and `weights::reduce_into`.
     cg.iterations += stats.iterations;
     cg.relative_residual = cg.relative_residual.max(stats.max_relative_residual);
     *updates += stats.node_updates;
@@ -235,7 +235,7 @@ mod tests {
     /// statistics included; a bad node index is refused before the field is touched.
     #[test]
     fn add_into_matches_decode_and_reduce() {
-        use crease_core::spacetime::stages;
+        use crease_core::spacetime::weights;
         let n_nodes = 7 * 1000 + 3;
         let start: Vec<V3> = (0..n_nodes)
             .map(|i| [i as f64 / 7.0, -1.0 / (i as f64 + 1.0), 1e-17 * i as f64])
@@ -251,7 +251,7 @@ mod tests {
             s.max_relative_residual = p.max_relative_residual;
             let bytes = encode(&p, &s);
             let (q, _) = decode(&bytes, n_nodes).unwrap();
-            stages::reduce_into(&mut a, &mut cg_a, &mut up_a, &q);
+            weights::reduce_into(&mut a, &mut cg_a, &mut up_a, &q);
             let t = add_into(&bytes, &mut b, &mut cg_b, &mut up_b).unwrap();
             assert_eq!(t, s);
         }

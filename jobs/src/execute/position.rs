@@ -13,7 +13,7 @@ use crease_core::mesh::{FrameSink, FrameSource};
 use crease_core::shape::{ShapeAccumulator, TaubinFilter};
 use crease_core::spacetime::position::{Pinning, PositionSystem};
 use crease_core::spacetime::stages::{self, PositionedFrame};
-use crease_core::spacetime::strain_limit::{StrainLimiter, StrainReference};
+use crease_core::spacetime::position::strain_limit::{StrainLimiter, StrainReference};
 use crease_core::spacetime::windows::Window;
 use crease_core::vec3::V3;
 use rayon::prelude::*;
@@ -112,7 +112,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                 )
                 .map_err(|e| TaskError::from_core(&label, e))?;
                 drop(phi);
-                // The frame's "shape kept" figures (DESIGN §9), here where the frame is, rather than in
+                // The frame's "shape kept" figures (docs/fidelity.md), here where the frame is, rather than in
                 // finalize, which would filter every frame again one after the other at the end of the job.
                 let clock = std::time::Instant::now();
                 let mut shape = ShapeAccumulator::default();
@@ -257,7 +257,7 @@ fn position_system(
 #[allow(clippy::type_complexity)]
 static FILTERS: Mutex<Vec<(Arc<OpenedSequence>, Arc<TaubinFilter>)>> = Mutex::new(Vec::new());
 
-/// The input's "shape kept" filter (DESIGN §9). Its neighbour tables depend on the topology alone, so a worker
+/// The input's "shape kept" filter (docs/fidelity.md). Its neighbour tables depend on the topology alone, so a worker
 /// builds them once per opened input (keyed like [`position_system`]) instead of once per positioning chunk.
 fn shape_filter(opened: &Arc<OpenedSequence>) -> Arc<TaubinFilter> {
     let mut built = FILTERS.lock().unwrap_or_else(|p| p.into_inner());

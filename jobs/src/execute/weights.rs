@@ -9,9 +9,9 @@ use super::phase_times::Lap;
 use super::window_cache::{self, WindowEntry};
 use crate::error::TaskError;
 use crate::keys;
-use crease_core::spacetime::fused::CgStats;
-use crease_core::spacetime::per_anchor::plan_blocks;
-use crease_core::spacetime::stages;
+use crease_core::spacetime::weights::fused::CgStats;
+use crease_core::spacetime::weights::per_anchor::plan_blocks;
+use crease_core::spacetime::weights;
 use crease_core::spacetime::weights::{WindowProblem, WindowStats};
 use crease_core::spacetime::windows::Window;
 use crease_core::vec3::V3;
@@ -63,7 +63,7 @@ pub fn fused_window(env: &TaskEnv, k: usize) -> Result<(Value, Vec<String>), Tas
     env.check_cancelled()?;
     let clock = Instant::now();
     let problem = WindowProblem::new(&topo, &anchors, w, env.params.coefficients);
-    let (field, cg) = stages::fused_window_field(&problem, &env.params)
+    let (field, cg) = weights::fused_window_field(&problem, &env.params)
         .map_err(|e| TaskError::from_core(&label(k, &w), e))?;
     let record = WindowRecord {
         start: w.start,
@@ -108,7 +108,7 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
         })
     })?;
     let problem = entry.problem();
-    let blocks = stages::anchor_blocks(problem, &env.params);
+    let blocks = weights::anchor_blocks(problem, &env.params);
     let range = blocks.get(b).cloned().ok_or_else(|| {
         TaskError::fatal(format!(
             "{}: block {b} does not exist ({} anchors make {} blocks of {})",
@@ -121,7 +121,7 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
     let mut ws = entry.take_workspace();
     lap.lap("weight-block: window (cache hit, or build)");
     let partial =
-        on_compute_pool(|| stages::anchor_block(problem, range.clone(), &env.params, &mut ws))
+        on_compute_pool(|| weights::anchor_block(problem, range.clone(), &env.params, &mut ws))
             .map_err(|e| TaskError::from_core(&format!("{} block {b}", label(k, &w)), e))?;
     entry.give_back(ws);
     let seconds = clock.elapsed().as_secs_f64();
@@ -151,8 +151,7 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
     Ok((summary, vec![key]))
 }
 
-/// Runs `f` on one of the process's compute (rayon) threads, the caller waiting, unless
-/// `CREASE_BLOCKS_IN_POOL=0`.
+/// Runs `f` on one of the process's compute (rayon) threads, the caller waiting.
 ///
 /// Why: a block's solve is single-threaded, and a task runs on a blocking thread of its own. When several
 /// workers share a process (`crease run`'s local cluster, `crease bench --cluster`), a block beside a
@@ -161,10 +160,7 @@ pub fn anchor_block(env: &TaskEnv, k: usize, b: usize) -> Result<(Value, Vec<Str
 /// `crease_core::spacetime::deform`. In the pool, the process never runs more compute threads than the pool
 /// has (`--threads`, default: the cores). The result does not depend on the thread it ran on.
 fn on_compute_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
-    static IN_POOL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    let in_pool = *IN_POOL
-        .get_or_init(|| !std::env::var("CREASE_BLOCKS_IN_POOL").is_ok_and(|v| v.trim() == "0"));
-    if in_pool && rayon::current_thread_index().is_none() {
+    if rayon::current_thread_index().is_none() {
         rayon::scope(|_| f())
     } else {
         f()

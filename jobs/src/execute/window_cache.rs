@@ -19,7 +19,7 @@
 
 use crease_core::mesh::io::OpenedSequence;
 use crease_core::mesh::Topology;
-use crease_core::spacetime::per_anchor::BlockWorkspace;
+use crease_core::spacetime::weights::per_anchor::BlockWorkspace;
 use crease_core::spacetime::weights::WindowProblem;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};

@@ -13,16 +13,9 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import time
 
-from playwright.sync_api import sync_playwright
-
-CHROMIUM = "/usr/bin/chromium"
-ARGS = [
-    "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-    "--disable-background-networking", "--disable-component-update", "--disable-sync",
-]
+import chromium
 
 
 def fail(msg):
@@ -53,14 +46,7 @@ def main():
     shot = lambda page, name: page.screenshot(path=os.path.join(a.out, name), full_page=True)
     token = open(a.token_file).read().strip()
 
-    with tempfile.TemporaryDirectory() as profile, sync_playwright() as pw:
-        # A persistent context on a fresh profile directory is how Playwright takes --user-data-dir.
-        browser = pw.chromium.launch_persistent_context(
-            profile, executable_path=CHROMIUM, args=ARGS, viewport={"width": 1280, "height": 800})
-        page = browser.pages[0] if browser.pages else browser.new_page()
-        page.set_default_timeout(60_000)
-        console_errors = []
-        page.on("console", lambda m: console_errors.append(m.text) if m.type == "error" else None)
+    with chromium.page(1280, 800) as (page, console_errors):
 
         # Signed out: the page sends the browser to the login form; a worker token is refused there.
         page.goto(a.url + "/")
@@ -135,8 +121,9 @@ def main():
         log = page.text_content('tr[data-task="finalize"] pre.log') or ""
         if "dispatched to worker" not in log:
             fail(f"finalize's log tail does not show its dispatch: {log[:300]!r}")
-        frames = page.text_content("#report") or ""
-        if "summary.frames" not in frames:
+        page.wait_for_selector("#report-sequence")
+        frames = page.text_content("#report-sequence") or ""
+        if "Frames" not in frames or "Triangles" not in frames:
             fail(f"report figures missing: {frames[:300]!r}")
         shot(page, "04-job-done.png")
 
@@ -166,7 +153,6 @@ def main():
 
         if console_errors:
             fail(f"console errors: {console_errors}")
-        browser.close()
     print(json.dumps({"job": job, "cancelled": job2, "progress_seen": dones, "preview_natural_width": nw,
                       "done_segment_width": width, "stages": stages}))
 

@@ -7,6 +7,7 @@ use crease_e2e::*;
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -239,4 +240,69 @@ pub fn job(d: &Path, name: &str) -> (PathBuf, PathBuf) {
     let out = d.join(format!("{name}-out"));
     let file = job_file(d, name, &fixture(), &anchors, &out, "per-anchor", "");
     (file, out)
+}
+
+/// The repository root (screenshots go under its `target/test-artifacts/`, the browser scripts are in it).
+pub fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
+}
+
+/// The venv's Python with Playwright, or a failure that says how to get it.
+pub fn playwright_python() -> PathBuf {
+    let chromium = Path::new("/usr/bin/chromium");
+    assert!(
+        chromium.exists(),
+        "/usr/bin/chromium is missing: run scripts/setup-tools (as root it installs Debian's chromium and \
+         chromium-driver packages)"
+    );
+    let python = workspace().join(".tools/venv/bin/python");
+    let ok = Command::new(&python)
+        .args(["-c", "import playwright.sync_api"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    assert!(
+        ok,
+        "{} cannot import playwright: run scripts/setup-tools",
+        python.display()
+    );
+    python
+}
+
+/// Runs a browser script (`cmd`, a Python with Playwright on a script of tests/tests/browser/) and returns the
+/// JSON summary it prints, failing the test with its output when it fails.
+pub fn browser_script(mut cmd: Command) -> serde_json::Value {
+    let out = cmd.output().expect("run the browser script");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "browser script failed:\n{stdout}\n{}",
+        stderr(&out)
+    );
+    serde_json::from_str(stdout.trim())
+        .unwrap_or_else(|e| panic!("browser script output is not its JSON summary ({e}): {stdout}"))
+}
+
+/// A coordinator like [`start`] serving HTTPS with a certificate from `crease certs`; returns it and the CA
+/// to trust.
+pub fn start_tls(d: &Path, http_port: u16) -> (Coordinator, PathBuf) {
+    let certs = d.join("certs");
+    let o = Command::new(bin())
+        .args(["certs", "--out", certs.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "crease certs: {}", stderr(&o));
+    let c = start(
+        d,
+        http_port,
+        &[
+            "--tls-cert",
+            certs.join("coordinator.pem").to_str().unwrap(),
+            "--tls-key",
+            certs.join("coordinator.key").to_str().unwrap(),
+        ],
+    );
+    (c, certs.join("ca.pem"))
 }

@@ -4,8 +4,8 @@
 //!
 //! Module map: [`tensor`] §2.1/§4.2 (Jacobian, SVD, dominant direction), [`smooth`] §4.2 (outliers,
 //! smoothing), [`phases`] §4.3 (continuity eq. 4.2, integration against the phase's first frame), [`unfold`],
-//! [`lscm`] and [`trace`] §4.4 (parameterisation, seeds, axis, control lines, region of influence eq. 4.3,
-//! anchors §4.5).
+//! [`lscm`] and [`trace`] §4.4 (parameterisation, axis, control lines, region of influence eq. 4.3 of one
+//! seed), [`tracer`] §4.4 (the frame's seeds in order, seed memory), [`realise`] §4.5 (anchors).
 //!
 //! Memory is O(triangles) at any sequence length (§6.1): frames are streamed, each pass keeps one reference
 //! layout per triangle, and the backward pass's per-frame signal (8 bytes per triangle and frame) is spilled
@@ -22,11 +22,13 @@ pub mod split;
 pub mod symbolic;
 pub mod tensor;
 pub mod trace;
+pub mod tracer;
 pub mod unfold;
 mod wide_sweep;
 
 pub use params::{Flattening, StretchParams};
-pub use trace::{FrameFolds, TracedFold};
+pub use trace::TracedFold;
+pub use tracer::FrameFolds;
 
 use super::{Artifact, FoldDetector, FrameAnchors, Granularity};
 use crate::error::{Error, Result};
@@ -98,15 +100,6 @@ fn decode_record(b: &[u8]) -> (f32, f32) {
         f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
         f32::from_le_bytes([b[4], b[5], b[6], b[7]]),
     )
-}
-
-/// Whether the forward pass steps frame t + 1 while frame t is traced (on unless `CREASE_STRETCH_OVERLAP=0`;
-/// read once). The output is the same either way (every stage reads only its own frames); the tracing leaves
-/// threads idle that the next frame's step can use: on a quiet 2-core machine 0.190 / 0.151 → 0.147 / 0.133
-/// s/frame at 100K triangles for 18–32 MiB more peak memory (docs/benchmarks.md, "Fifth quiet run").
-fn overlap_steps() -> bool {
-    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *ON.get_or_init(|| std::env::var("CREASE_STRETCH_OVERLAP").map_or(true, |v| v.trim() != "0"))
 }
 
 /// What [`StretchDetector::run_timed`] measured besides the folds.
@@ -206,7 +199,7 @@ impl StretchDetector {
         let first = source.read_frame(0)?;
         let h = mean_edge_length(&topo, &first);
         let mut tracker = PhaseTracker::new(&topo, &first);
-        let mut tracer = trace::FoldTracer::new(&topo, levels);
+        let mut tracer = tracer::FoldTracer::new(&topo, levels);
         // Frame t's positions, geometry and forward signal (the tracker's step from frame t − 1).
         let forward = |t: usize,
                        prev: &[V3],
@@ -228,7 +221,6 @@ impl StretchDetector {
             };
             Ok((cur, geom, sig))
         };
-        let overlap = overlap_steps();
         let mut next = Some(forward(0, &first, &mut tracker)?);
         drop(first);
         let mut buf = vec![0u8; record];
@@ -264,9 +256,9 @@ impl StretchDetector {
                 let folds = tracer.trace(&field, params);
                 (folds, started.elapsed().as_secs_f64())
             };
-            // Tracing reads only frame t; the step to frame t + 1 only the two frames and the tracker: with
-            // `overlap`, the step runs beside the tracing on the threads its seeds leave idle.
-            let ((folds, seconds), stepped) = if overlap && t + 1 < n {
+            // Tracing reads only frame t; the step to frame t + 1 only the two frames and the tracker, so the
+            // step runs beside the tracing on the threads its seeds leave idle (the output is the same).
+            let ((folds, seconds), stepped) = if t + 1 < n {
                 let (traced, stepped) =
                     rayon::join(trace_timed, || forward(t + 1, &cur, &mut tracker));
                 (traced, Some(stepped))
@@ -275,14 +267,9 @@ impl StretchDetector {
             };
             timing.tracing += seconds;
             each(t, &cur, &sig.shrink, folds)?;
-            // Frame t's geometry and signal go before frame t + 1's are made (one set alive at a time, ~14 MB
-            // at 100K triangles, unless they overlapped).
             drop((geom, sig));
-            if t + 1 < n {
-                next = Some(match stepped {
-                    Some(stepped) => stepped?,
-                    None => forward(t + 1, &cur, &mut tracker)?,
-                });
+            if let Some(stepped) = stepped {
+                next = Some(stepped?);
             }
             progress.advance(STAGE, 1);
         }

@@ -47,7 +47,7 @@ pub struct StretchParams {
     /// measured shrinkage ([`super::trace::fold_angle`]). Measured with the shape screen and anchored stretch
     /// passes it raises κ but lowers the correlation and puts the normal error above the captured input's
     /// (the extra amplitude lands on folds only partly in the right place), so it is not the default
-    /// (docs/fidelity-folds.md). Either way capped by `max_angle_deg`.
+    /// (bench/results/2026-12-02-anchored-stretch-passes.md). Either way capped by `max_angle_deg`.
     pub angle_gain: f64,
     /// Cap of the anchor rotation, degrees (Popa et al. use 30°–60°).
     #[serde(alias = "max_angle")]

@@ -4,7 +4,7 @@
 //! gives them in edge lengths of the capture. When the deformation runs on a subdivided mesh (so folds narrower
 //! than an input triangle can form), the same control lines are realised on it: each sample, a barycentric point
 //! of an input triangle, names the subdivided triangle holding it ([`Subdivision::locate`]). The tracer samples
-//! the lines densely enough for the finer triangles ([`super::trace::FoldTracer::new`]).
+//! the lines densely enough for the finer triangles ([`super::tracer::FoldTracer::new`]).
 
 use super::trace::TracedFold;
 use crate::folds::Anchor;

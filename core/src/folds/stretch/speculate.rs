@@ -1,4 +1,4 @@
-//! Tracing several seeds of one frame at once, with the sequential result (issue 14).
+//! Tracing several seeds of one frame at once, with the sequential result.
 //!
 //! Seeds are taken from the priority queue one at a time, and a fold consumes the seeds in its region of
 //! influence, so which seeds are tried depends on the folds before them. But what one seed gives — its patch,
@@ -14,16 +14,12 @@
 
 use super::params::StretchParams;
 use super::symbolic::SymbolicCache;
-use super::trace::{FrameField, SeedWork, TracedFold};
+use super::trace::{FrameField, Outcome, SeedWork};
 use crate::mesh::Topology;
 use crate::vec3::{self, V3};
 use rayon::prelude::*;
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
-
-/// What tracing one seed gives: its fold and the triangles of the fold's region of influence, or nothing (no
-/// patch, or an axis too short).
-pub(super) type Outcome = Option<(TracedFold, Vec<u32>)>;
 
 /// Queue entry: (seed of the previous frame, priority, `Reverse(triangle)`) packed into one integer, so that
 /// the frame's queue sorts by plain integer comparisons (the tuple's three-way comparisons were a twentieth of
@@ -45,28 +41,9 @@ fn entry_triangle(e: Entry) -> u32 {
 
 /// Queue entries looked at past the next seed when choosing seeds to trace ahead, and seeds traced together
 /// per thread. They decide only how much is traced ahead (and so how busy the threads are), never the
-/// result. `CREASE_TRACE_LOOKAHEAD` and `CREASE_TRACE_BATCH` (per thread) override them, read once, for
-/// measuring other settings with the same binary (`crease bench --stretch-folds-only`).
+/// result.
 const LOOKAHEAD: usize = 64;
 const BATCH_PER_THREAD: usize = 2;
-
-/// The look-ahead and the seeds per thread and batch in use (see [`LOOKAHEAD`]).
-fn tuning() -> (usize, usize) {
-    static TUNING: std::sync::OnceLock<(usize, usize)> = std::sync::OnceLock::new();
-    *TUNING.get_or_init(|| {
-        let read = |name: &str, default: usize| {
-            std::env::var(name)
-                .ok()
-                .and_then(|v| v.trim().parse::<usize>().ok())
-                .filter(|&v| (1..=4096).contains(&v))
-                .unwrap_or(default)
-        };
-        (
-            read("CREASE_TRACE_LOOKAHEAD", LOOKAHEAD),
-            read("CREASE_TRACE_BATCH", BATCH_PER_THREAD),
-        )
-    })
-}
 
 /// Patch patterns whose symbolic factorisation is kept ([`SymbolicCache`]), per generation.
 const PATTERNS_PER_GENERATION: usize = 1024;
@@ -155,8 +132,8 @@ impl SeedQueue {
             order: order.into_iter(),
             ahead: VecDeque::new(),
             ready: HashMap::new(),
-            batch: if threads > 1 { tuning().1 * threads } else { 1 },
-            lookahead: tuning().0,
+            batch: if threads > 1 { BATCH_PER_THREAD * threads } else { 1 },
+            lookahead: LOOKAHEAD,
             traced_ahead: 0,
             wasted: 0,
         }
@@ -234,9 +211,6 @@ impl SeedQueue {
 
 #[cfg(test)]
 mod tests {
-    use super::super::smooth::FrameGeometry;
-    use super::super::trace::FoldTracer;
-    use super::super::{mean_edge_length, StretchParams};
     use super::*;
 
     /// Packed entries sort exactly as the (memory flag, priority, `Reverse(triangle)`) tuples they stand for,
@@ -281,71 +255,5 @@ mod tests {
         let want: Vec<_> = tuples.iter().rev().copied().collect();
         assert_eq!(back, want);
         assert!(back.iter().any(|e| e.1 == u64::MAX) && back.iter().any(|e| e.2 .0 == u32::MAX));
-    }
-
-    /// Tracing seeds ahead on several threads gives the folds, anchors, seeds tried and seed memory of the
-    /// one-at-a-time loop, frame after frame (the seed memory carries over).
-    #[test]
-    fn tracing_ahead_in_parallel_is_the_sequential_loop() {
-        let seq = crate::synth::compressed_tube(6000, 4, 0.3, -1.0).unwrap();
-        let topo = &seq.topology;
-        let params = StretchParams {
-            seed_memory: true,
-            ..Default::default()
-        };
-        // A banded shrinkage along the tube with a ripple, so there are many folds and many failing seeds.
-        let fields: Vec<(Vec<f64>, Vec<V3>)> = (0..seq.frames.len())
-            .map(|t| {
-                let geom = FrameGeometry::new(topo, &seq.frames[t]);
-                let shrink = geom
-                    .centroids
-                    .iter()
-                    .enumerate()
-                    .map(|(i, c)| {
-                        let band = (c[2] * 90.0 + t as f64).sin().max(0.0);
-                        1.0 + 0.1 * band + 0.01 * ((i * 7919 % 97) as f64 / 97.0)
-                    })
-                    .collect();
-                let dir = geom
-                    .normals
-                    .iter()
-                    .map(|n| vec3::normalize(vec3::sub([0.0, 0.0, 1.0], vec3::scale(*n, n[2]))))
-                    .collect();
-                (shrink, dir)
-            })
-            .collect();
-        let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
-                let mut tracer = FoldTracer::new(topo, 0);
-                let mut out = Vec::new();
-                for (t, (shrink, dir)) in fields.iter().enumerate() {
-                    let p = &seq.frames[t];
-                    let geom = FrameGeometry::new(topo, p);
-                    let field = FrameField {
-                        topo,
-                        p,
-                        geom: &geom,
-                        shrink,
-                        dir,
-                        h: mean_edge_length(topo, &seq.frames[0]),
-                    };
-                    let folds = tracer.trace(&field, &params);
-                    out.push(format!("{folds:?} {:?}", tracer.seeds()));
-                }
-                (out, tracer.traced_ahead().0)
-            })
-        };
-        let (one, ahead_one) = run(1);
-        let (four, ahead_four) = run(4);
-        assert_eq!(ahead_one, 0);
-        assert!(ahead_four > 0, "nothing was traced ahead");
-        assert!(one.iter().all(|f| f.contains("TracedFold")), "no folds");
-        for (t, (a, b)) in one.iter().zip(&four).enumerate() {
-            assert!(a == b, "frame {t} differs with 4 threads");
-        }
     }
 }

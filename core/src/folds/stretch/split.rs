@@ -1,5 +1,5 @@
 //! The stretch detector cut into stages that can run on different machines, with the single-run result bit
-//! for bit (issue 14).
+//! for bit.
 //!
 //! [`StretchDetector::run`] streams the sequence twice in one process. Its work splits along what depends on
 //! what:
@@ -31,7 +31,8 @@ use super::overlay::OverlayFrame;
 use super::phases::{integrated_signal, step_dominants, PhaseClock, Restart, Signal};
 use super::smooth::FrameGeometry;
 use super::tensor::shape;
-use super::trace::{FoldTracer, FrameField};
+use super::trace::FrameField;
+use super::tracer::FoldTracer;
 use super::{combine, mean_edge_length, realise, StretchDetector, StretchParams};
 use crate::error::{Error, Result};
 use crate::folds::{Anchor, FrameAnchors};

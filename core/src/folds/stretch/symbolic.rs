@@ -1,4 +1,4 @@
-//! Symbolic Cholesky factorisations of flattened patches, kept for reuse (issue 14).
+//! Symbolic Cholesky factorisations of flattened patches, kept for reuse.
 //!
 //! Every fold seed flattens a patch ([`super::lscm`]), and the symbolic half of its sparse Cholesky (AMD
 //! ordering, elimination tree, structure of L) costs as much as the numeric half. It depends only on the

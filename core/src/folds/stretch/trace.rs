@@ -1,17 +1,15 @@
-//! Fold tracing on one frame (Chen 2011 §4.4): seeds, axis, control lines, region of influence, anchors.
+//! The work on one seed of a frame (Chen 2011 §4.4): patch, axis, control lines, region of influence, anchors.
+//! The seeds' order and the seed memory are [`super::tracer`]'s.
 //!
-//! * **Seeds** come in order of integrated shrinkage (absolute change), largest first, one at a
-//!   time; with `seed_memory` on, seeds of the previous frame go first (the thesis' seed memory; off by default,
-//!   see [`StretchParams::seed_memory`]).
-//! * **Axis** ([`FoldTracer::axis`]): the patch around the seed is flattened ([`super::unfold`] by default, with
+//! * **Axis** ([`SeedWork::axis`]): the patch around the seed is flattened ([`super::unfold`] by default, with
 //!   LSCM where unfolding folds triangles over; on request [`super::lscm`] everywhere); from the seed's centroid a line
 //!   is marched in the plane perpendicular to the shrinkage direction, following each crossed triangle's own
 //!   direction, in both senses, until the shrinkage fades below `fade` of the seed's or the direction turns by
 //!   more than `max_turn`.
-//! * **Control lines** ([`FoldTracer::control_lines`]) at ± width/2 beside the axis, width = `fold_width / |v|`
+//! * **Control lines** ([`SeedWork::control_lines`]) at ± width/2 beside the axis, width = `fold_width / |v|`
 //!   (inversely proportional to the absolute change), located on the traced mesh as (triangle, barycentric)
 //!   samples, so that they can be realised on a finer mesh than the one traced ([`super::realise`]).
-//! * **Region of influence** ([`FoldTracer::region`]): patch triangles within α·|v| of the axis (eq. 4.3,
+//! * **Region of influence** ([`SeedWork::region`]): patch triangles within α·|v| of the axis (eq. 4.3,
 //!   measured from the traced axis rather than the seed point alone, so one long fold is not seeded twice);
 //!   their seeds leave the queue.
 //! * **Ridge side** ([`ridge_sign`]): the strip between the control lines rises towards the side where the
@@ -25,13 +23,11 @@
 use super::lscm::lscm_with;
 use super::params::{Flattening, StretchParams};
 use super::smooth::FrameGeometry;
-use super::speculate::{entry, Entry, Outcome, SeedPool, SeedQueue};
 use super::symbolic::SymbolicCache;
 use super::tensor::shape;
 use super::unfold::{PatchRef, Unfolder};
 use crate::mesh::{Topology, NONE};
 use crate::vec3::{self, V3};
-use rayon::prelude::*;
 use std::sync::Arc;
 
 /// What tracing reads of one frame.
@@ -78,24 +74,9 @@ pub struct TracedFold {
     pub samples: Vec<LineSample>,
 }
 
-/// Result of tracing one frame.
-#[derive(Debug, Clone, Default)]
-pub struct FrameFolds {
-    pub folds: Vec<TracedFold>,
-    /// Anchors on the traced mesh ([`super::realise::anchors`]): sorted by triangle, unique.
-    pub anchors: Vec<crate::folds::Anchor>,
-    /// Seeds taken from the queue (each one flattened a patch), folds or not.
-    pub seeds_tried: usize,
-}
-
-/// Traces frames one after the other, carrying the seed memory when it is on (O(triangles)).
-pub struct FoldTracer {
-    prev_seed: Vec<bool>,
-    /// One [`SeedWork`] per thread tracing seeds at the same time ([`super::speculate`]).
-    pool: SeedPool,
-    traced_ahead: usize,
-    wasted: usize,
-}
+/// What tracing one seed gives: its fold and the triangles of the fold's region of influence, or nothing (no
+/// patch, or an axis too short).
+pub(super) type Outcome = Option<(TracedFold, Vec<u32>)>;
 
 /// The work on one seed — patch, axis, control lines, region — which reads the frame but nothing of the other
 /// seeds, so seeds can be traced on several threads, each with its own local numbering (O(triangles)).
@@ -162,13 +143,6 @@ pub fn fold_angle(change: f64, width: f64, params: &StretchParams) -> f64 {
     (1.0 / (1.0 + lost / width)).acos().min(max_angle)
 }
 
-/// Queue order of a seed of shrinkage `s`: rounded to 1e-9, so that seeds equal up to rounding noise (a
-/// symmetric garment, the same mesh with another winding or vertex order) are taken by triangle index rather
-/// than by the noise.
-fn seed_priority(s: f64) -> u64 {
-    ((s - 1.0).max(0.0) * 1e9).round() as u64
-}
-
 /// +1 when the fold's ridge is on the side of the traced axis triangles' normals, −1 when on the other side.
 /// `bulge` sums, along the axis, the height of the axis point above the chord between the two control lines,
 /// measured along the axis triangle's normal: the fold the capture flattened still shows there. A flat
@@ -180,94 +154,6 @@ fn ridge_sign(bulge: f64, scale: f64, outward: f64) -> f64 {
         outward.signum()
     } else {
         1.0
-    }
-}
-
-impl FoldTracer {
-    /// A tracer whose control lines are realised on the traced mesh after `levels` rounds of subdivision.
-    pub fn new(topo: &Topology, levels: usize) -> Self {
-        FoldTracer {
-            prev_seed: vec![false; topo.n_triangles()],
-            pool: SeedPool::new(topo, levels),
-            traced_ahead: 0,
-            wasted: 0,
-        }
-    }
-
-    /// The seed memory: the seeds that gave folds in the last traced frame, in increasing order.
-    pub fn seeds(&self) -> Vec<u32> {
-        (0..self.prev_seed.len() as u32)
-            .filter(|&t| self.prev_seed[t as usize])
-            .collect()
-    }
-
-    /// Seeds traced ahead of their turn so far ([`super::speculate`]), and those of them wasted because their
-    /// seed was consumed first.
-    pub fn traced_ahead(&self) -> (usize, usize) {
-        (self.traced_ahead, self.wasted)
-    }
-
-    /// Replaces the seed memory (as if the last traced frame's folds came from `seeds`); out-of-range
-    /// triangles are ignored.
-    pub fn set_seeds(&mut self, seeds: &[u32]) {
-        self.prev_seed.fill(false);
-        for &t in seeds {
-            if let Some(s) = self.prev_seed.get_mut(t as usize) {
-                *s = true;
-            }
-        }
-    }
-
-    /// Traces the folds of one frame.
-    pub fn trace(&mut self, f: &FrameField, params: &StretchParams) -> FrameFolds {
-        let n_tri = f.topo.n_triangles();
-        let seed_min = 1.0 + params.min_shrink;
-        let prev_seed = &self.prev_seed;
-        let mut order: Vec<Entry> = f
-            .shrink
-            .par_iter()
-            .with_min_len(4096)
-            .enumerate()
-            .filter(|(_, &s)| s >= seed_min && s.is_finite())
-            .map(|(t, &s)| {
-                entry(
-                    params.seed_memory && prev_seed[t],
-                    seed_priority(s),
-                    t as u32,
-                )
-            })
-            .collect();
-        // Largest first: the order a max-heap pops them in (the entries are distinct, one per triangle), for
-        // one sort instead of a heap operation per seed on the sequential path.
-        order.par_sort_unstable_by(|a, b| b.cmp(a));
-        let centroid = crate::folds::video::views::centroid(f.p);
-        let mut consumed = vec![false; n_tri];
-        let mut new_seed = vec![false; n_tri];
-        let mut folds = Vec::new();
-        let mut seeds_tried = 0;
-        let mut queue = SeedQueue::new(order);
-        while let Some(s) = queue.next(&consumed) {
-            consumed[s] = true;
-            seeds_tried += 1;
-            let outcome = queue.outcome(s, &consumed, &self.pool, f, params, centroid);
-            if let Some((fold, region)) = outcome {
-                for t in region {
-                    consumed[t as usize] = true;
-                }
-                new_seed[s] = true;
-                folds.push(fold);
-            }
-        }
-        if params.seed_memory {
-            self.prev_seed = new_seed;
-        }
-        self.traced_ahead += queue.traced_ahead;
-        self.wasted += queue.wasted;
-        FrameFolds {
-            anchors: super::realise::anchors(&folds, None),
-            folds,
-            seeds_tried,
-        }
     }
 }
 
@@ -863,8 +749,8 @@ impl Segments {
 /// triangles closing it fold over. Such a patch is flattened by LSCM instead: on the sleeve sample a fifth of
 /// the patches fold over, and there the overlapping triangles' centroids land beside the axis and inflate the
 /// region of influence (8 % more triangles than LSCM's, axes 3.6 % shorter), while on the patches that
-/// unfold cleanly the two flattenings trace regions, axes and anchors within 0.3 % (docs/benchmarks.md,
-/// "issue14-trace"). The flipped mesh gives the mirrored layout, so the verdict does not depend on the winding.
+/// unfold cleanly the two flattenings trace regions, axes and anchors within 0.3 %
+/// (bench/results/2026-12-02-stretch-tracing.md). The flipped mesh gives the mirrored layout, so the verdict does not depend on the winding.
 fn unfolds_without_overlap(corners: &[[u32; 3]], uv: &[[f64; 2]]) -> bool {
     corners.iter().all(|k| {
         let [a, b, c] = k.map(|k| uv[k as usize]);

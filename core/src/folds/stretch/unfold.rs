@@ -1,4 +1,4 @@
-//! Flattening a fold seed's patch by unfolding it (issue 14; the default `flattening = "unfold"`): a patch
+//! Flattening a fold seed's patch by unfolding it (the default `flattening = "unfold"`): a patch
 //! parameterisation of tracing without the sparse LSCM solve per seed ([`super::lscm`], selectable). Tracing falls back to LSCM
 //! for a patch whose unfolded layout folds triangles over (`trace.rs`, `unfolds_without_overlap`).
 //!

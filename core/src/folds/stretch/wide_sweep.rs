@@ -1,5 +1,5 @@
 //! The smoothing's Jacobi sweeps ([`super::smooth`]) four triangles at a time with AVX2, bit for bit the scalar
-//! sweeps (issue 14).
+//! sweeps.
 //!
 //! **Why by hand.** The sweeps are a quarter of the stretch detector's time: per triangle and sweep, four
 //! doubled angles (two divisions each), a half-angle direction (three square roots, one division), the means
@@ -164,14 +164,10 @@ impl Blocks {
     }
 }
 
-/// Whether this CPU runs the AVX2 sweeps (and `CREASE_STRETCH_SCALAR_SWEEPS=1` does not ask for the scalar
-/// ones, for measuring both with one binary; read once).
+/// Whether this CPU runs the AVX2 sweeps (detected once); the scalar sweeps run elsewhere, with the same bits.
 pub(super) fn available() -> bool {
     static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *ON.get_or_init(|| {
-        let scalar = std::env::var("CREASE_STRETCH_SCALAR_SWEEPS").is_ok_and(|v| v.trim() == "1");
-        !scalar && detected()
-    })
+    *ON.get_or_init(detected)
 }
 
 #[cfg(target_arch = "x86_64")]

@@ -1,4 +1,4 @@
-//! The calibrated cameras of a capture and their images (DESIGN.md §3): parsing and validating `cameras.json`,
+//! The calibrated cameras of a capture and their images (docs/folds.md): parsing and validating `cameras.json`,
 //! locating `images/<camera>/frame_NNNN.png`, and loading an image with its garment mask.
 //!
 //! Popa et al. 2009 §5.1 project the fold edges "using the available camera calibration"; a wrong calibration

@@ -18,7 +18,7 @@
 //! anchored (they would pin the cloth flat), and a flank never tilts more than its fold's edges.
 //!
 //! Only triangles within `band` pair widths of the pair's edges (walking the triangle adjacency from the crossed
-//! triangles) are considered: the ground-truth rotation there is what lifts κ (docs/fidelity-folds.md).
+//! triangles) are considered: the ground-truth rotation there is what lifts κ (bench/results/2026-12-02-sleeve-video-kappa.md).
 
 use super::project::ProjectedPair;
 use super::shading::ViewShading;

@@ -22,7 +22,7 @@ pub struct VideoParams {
     /// contrast rather than of the same gradient ([`super::edges::canny_thresholds`]); the thresholds then
     /// mean the gradient of an edge seen at radius 1. Off by default: on the sleeve it finds the soft contours
     /// of wide folds (fold fraction 0.142 → 0.204) but with them as many false ones (κ 0.296 → 0.305,
-    /// correlation 0.550 → 0.509, normal error 8.04° → 8.40°; docs/fidelity-folds.md).
+    /// correlation 0.550 → 0.509, normal error 8.04° → 8.40°; bench/results/2026-12-02-sleeve-video-kappa.md).
     pub contrast_thresholds: bool,
     /// Shortest edge kept after chaining, fitting and splitting.
     pub min_edge_length: f64,
@@ -77,7 +77,7 @@ pub struct VideoParams {
     pub lighting_residual: bool,
     /// Anchor the cloth beside each detected pair too, tilted by the angle its lighting residual gives
     /// ([`super::flanks`]; needs `lighting_residual`). On by default: sleeve video κ 0.314 → 0.368, drape
-    /// 0.473 → 0.505, normal error down on both (docs/fidelity-folds.md, "Flank tilts from the shading").
+    /// 0.473 → 0.505, normal error down on both (bench/results/2026-12-03-flank-tilts.md).
     pub flank_tilt: bool,
     /// How far beside a pair's edges flanks are anchored, in pair widths. Wider lifts κ further (5: sleeve
     /// 0.382) but raises the drape's popping towards its limit of 1.2 (1.12 at 5, 1.20 unbounded; 1.09 at 3).
@@ -88,11 +88,11 @@ pub struct VideoParams {
     pub flank_prior_deg: f64,
     /// Analyse every camera that sees the garment, each triangle taking the anchors of the camera that sees it
     /// most squarely ([`super::ownership`]). Off by default: it helps the tube-like sleeve and hurts the sheet
-    /// (docs/fidelity-folds.md); `cover_views` helps the sleeve without hurting the sheet.
+    /// (bench/results/2026-12-02-video-views.md); `cover_views` helps the sleeve without hurting the sheet.
     pub all_views: bool,
     /// Choose the views by coverage ([`super::cover`]): the front and back views, plus, greedily, the cameras
     /// that see squarely a part of the garment they see only obliquely; those cameras anchor only that part.
-    /// On by default (docs/fidelity-folds.md: it lifts the sleeve and leaves the sheet as it was); `false`
+    /// On by default (bench/results/2026-12-02-video-views.md: it lifts the sleeve and leaves the sheet as it was); `false`
     /// gives Popa's two views. Ignored when `all_views` is set.
     pub cover_views: bool,
     /// |cos| between a triangle's normal and the viewing ray from which a camera sees the triangle squarely

@@ -1,0 +1,684 @@
+//! Vertex positioning from per-triangle rotations (Popa et al. 2009 §5.4).
+//!
+//! Formulation used: the gradient-domain (Poisson) form that Botsch et al. 2006 show equivalent to the
+//! Sumner–Popović deformation-transfer objective ‖Ṽ V⁻¹ − R‖²_F with the virtual fourth vertex eliminated:
+//!
+//! ```text
+//!   min_x  Σ_t A_t ‖F_t(x) − R_t P_t‖²_F      F_t(x) = Σ_{j∈t} x_j ∇φ_jᵀ   (deformation gradient of t)
+//! ```
+//!
+//! with A_t, ∇φ_j and the tangent projector P_t taken from the *original* frame. Its normal equations are
+//! K x = b with K the cotangent stiffness matrix of the original frame. We solve for the displacement
+//! d = x − x₀ instead of x: since K x₀ = Σ_t A_t P_t ∇φ_i, the right-hand side becomes
+//! b_i = Σ_{t∋i} A_t (R_t − I) ∇φ_i, which is exactly zero when every R_t is the identity. That makes "no
+//! anchors ⇒ output equals input" hold bit for bit, and keeps round-off relative to the fold displacement
+//! rather than to the garment's world coordinates.
+//!
+//! K depends on the original frame only, not on the rotations, so each frame is factorised once (sparse
+//! supernodal Cholesky, faer) and the factor is reused by every stretch-reduction pass; the symbolic analysis
+//! (AMD ordering, elimination tree) depends on connectivity only and is shared by all frames.
+//!
+//! **Shape screen.** The rotation field is only known up to what the anchors say about folds; integrated over a
+//! whole garment, its smooth part (weights diffuse far from every anchor) adds up to a drift of the garment's
+//! overall shape — a bend, a shrink, a swing — that the capture did not see. The capture is trustworthy exactly
+//! at long wavelengths, so the displacement is screened:
+//!
+//! ```text
+//!   (K + λ M) d = b,      λ = (2π / (ℓ_c h̄))²,      M = lumped (barycentric) vertex areas, h̄ = mean edge length
+//! ```
+//!
+//! An eigenmode of K with wavelength ℓ (K u = (2π/ℓ)² M u) is scaled by 1 / (1 + (ℓ/ℓ_c)²): folds, shorter
+//! than the cutoff ℓ_c, pass; the garment's shape, many cutoffs long, stays the captured one. λ is measured per
+//! frame in the frame's own edge length, so the cutoff means the same on every garment and resolution. The
+//! system stays SPD and depends on the original frame only (one factor per frame, reused by the stretch
+//! passes), b = 0 still gives d = 0 bit for bit, and no vertex needs to be fixed: the translational null
+//! space is gone. Only vertices without triangles (no area, no stiffness) are fixed.
+//!
+//! Without the screen (`shape_cutoff` off), one vertex per connected component is fixed to remove the
+//! translational null space. By default the component is then translated so that its area-weighted mean
+//! displacement is zero (the garment stays centred on the capture instead of hanging from an arbitrary
+//! vertex); [`Pinning::Vertex`] keeps the fixed vertex exactly in place instead.
+
+use crate::spacetime::shape::restore::RestoreMesh;
+use crate::error::{Error, Result};
+use crate::mesh::{Frame, Topology, NONE};
+use crate::vec3::{self, M3, V3};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, LltRef, SymbolicCholesky, SymmetricOrdering,
+};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, Mat, Par, Side};
+use std::sync::{Arc, Mutex, OnceLock};
+
+/// How the translational degree of freedom of each connected component is removed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Pinning {
+    /// Fix the lowest-index vertex of each component in the solve, then translate the component so that its
+    /// area-weighted mean displacement is zero.
+    #[default]
+    Centroid,
+    /// Fix the lowest-index vertex of each component and leave it exactly where it was.
+    Vertex,
+}
+
+/// Connectivity-only part of the positioning system, shared by all frames: the sparsity pattern of the reduced
+/// stiffness matrix (lower triangle, CSC), a per-triangle scatter map into it, and the symbolic factorisation.
+pub struct PositionSystem {
+    topo: Arc<Topology>,
+    pinning: Pinning,
+    /// Cutoff wavelength ℓ_c of the shape screen in mean edge lengths, or None for the unscreened system.
+    shape_cutoff: Option<f64>,
+    /// Row of each vertex in the reduced system, or NONE for pinned vertices.
+    free_index: Vec<u32>,
+    n_free: usize,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    /// For triangle corner pairs (0,0),(1,1),(2,2),(0,1),(1,2),(2,0): index into the values array, or NONE.
+    scatter: Vec<[u32; 6]>,
+    symbolic: SymbolicCholesky<usize>,
+    /// The three-column triangular solves' view of the factor structure (None: not supernodal; faer solves).
+    solve_plan: Option<super::factor_solve::SolvePlan>,
+    /// The fold restoration's connectivity tables, built by the first frame that needs them.
+    restore_mesh: OnceLock<RestoreMesh>,
+    /// Frames per shared operator: 1 factorises every frame's own stiffness matrix (exact); k > 1 positions
+    /// every frame of a block of k (frames t − t mod k …) with the factor of the block's first frame.
+    operator_block: usize,
+    /// Factors of block-leading frames (frame, factor values), the most recent few.
+    shared_factors: Mutex<Vec<(usize, SharedFactor)>>,
+}
+
+/// One block's factor, computed by the first frame of the block that asks for it (the others wait for it).
+type SharedFactor = Arc<Mutex<Option<Arc<Vec<f64>>>>>;
+
+/// Block factors kept at once: frames are positioned a window's release at a time, in parallel, so at most a
+/// couple of blocks are in use together.
+const SHARED_FACTORS_KEPT: usize = 4;
+
+const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0)];
+
+impl PositionSystem {
+    /// Builds the pattern and the symbolic Cholesky analysis (AMD ordering) once per sequence.
+    /// `shape_cutoff` is the screen's cutoff wavelength ℓ_c in mean edge lengths (None: no screen, `pinning`
+    /// removes the null space instead).
+    pub fn new(topo: Arc<Topology>, pinning: Pinning, shape_cutoff: Option<f64>) -> Result<Self> {
+        if let Some(l) = shape_cutoff {
+            if !(l.is_finite() && l > 0.0) {
+                return Err(Error::param(
+                    "shape_cutoff",
+                    format!("must be a finite wavelength > 0 mean edge lengths, got {l}"),
+                ));
+            }
+        }
+        let nv = topo.n_vertices();
+        let mut pinned_component = vec![false; topo.n_components()];
+        let mut free_index = vec![NONE; nv];
+        let mut n_free = 0usize;
+        for (v, fi) in free_index.iter_mut().enumerate() {
+            let c = topo.vertex_component()[v] as usize;
+            let pinned = if shape_cutoff.is_some() {
+                topo.vertex_triangles(v).is_empty() // no area: nothing screens it
+            } else {
+                !pinned_component[c] // lowest index of its component
+            };
+            if pinned {
+                pinned_component[c] = true;
+            } else {
+                *fi = n_free as u32;
+                n_free += 1;
+            }
+        }
+        // Lower-triangle entries (row >= col) of the reduced stiffness matrix.
+        let mut entries: Vec<(u32, u32)> = Vec::with_capacity(topo.n_triangles() * 6);
+        for tri in topo.triangles() {
+            for (a, b) in PAIRS {
+                let (fa, fb) = (free_index[tri[a] as usize], free_index[tri[b] as usize]);
+                if fa != NONE && fb != NONE {
+                    entries.push((fa.min(fb), fa.max(fb)));
+                }
+            }
+        }
+        entries.sort_unstable();
+        entries.dedup();
+        let mut col_ptr = vec![0usize; n_free + 1];
+        for &(c, _) in &entries {
+            col_ptr[c as usize + 1] += 1;
+        }
+        for c in 0..n_free {
+            col_ptr[c + 1] += col_ptr[c];
+        }
+        let row_idx: Vec<usize> = entries.iter().map(|&(_, r)| r as usize).collect();
+        let scatter = topo
+            .triangles()
+            .iter()
+            .map(|tri| {
+                PAIRS.map(|(a, b)| {
+                    let (fa, fb) = (free_index[tri[a] as usize], free_index[tri[b] as usize]);
+                    if fa == NONE || fb == NONE {
+                        return NONE;
+                    }
+                    let (c, r) = (fa.min(fb) as usize, fa.max(fb) as usize);
+                    let col = &row_idx[col_ptr[c]..col_ptr[c + 1]];
+                    (col_ptr[c] + col.binary_search(&r).expect("entry in pattern")) as u32
+                })
+            })
+            .collect();
+        let symbolic = {
+            let sym =
+                SymbolicSparseColMatRef::new_checked(n_free, n_free, &col_ptr, None, &row_idx);
+            factorize_symbolic_cholesky(
+                sym,
+                Side::Lower,
+                SymmetricOrdering::Amd,
+                Default::default(),
+            )
+            .map_err(|e| Error::numeric("positioning: symbolic Cholesky", format!("{e:?}")))?
+        };
+        let solve_plan = super::factor_solve::SolvePlan::new(&symbolic);
+        Ok(PositionSystem {
+            topo,
+            pinning,
+            shape_cutoff,
+            free_index,
+            n_free,
+            col_ptr,
+            row_idx,
+            scatter,
+            symbolic,
+            solve_plan,
+            restore_mesh: OnceLock::new(),
+            operator_block: 1,
+            shared_factors: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// Shares one positioning operator among every `k` frames ([`PositionSystem::factor_frame_at`]; 0 counts as
+    /// 1, every frame its own).
+    ///
+    /// Why this is a reasonable approximation: K is the cotangent stiffness (plus the screen's λ M) of the
+    /// captured frame, which depends on its metric only (edge lengths, angles, areas), and cloth barely
+    /// stretches, so the K of nearby frames differ by the capture's small strain. The right-hand side keeps
+    /// the frame's own gradients, areas and rotations, so the fit still asks for that frame's deformation
+    /// gradients; only the weighting of the least-squares residuals is the block leader's. The numeric
+    /// factorisation was the positioning's largest per-frame cost (0.047 s at 100K triangles, more than the
+    /// three solves together).
+    pub fn with_operator_block(mut self, k: usize) -> Self {
+        self.operator_block = k.max(1);
+        self
+    }
+
+    /// Frames per shared positioning operator (see [`PositionSystem::with_operator_block`]).
+    pub fn operator_block(&self) -> usize {
+        self.operator_block
+    }
+
+    pub fn topology(&self) -> &Arc<Topology> {
+        &self.topo
+    }
+
+    /// The fold restoration's connectivity tables for this mesh (built once, on first use, shared by every
+    /// frame and thread).
+    pub fn restore_mesh(&self) -> &RestoreMesh {
+        self.restore_mesh
+            .get_or_init(|| RestoreMesh::new(&self.topo))
+    }
+
+    /// Assembles the lower triangle of the reduced cotangent stiffness matrix of one original frame (values in
+    /// the pattern of [`PositionSystem::pattern`]), with the per-triangle gradients, areas and unit normals.
+    #[allow(clippy::type_complexity)]
+    pub fn assemble(&self, rest: &[V3]) -> Result<(Vec<f64>, Vec<[V3; 3]>, Vec<f64>, Vec<V3>)> {
+        let (values, grads, areas, normals, _) = self.assemble_screened(rest)?;
+        Ok((values, grads, areas, normals))
+    }
+
+    /// [`PositionSystem::assemble`] and the frame's screen weight λ (0 without the screen).
+    #[allow(clippy::type_complexity)]
+    fn assemble_screened(
+        &self,
+        rest: &[V3],
+    ) -> Result<(Vec<f64>, Vec<[V3; 3]>, Vec<f64>, Vec<V3>, f64)> {
+        let topo = &self.topo;
+        let mut grads = Vec::with_capacity(topo.n_triangles());
+        let mut areas = Vec::with_capacity(topo.n_triangles());
+        let mut normals = Vec::with_capacity(topo.n_triangles());
+        let mut values = vec![0.0f64; self.row_idx.len()];
+        // Screen weight λ = (2π / (ℓ_c h̄))² of this frame (0 without the screen).
+        let screen = match self.shape_cutoff {
+            Some(l) => {
+                let h = crate::shape::mean_edge_length(topo, rest);
+                if !(h.is_finite() && h > 0.0) {
+                    return Err(Error::mesh(format!(
+                        "the mean edge length is {h}: the frame has no extent to screen"
+                    )));
+                }
+                (2.0 * std::f64::consts::PI / (l * h)).powi(2)
+            }
+            None => 0.0,
+        };
+        for (t, &tri) in topo.triangles().iter().enumerate() {
+            let [a, b, c] = tri.map(|i| rest[i as usize]);
+            let n = vec3::cross(vec3::sub(b, a), vec3::sub(c, a));
+            let twice_area = vec3::norm(n);
+            if !twice_area.is_finite() || twice_area <= 0.0 {
+                return Err(Error::mesh(format!("triangle {t} is degenerate")));
+            }
+            let nh = vec3::scale(n, 1.0 / twice_area);
+            // ∇φ_j = n̂ × e_j / (2A), e_j the edge opposite corner j (counter-clockwise).
+            let g = [
+                vec3::scale(vec3::cross(nh, vec3::sub(c, b)), 1.0 / twice_area),
+                vec3::scale(vec3::cross(nh, vec3::sub(a, c)), 1.0 / twice_area),
+                vec3::scale(vec3::cross(nh, vec3::sub(b, a)), 1.0 / twice_area),
+            ];
+            let area = 0.5 * twice_area;
+            for (k, (i, j)) in PAIRS.iter().enumerate() {
+                let slot = self.scatter[t][k];
+                if slot != NONE {
+                    // The first three pairs are the diagonal: each corner gets a third of the area as mass.
+                    let mass = if k < 3 { screen * area / 3.0 } else { 0.0 };
+                    values[slot as usize] += area * vec3::dot(g[*i], g[*j]) + mass;
+                }
+            }
+            grads.push(g);
+            areas.push(area);
+            normals.push(nh);
+        }
+        Ok((values, grads, areas, normals, screen))
+    }
+
+    /// Sparsity pattern (CSC, lower triangle) of the reduced system: (column pointers, row indices).
+    pub fn pattern(&self) -> (&[usize], &[usize]) {
+        (&self.col_ptr, &self.row_idx)
+    }
+
+    /// Row of each vertex in the reduced system, or `NONE` for pinned vertices.
+    pub fn free_index(&self) -> &[u32] {
+        &self.free_index
+    }
+
+    /// Non-zeros of the Cholesky factor (memory of one numeric factorisation is 8 bytes each).
+    pub fn factor_nnz(&self) -> usize {
+        self.symbolic.len_val()
+    }
+
+    /// Assembles and factorises the stiffness matrix of one original frame.
+    pub fn factor_frame<'a>(&'a self, rest: &'a [V3]) -> Result<FramePositioner<'a>> {
+        let (values, grads, areas, normals, screen) = self.assemble_screened(rest)?;
+        let l_values = Arc::new(self.factorize(&values)?);
+        Ok(self.positioner(rest, l_values, grads, areas, normals, screen))
+    }
+
+    /// [`PositionSystem::factor_frame`] for frame `t`, with the operator of [`PositionSystem::operator_block`]:
+    /// the frame's own (block 1), or the factor of its block's first frame, read with `read` and factorised
+    /// once for the block. The right-hand sides are always frame `t`'s own.
+    pub fn factor_frame_at<'a>(
+        &'a self,
+        rest: &'a [V3],
+        t: usize,
+        read: impl FnOnce(usize) -> Result<Frame>,
+    ) -> Result<FramePositioner<'a>> {
+        if self.operator_block <= 1 {
+            return self.factor_frame(rest);
+        }
+        let lead = t - t % self.operator_block;
+        let cell = {
+            let mut kept = self
+                .shared_factors
+                .lock()
+                .unwrap_or_else(|e| e.into_inner());
+            match kept.iter().find(|(f, _)| *f == lead) {
+                Some((_, c)) => c.clone(),
+                None => {
+                    let c = SharedFactor::default();
+                    if kept.len() >= SHARED_FACTORS_KEPT {
+                        kept.remove(0);
+                    }
+                    kept.push((lead, c.clone()));
+                    c
+                }
+            }
+        };
+        let (own_values, grads, areas, normals, screen) = self.assemble_screened(rest)?;
+        let l_values = {
+            let mut slot = cell.lock().unwrap_or_else(|e| e.into_inner());
+            match &*slot {
+                Some(l) => l.clone(),
+                None => {
+                    let values = if lead == t {
+                        own_values
+                    } else {
+                        let lead_rest = read(lead)?;
+                        self.assemble_screened(&lead_rest)
+                            .map_err(|e| e.at(None, Some(lead)))?
+                            .0
+                    };
+                    let l = Arc::new(self.factorize(&values)?);
+                    *slot = Some(l.clone());
+                    l
+                }
+            }
+        };
+        Ok(self.positioner(rest, l_values, grads, areas, normals, screen))
+    }
+
+    fn positioner<'a>(
+        &'a self,
+        rest: &'a [V3],
+        l_values: Arc<Vec<f64>>,
+        grads: Vec<[V3; 3]>,
+        areas: Vec<f64>,
+        normals: Vec<V3>,
+        screen: f64,
+    ) -> FramePositioner<'a> {
+        let topo = &self.topo;
+        let vertex_area = {
+            let mut va = vec![0.0; topo.n_vertices()];
+            for (t, tri) in topo.triangles().iter().enumerate() {
+                for &v in tri {
+                    va[v as usize] += areas[t] / 3.0;
+                }
+            }
+            va
+        };
+        FramePositioner {
+            sys: self,
+            rest,
+            grads,
+            areas,
+            normals,
+            l_values,
+            vertex_area,
+            screen,
+        }
+    }
+
+    /// Numeric Cholesky factor of the reduced stiffness values `values` (in the pattern's order).
+    fn factorize(&self, values: &[f64]) -> Result<Vec<f64>> {
+        let stack_req = self
+            .symbolic
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default());
+        let mut buf = MemBuffer::try_new(stack_req).map_err(|_| {
+            Error::numeric("positioning", "out of memory for the Cholesky workspace")
+        })?;
+        let mut l_values = vec![0.0f64; self.symbolic.len_val()];
+        {
+            let sym = SymbolicSparseColMatRef::new_checked(
+                self.n_free,
+                self.n_free,
+                &self.col_ptr,
+                None,
+                &self.row_idx,
+            );
+            let k = SparseColMatRef::new(sym, values);
+            self.symbolic
+                .factorize_numeric_llt::<f64>(
+                    &mut l_values,
+                    k,
+                    Side::Lower,
+                    Default::default(),
+                    Par::Seq,
+                    MemStack::new(&mut buf),
+                    Default::default(),
+                )
+                .map_err(|e| {
+                    Error::numeric(
+                        "positioning: Cholesky",
+                        format!("stiffness matrix is not positive definite ({e:?})"),
+                    )
+                })?;
+        }
+        Ok(l_values)
+    }
+}
+
+/// One original frame's factorised positioning system; solves for any set of per-triangle rotations.
+pub struct FramePositioner<'a> {
+    sys: &'a PositionSystem,
+    rest: &'a [V3],
+    grads: Vec<[V3; 3]>,
+    areas: Vec<f64>,
+    normals: Vec<V3>,
+    l_values: Arc<Vec<f64>>,
+    vertex_area: Vec<f64>,
+    /// The shape screen's weight λ for this frame (0 without the screen).
+    screen: f64,
+}
+
+impl FramePositioner<'_> {
+    /// Unit normals of the original frame's triangles.
+    pub fn rest_normals(&self) -> &[V3] {
+        &self.normals
+    }
+    pub fn rest_areas(&self) -> &[f64] {
+        &self.areas
+    }
+    /// The original frame's positions.
+    pub fn rest(&self) -> &[V3] {
+        self.rest
+    }
+
+    /// Positions whose deformation gradients best match `rotations` (one per triangle) in the least-squares
+    /// sense of the module documentation.
+    pub fn solve(&self, rotations: &[M3]) -> Frame {
+        let mut rhs = self.rhs(rotations);
+        self.solve_in_place(&mut rhs);
+        self.finish(&rhs)
+    }
+
+    /// [`FramePositioner::solve`] with the shape screen pulling toward `target` instead of the original frame:
+    /// min Σ A ‖F − R‖² + λ ‖x − target‖²_M, whose normal equations add λ M (target − rest) to the right-hand
+    /// side (same factor). Without the screen this is [`FramePositioner::solve`].
+    pub fn solve_toward(&self, rotations: &[M3], target: &[V3]) -> Frame {
+        let mut rhs = self.rhs(rotations);
+        if self.screen > 0.0 {
+            for (v, &fi) in self.sys.free_index.iter().enumerate() {
+                if fi == NONE {
+                    continue;
+                }
+                let w = self.screen * self.vertex_area[v];
+                let d = vec3::sub(target[v], self.rest[v]);
+                for (c, dc) in d.iter().enumerate() {
+                    rhs[(fi as usize, c)] += w * dc;
+                }
+            }
+        }
+        self.solve_in_place(&mut rhs);
+        self.finish(&rhs)
+    }
+
+    /// Right-hand side Σ_t A_t (R_t − I) ∇φ_i of the displacement system (free rows × 3).
+    pub fn rhs(&self, rotations: &[M3]) -> Mat<f64> {
+        let sys = self.sys;
+        let topo = &sys.topo;
+        let mut rhs = Mat::<f64>::zeros(sys.n_free, 3);
+        for (t, tri) in topo.triangles().iter().enumerate() {
+            let r = &rotations[t];
+            let a = self.areas[t];
+            for (k, &v) in tri.iter().enumerate() {
+                let fi = sys.free_index[v as usize];
+                if fi == NONE {
+                    continue;
+                }
+                let g = self.grads[t][k];
+                let rg = vec3::mat_vec(r, g);
+                for c in 0..3 {
+                    rhs[(fi as usize, c)] += a * (rg[c] - g[c]);
+                }
+            }
+        }
+        rhs
+    }
+
+    /// Overwrites `rhs` with K⁻¹ rhs using the frame's factor (three columns in one sweep over the factor, the
+    /// sequence's solve plan cutting it into subtrees solved in parallel, [`super::factor_solve`]; faer's
+    /// general solve otherwise).
+    pub fn solve_in_place(&self, rhs: &mut Mat<f64>) {
+        let sys = self.sys;
+        if let Some(plan) = &sys.solve_plan {
+            if plan.solve3(&sys.symbolic, &self.l_values, rhs) {
+                return;
+            }
+        }
+        self.solve_in_place_faer(rhs);
+    }
+
+    /// faer's general supernodal solve (any number of columns); the reference for the three-column sweep.
+    pub fn solve_in_place_faer(&self, rhs: &mut Mat<f64>) {
+        let sys = self.sys;
+        let llt = LltRef::<usize, f64>::new(&sys.symbolic, &self.l_values);
+        let mut buf = MemBuffer::new(
+            sys.symbolic
+                .solve_in_place_scratch::<f64>(rhs.ncols(), Par::Seq),
+        );
+        llt.solve_in_place_with_conj(Conj::No, rhs.as_mut(), Par::Seq, MemStack::new(&mut buf));
+    }
+
+    /// Output positions from the solved displacements of the free vertices (applies the pinning policy when
+    /// there is no screen).
+    fn finish(&self, rhs: &Mat<f64>) -> Frame {
+        let sys = self.sys;
+        let topo = &sys.topo;
+        let mut d = vec![[0.0f64; 3]; topo.n_vertices()];
+        for (v, dv) in d.iter_mut().enumerate() {
+            let fi = sys.free_index[v];
+            if fi != NONE {
+                *dv = [
+                    rhs[(fi as usize, 0)],
+                    rhs[(fi as usize, 1)],
+                    rhs[(fi as usize, 2)],
+                ];
+            }
+        }
+        if sys.shape_cutoff.is_none() && sys.pinning == Pinning::Centroid {
+            let nc = topo.n_components();
+            let mut sum = vec![[0.0f64; 3]; nc];
+            let mut wsum = vec![0.0f64; nc];
+            for (v, dv) in d.iter().enumerate() {
+                let c = topo.vertex_component()[v] as usize;
+                sum[c] = vec3::add(sum[c], vec3::scale(*dv, self.vertex_area[v]));
+                wsum[c] += self.vertex_area[v];
+            }
+            for (v, dv) in d.iter_mut().enumerate() {
+                let c = topo.vertex_component()[v] as usize;
+                if wsum[c] > 0.0 {
+                    *dv = vec3::sub(*dv, vec3::scale(sum[c], 1.0 / wsum[c]));
+                }
+            }
+        }
+        self.rest
+            .iter()
+            .zip(&d)
+            .map(|(x, dv)| vec3::add(*x, *dv))
+            .collect()
+    }
+
+    pub fn topology(&self) -> &Arc<Topology> {
+        &self.sys.topo
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth;
+
+    /// With identity rotations the screened solve toward a target is the target wherever the target is a rigid
+    /// translation of the frame (F = I costs nothing, the screen is met exactly); toward the frame itself it is
+    /// the plain solve.
+    #[test]
+    fn screen_toward_a_translated_target_moves_the_output_with_it() {
+        let (topo, p) = synth::sheet(12, 9, 0.1).unwrap();
+        let sys = PositionSystem::new(topo.clone(), Pinning::Centroid, Some(10.0)).unwrap();
+        let fp = sys.factor_frame(&p).unwrap();
+        let identity = vec![vec3::IDENTITY; topo.n_triangles()];
+        let shift = [0.03, -0.02, 0.05];
+        let target: Vec<V3> = p.iter().map(|q| vec3::add(*q, shift)).collect();
+        let got = fp.solve_toward(&identity, &target);
+        for (g, t) in got.iter().zip(&target) {
+            assert!(vec3::norm(vec3::sub(*g, *t)) < 1e-9, "{g:?} vs {t:?}");
+        }
+        let r: Vec<M3> = (0..topo.n_triangles())
+            .map(|t| crate::spacetime::blend::so3::exp([0.0, 0.01 * (t % 7) as f64, 0.0]))
+            .collect();
+        assert_eq!(fp.solve_toward(&r, &p), fp.solve(&r));
+        // Without the screen there is nothing to pull: the plain solve.
+        let bare = PositionSystem::new(topo, Pinning::Centroid, None).unwrap();
+        let fb = bare.factor_frame(&p).unwrap();
+        assert_eq!(fb.solve_toward(&r, &target), fb.solve(&r));
+    }
+
+    /// A shared operator: a block's first frame is solved exactly as with its own factor (bit for bit), a
+    /// later frame reads the leader once and is positioned with its factor — close to, but not, the exact fit
+    /// of its own operator (here a 2% anisotropic stretch of the leader) — and identity rotations still give
+    /// the frame back bit for bit.
+    #[test]
+    fn a_shared_operator_reuses_the_block_leaders_factor() {
+        let (topo, p0) = synth::sheet(14, 11, 0.1).unwrap();
+        let p1: Vec<V3> = p0
+            .iter()
+            .map(|q| [1.02 * q[0], q[1], q[2] + 0.01 * (q[1] * 20.0).sin()])
+            .collect();
+        let sys = PositionSystem::new(topo.clone(), Pinning::Centroid, Some(10.0))
+            .unwrap()
+            .with_operator_block(4);
+        assert_eq!(sys.operator_block(), 4);
+        let r: Vec<M3> = (0..topo.n_triangles())
+            .map(|t| crate::spacetime::blend::so3::exp([0.02 * (t % 5) as f64, 0.0, 0.01]))
+            .collect();
+        let reads = std::cell::Cell::new(0);
+        let lead = sys
+            .factor_frame_at(&p0, 4, |_| panic!("the leader reads nothing"))
+            .unwrap();
+        let exact0 = sys.factor_frame(&p0).unwrap();
+        assert_eq!(lead.solve(&r), exact0.solve(&r));
+        // Frame 6 of block 4..8: its leader is frame 4 (already factorised: nothing read); frame 9 of block
+        // 8..12 reads frame 8 once.
+        let shared = sys
+            .factor_frame_at(&p1, 6, |_| panic!("block 4 is factorised"))
+            .unwrap();
+        let other = sys
+            .factor_frame_at(&p1, 9, |f| {
+                assert_eq!(f, 8);
+                reads.set(reads.get() + 1);
+                Ok(p0.clone())
+            })
+            .unwrap();
+        assert_eq!(reads.get(), 1);
+        let exact1 = sys.factor_frame(&p1).unwrap();
+        let (got, want) = (shared.solve(&r), exact1.solve(&r));
+        assert_eq!(got, other.solve(&r));
+        let (mut diff, mut size) = (0.0f64, 0.0f64);
+        for v in 0..p1.len() {
+            diff = diff.max(vec3::norm(vec3::sub(got[v], want[v])));
+            size = size.max(vec3::norm(vec3::sub(want[v], p1[v])));
+        }
+        assert!(diff > 0.0 && diff < 0.1 * size, "{diff:e} vs {size:e}");
+        let identity = vec![vec3::IDENTITY; topo.n_triangles()];
+        assert_eq!(shared.solve(&identity), p1);
+        // Block 1 (and 0, read as 1) is the frame's own operator.
+        let own = PositionSystem::new(topo, Pinning::Centroid, Some(10.0))
+            .unwrap()
+            .with_operator_block(0);
+        assert_eq!(own.operator_block(), 1);
+        let fp = own
+            .factor_frame_at(&p1, 6, |_| panic!("nothing to read"))
+            .unwrap();
+        assert_eq!(fp.solve(&r), want);
+    }
+
+    /// `operator_block` is read from a job spec's `[deform]` table (default 1) and 0 is refused by name.
+    #[test]
+    fn the_operator_block_is_read_and_validated() {
+        use crate::spacetime::DeformParams;
+        assert_eq!(DeformParams::default().operator_block, 1);
+        let p: DeformParams = serde_json::from_str(r#"{"operator_block": 7}"#).unwrap();
+        assert_eq!(p.operator_block, 7);
+        p.validate().unwrap();
+        let zero = DeformParams {
+            operator_block: 0,
+            ..DeformParams::default()
+        };
+        let err = zero.validate().unwrap_err().to_string();
+        assert!(err.contains("operator_block"), "{err}");
+    }
+}

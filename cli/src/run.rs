@@ -57,29 +57,26 @@ pub struct DeformArgs {
     /// original-to-new normal).
     #[arg(long, default_value = "anchored")]
     pub stretch_rotation: StretchRotation,
-    /// Shape screen cutoff wavelength in mean edge lengths: longer displacements keep the captured shape,
+    /// Shape screen cutoff wavelength in detail scales: longer displacements keep the captured shape,
     /// shorter ones (folds) are free. `off` (or 0): the unscreened system, with --pinning.
-    #[arg(long, default_value = "10", value_parser = parse_shape_cutoff)]
+    #[arg(long, default_value = "2", value_parser = parse_shape_cutoff)]
     pub shape_cutoff: f64,
     /// Only with --shape-cutoff off. `centroid`: keep each component's mean position; `vertex`: keep its
     /// lowest-index vertex fixed.
     #[arg(long, default_value = "centroid", value_parser = parse_pinning)]
     pub pinning: Pinning,
-    /// Fold restoration: Van Cittert steps of the deconvolution of the capture filter, added along the
-    /// captured normal where the deformation put folds (the folds the capture smoothed but did not erase; a
-    /// fold the capture kept a fraction T of comes back as 1 − (1 − T)^(steps + 1)). 0 = off, at most 20.
-    #[arg(long, default_value_t = crease_core::spacetime::params::DEFAULT_FOLD_RESTORE)]
-    pub fold_restore: f64,
+    /// Detail scale, in the input's length unit: the wavelength the modelled capture halves (the fold relief
+    /// and the shape screen work at it). 0 = five mean edge lengths of the first frame.
+    #[arg(long, default_value_t = 0.0)]
+    pub detail_scale: f64,
+    /// Fold relief: Van Cittert steps of the deconvolution (0 = no relief).
+    #[arg(long, default_value_t = 8)]
+    pub relief_steps: u32,
     /// Shape projection: the fraction of the capture filter's low-pass of the positioned displacement removed
     /// before the fold restoration, so folds add only what the capture smoothed away and the garment, its
     /// rims included, keeps the captured shape. 0 = off, at most 1; only with the shape screen on.
     #[arg(long, default_value_t = crease_core::spacetime::shape::projection::DEFAULT_SHAPE_PROJECTION)]
     pub shape_projection: f64,
-    /// Where the shape projection sits relative to the last stretch pass: `last` (after it), `around` (before
-    /// and after it), `screen-to-projected` (the last pass's screen pulls toward the projected shape, then the
-    /// projection). docs/fidelity.md, "The projection and the last stretch pass".
-    #[arg(long, default_value = "last")]
-    pub projection_order: crease_core::spacetime::shape::projection::ProjectionOrder,
     /// Frames per positioning operator: 1 factorises every frame's own system (exact); k > 1 positions each
     /// block of k frames with the first frame's factor (one factorisation per k frames; 7 keeps the public
     /// cases within the quality targets, docs/benchmarks.md "issue14-fused (second stop)").
@@ -154,9 +151,12 @@ impl DeformArgs {
             stretch_rotation: self.stretch_rotation,
             shape_cutoff: self.shape_cutoff,
             pinning: self.pinning,
-            fold_restore: self.fold_restore,
+            relief: crease_core::spacetime::shape::relief::ReliefParams {
+                scale: self.detail_scale,
+                steps: self.relief_steps,
+                ..Default::default()
+            },
             shape_projection: self.shape_projection,
-            projection_order: self.projection_order,
             operator_block: self.operator_block,
 
             strain_limit: self
@@ -303,8 +303,11 @@ fn write_demo_video(a: &DemoArgs) -> Result<()> {
         // Popa's stretch passes, not crease's fold-keeping default: the truth stays what it was whatever the
         // reconstruction's defaults become.
         stretch_rotation: StretchRotation::Polar,
-        // Nor is the fold restoration: it reads the captured surface, which the truth is made from.
-        fold_restore: 0.0,
+        // Nor is the fold relief: it reads the captured surface, which the truth is made from.
+        relief: crease_core::spacetime::shape::relief::ReliefParams {
+            steps: 0,
+            ..Default::default()
+        },
         // Nor the strain limit, a step of the reconstruction.
         strain_limit: 0.0,
         ..DeformParams::default()

@@ -55,10 +55,23 @@ pub struct SurfaceOperator {
 }
 
 impl SurfaceOperator {
-    /// The operator of the surface `p` with connectivity `topo`. A vertex whose triangles have no area gets a
-    /// zero row (it keeps its value under any filter), so the operator is defined on every frame that passed
-    /// validation.
+    /// The operator of the surface `p` with connectivity `topo`, every vertex diffusing over its one-ring. A
+    /// vertex whose triangles have no area gets a zero row (it keeps its value under any filter), so the
+    /// operator is defined on every frame that passed validation.
     pub fn new(topo: &Topology, p: &[V3]) -> Self {
+        Self::build(topo, p, false)
+    }
+
+    /// [`SurfaceOperator::new`], except that a vertex on an open rim diffuses along the rim only (the 1-D
+    /// Laplacian of the rim curve, weights 1 / edge length, mass half its two rim edges). A rim is a curve
+    /// whose shape the surface next to it does not hold: smoothed over its one-ring, a rim that flaps looks
+    /// like a short fold of the surface, while along itself it is the long, smooth motion it is. Low-passes
+    /// that split shape from folds in a displacement (the shape projection, the shape figures) use this one.
+    pub fn with_rims_along_themselves(topo: &Topology, p: &[V3]) -> Self {
+        Self::build(topo, p, true)
+    }
+
+    fn build(topo: &Topology, p: &[V3], rims: bool) -> Self {
         let nv = topo.n_vertices();
         let mut mass = vec![0.0; nv];
         // Cotangent weight of each directed vertex pair, accumulated per triangle: w_ij = (cot α + cot β) / 2.
@@ -81,6 +94,32 @@ impl SurfaceOperator {
                 };
                 pairs.push((i, j, 0.5 * cot));
                 pairs.push((j, i, 0.5 * cot));
+            }
+        }
+        if rims {
+            // Rim vertices: their rows become the rim curve's 1-D Laplacian.
+            let mut rim_mass = vec![0.0; nv];
+            let mut rim_pairs = Vec::new();
+            for (t, tri) in topo.triangles().iter().enumerate() {
+                for k in 0..3 {
+                    if topo.tri_adj()[t][k] == crate::mesh::NONE {
+                        let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                        let len = vec3::norm(vec3::sub(p[a as usize], p[b as usize]));
+                        if len > 0.0 {
+                            rim_mass[a as usize] += 0.5 * len;
+                            rim_mass[b as usize] += 0.5 * len;
+                            rim_pairs.push((a, b, 1.0 / len));
+                            rim_pairs.push((b, a, 1.0 / len));
+                        }
+                    }
+                }
+            }
+            pairs.retain(|&(i, _, _)| rim_mass[i as usize] == 0.0);
+            pairs.extend(rim_pairs);
+            for (m, r) in mass.iter_mut().zip(&rim_mass) {
+                if *r > 0.0 {
+                    *m = *r;
+                }
             }
         }
         pairs.sort_unstable_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
@@ -261,27 +300,6 @@ pub fn low_pass(op: &SurfaceOperator, wavelength: f64) -> Series {
     Series::new(op.lambda_max(), move |l| (-t * l).exp())
 }
 
-/// Mean length of the frame's edges (each edge once): the unit crease states mesh-relative lengths in.
-pub fn mean_edge_length(topo: &Topology, p: &[V3]) -> f64 {
-    let (mut sum, mut count) = (0.0, 0usize);
-    for (t, tri) in topo.triangles().iter().enumerate() {
-        for k in 0..3 {
-            let (a, b) = (tri[k], tri[(k + 1) % 3]);
-            // An interior edge is seen from two triangles: count it from the one with the smaller index.
-            let other = topo.tri_adj()[t][k];
-            if other == crate::mesh::NONE || other as usize > t {
-                sum += vec3::norm(vec3::sub(p[a as usize], p[b as usize]));
-                count += 1;
-            }
-        }
-    }
-    if count == 0 {
-        0.0
-    } else {
-        sum / count as f64
-    }
-}
-
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -410,12 +428,5 @@ pub(crate) mod tests {
                 assert!((got[i][d] - want).abs() < 1e-8, "{i},{d}: {} vs {want}", got[i][d]);
             }
         }
-    }
-
-    #[test]
-    fn mean_edge_length_counts_each_edge_once() {
-        let (topo, p) = waved_grid(5, 4, 4.0, 0.0);
-        let h = mean_edge_length(&topo, &p);
-        assert!((h - 1.0).abs() < 1e-12, "{h}");
     }
 }

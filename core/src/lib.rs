@@ -18,7 +18,6 @@ pub mod metrics;
 pub mod npy;
 pub mod preview;
 pub mod progress;
-pub mod relief;
 pub mod render;
 pub mod rest_stretch;
 pub mod shape;

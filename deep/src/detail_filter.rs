@@ -53,7 +53,7 @@ impl Umbrella {
             boundary[v as usize] = true;
         }
         Umbrella {
-            rings: TaubinFilter::capture(topo),
+            rings: TaubinFilter::new(topo, 0.5, -0.53, 80),
             boundary,
         }
     }

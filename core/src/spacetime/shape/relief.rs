@@ -62,8 +62,12 @@ fn default_temporal_sigma() -> f64 {
 /// power of pure noise scatters around its mean, and the part above it must not come back as relief.
 const NOISE_MARGIN: f64 = 3.0;
 
-/// The relief's smooth part, removed as shape, is its low-pass at this multiple of the detail scale.
+/// The relief's smooth part, removed as shape, is what the heat kernel halving this many detail scales keeps.
 pub const SHAPE_FACTOR: f64 = 2.0;
+
+/// Order of the high-pass that removes it: (1 − H)^order, sharper than 1 − H (a 10-edge wave at the default
+/// scale keeps 1/8 of itself instead of 1/2, a 5-edge one 0.82 instead of 0.94).
+pub const SHAPE_ORDER: i32 = 3;
 
 /// Heights are compressed towards this fraction of ℓ / 2π (the height of a 45° sinusoid of wavelength ℓ).
 pub const HEIGHT_CAP: f64 = 0.5;
@@ -121,6 +125,13 @@ impl ReliefParams {
         }
     }
 
+    /// The frames whose relief the heights of frame `t` of an `n`-frame sequence read: the temporal average's
+    /// span and one more frame each side for the noise estimate.
+    pub fn span(&self, t: usize, n: usize) -> std::ops::Range<usize> {
+        let r = self.radius() + 1;
+        t.saturating_sub(r)..(t + r + 1).min(n)
+    }
+
     /// The detail scale for a sequence whose first frame has mean edge length `edge`.
     pub fn scale_for(&self, edge: f64) -> f64 {
         if self.scale > 0.0 {
@@ -131,9 +142,14 @@ impl ReliefParams {
     }
 }
 
-/// The deconvolution's detail as a function of the heat kernel's eigenvalue: Σ_{j=1..steps} (1 − e^{−tλ})^j.
+/// The relief's transfer as a function of the heat kernel's eigenvalue λ: the deconvolution's detail
+/// Σ_{j=1..steps} (1 − e^{−tλ})^j, times the high-pass (1 − e^{−sλ})^[`SHAPE_ORDER`] at the shape scale (s the
+/// diffusion time halving [`SHAPE_FACTOR`] detail scales). The deconvolution also inflates whatever is curved on
+/// the garment's own scale (the heat kernel shrinks a cylinder; undoing it widens the cylinder): that part is
+/// smooth, and it is shape, not folds, so the high-pass takes it out.
 pub fn detail_series(op: &SurfaceOperator, scale: f64, steps: u32) -> Series {
     let t = heat::diffusion_time(scale);
+    let s = heat::diffusion_time(SHAPE_FACTOR * scale);
     Series::new(op.lambda_max(), move |l| {
         let damped = 1.0 - (-t * l).exp();
         let (mut sum, mut power) = (0.0, 1.0);
@@ -141,7 +157,7 @@ pub fn detail_series(op: &SurfaceOperator, scale: f64, steps: u32) -> Series {
             power *= damped;
             sum += power;
         }
-        sum
+        sum * (1.0 - (-s * l).exp()).powi(SHAPE_ORDER)
     })
 }
 
@@ -158,24 +174,20 @@ pub fn frame_relief(topo: &Topology, c: &[V3], scale: f64, steps: u32) -> Vec<f6
     let centred: Vec<V3> = c.iter().map(|p| vec3::sub(*p, mean)).collect();
     let detail = op.apply(&detail_series(&op, scale, steps), &centred);
     let normals = geometry::vertex_normals(topo, c);
-    let eta: Vec<V3> = detail
+    // A sinusoidal fold of the detail wavelength steeper than 45° (height above ℓ / 2π) is a pleat whose
+    // shape no deconvolution can know: heights beyond that are compressed smoothly towards it.
+    let cap = HEIGHT_CAP * scale / (2.0 * std::f64::consts::PI);
+    detail
         .iter()
         .zip(&normals)
         .map(|(d, n)| {
             let h = vec3::dot(*d, *n);
-            [if h.is_finite() { h } else { 0.0 }, 0.0, 0.0]
+            if h.is_finite() {
+                cap * (h / cap).tanh()
+            } else {
+                0.0
+            }
         })
-        .collect();
-    // The deconvolution also inflates whatever is curved on the garment's own scale (the heat kernel shrinks
-    // a cylinder; undoing it widens the cylinder): that part of the relief is smooth, and it is shape, not
-    // folds. Its low-pass at SHAPE_FACTOR times the detail scale is removed.
-    let smooth = op.apply(&heat::low_pass(&op, SHAPE_FACTOR * scale), &eta);
-    // A sinusoidal fold of the detail wavelength steeper than 45° (height above ℓ / 2π) is a pleat whose
-    // shape no deconvolution can know: heights beyond that are compressed smoothly towards it.
-    let cap = HEIGHT_CAP * scale / (2.0 * std::f64::consts::PI);
-    eta.iter()
-        .zip(&smooth)
-        .map(|(e, s)| cap * ((e[0] - s[0]) / cap).tanh())
         .collect()
 }
 
@@ -289,6 +301,67 @@ pub fn heights(
             }
         })
         .collect())
+}
+
+/// The reliefs of a streamed sequence: computed when a frame first needs them, dropped once no later frame
+/// will (frames are asked for in increasing order, as the streaming driver releases them).
+pub struct ReliefFrames {
+    params: ReliefParams,
+    scale: f64,
+    n_frames: usize,
+    reliefs: std::collections::BTreeMap<usize, Vec<f64>>,
+}
+
+impl ReliefFrames {
+    /// For a sequence of `n_frames` frames at detail scale `scale`.
+    pub fn new(params: ReliefParams, scale: f64, n_frames: usize) -> Self {
+        ReliefFrames {
+            params,
+            scale,
+            n_frames,
+            reliefs: Default::default(),
+        }
+    }
+
+    /// Computes (in parallel) the reliefs frames `frames` need that are not there yet, and drops those no frame
+    /// from the smallest of `frames` on needs.
+    pub fn prepare(&mut self, source: &dyn crate::mesh::FrameSource, frames: &[usize]) -> Result<()> {
+        use rayon::prelude::*;
+        let Some(&first) = frames.iter().min() else {
+            return Ok(());
+        };
+        let keep_from = self.params.span(first, self.n_frames).start;
+        self.reliefs.retain(|&k, _| k >= keep_from);
+        let mut missing: Vec<usize> = frames
+            .iter()
+            .flat_map(|&t| self.params.span(t, self.n_frames))
+            .filter(|k| !self.reliefs.contains_key(k))
+            .collect();
+        missing.sort_unstable();
+        missing.dedup();
+        let topo = source.topology().clone();
+        let (scale, steps) = (self.scale, self.params.steps);
+        let computed: Vec<(usize, Vec<f64>)> = missing
+            .into_par_iter()
+            .map(|k| Ok((k, frame_relief(&topo, &source.read_frame(k)?, scale, steps))))
+            .collect::<Result<_>>()?;
+        self.reliefs.extend(computed);
+        Ok(())
+    }
+
+    /// The heights of frame `t` ([`heights`]); its span must have been prepared.
+    pub fn heights(&self, topo: &Topology, t: usize) -> Result<Vec<f64>> {
+        let span = self.params.span(t, self.n_frames);
+        let reliefs: Vec<&[f64]> = span
+            .clone()
+            .map(|k| {
+                self.reliefs.get(&k).map(|r| r.as_slice()).ok_or_else(|| {
+                    Error::param("relief", format!("frame {k}'s relief was not prepared"))
+                })
+            })
+            .collect::<Result<_>>()?;
+        heights(topo, &self.params, &reliefs, span.start, t)
+    }
 }
 
 /// `out` with `heights` added along the captured frame's vertex normals.

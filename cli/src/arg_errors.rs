@@ -1,4 +1,4 @@
-//! A negative number given to a flag that takes a count (`--window -1`) reaches clap as an unknown argument, a
+//! A negative number given to a flag that takes a count (`--frames -3`) reaches clap as an unknown argument, a
 //! missing value or a digit-parsing failure; all of them read like parser internals. This rewrites them into a
 //! sentence that names the flag and what it takes.
 

@@ -64,9 +64,6 @@ pub struct BenchArgs {
     /// Run only the stretch-folds stage (geometric fold estimation, Chen 2011).
     #[arg(long)]
     pub stretch_folds_only: bool,
-    /// Patch flattening of the stretch-folds stage's tracing (`unfold` or `lscm`; default: the detector's).
-    #[arg(long, value_parser = ["unfold", "lscm"])]
-    pub stretch_flattening: Option<String>,
     /// Image for the video edge stage (default: a 640x480 render of the demo's folded ground truth with the
     /// synthetic-video shading, which has folds to pair).
     #[arg(long)]
@@ -388,14 +385,8 @@ fn aux_stages(a: &BenchArgs) -> Result<()> {
 fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
     use crease_core::folds::stretch::StretchDetector;
     let frames = a.frames.clamp(4, 12);
-    let flattening = match &a.stretch_flattening {
-        Some(how) => how.parse()?,
-        None => crease_core::folds::stretch::StretchParams::default().flattening,
-    };
     println!(
-        "\nstretch folds (Chen 2011), seconds per frame over {frames} frames of a compressed sleeve \
-         ({} flattening)",
-        flattening.name()
+        "\nstretch folds (Chen 2011), seconds per frame over {frames} frames of a compressed sleeve"
     );
     println!(
         "(tracing: its seconds per frame, the rest of s/frame is the two passes; ahead/f: seeds per frame traced \
@@ -418,8 +409,7 @@ fn stretch_folds_stage(a: &BenchArgs) -> Result<()> {
         let (mut folds, mut anchors, mut seeds) = (0usize, 0usize, 0usize);
         reset_peak_rss();
         let t = Instant::now();
-        let mut detector = StretchDetector::default();
-        detector.params.flattening = flattening;
+        let detector = StretchDetector::default();
         let timing = detector.run_timed(&seq, &NoProgress, |_, _, _, f| {
             folds += f.folds.len();
             anchors += f.anchors.len();

@@ -271,7 +271,7 @@ pub struct SubmitArgs {
     pub anchors: Option<String>,
     /// Weight mode (without a job file): fused or per-anchor.
     #[arg(long)]
-    pub mode: Option<String>,
+    pub mode: Option<crease_core::spacetime::WeightMode>,
     /// Priority (without a job file; higher runs first).
     #[arg(long)]
     pub priority: Option<i32>,
@@ -305,21 +305,18 @@ pub fn submit(a: SubmitArgs) -> Result<()> {
             (text, if json { "json" } else { "toml" })
         }
         (None, Some(input), Some(output)) => {
-            let mut spec =
-                serde_json::json!({ "input": absolute(input), "output": absolute(output) });
+            let mut spec = crease_jobs::JobSpec::new(absolute(input), absolute(output));
             if let Some(an) = &a.anchors {
-                spec["folds"] = serde_json::json!({ "kind": "anchors", "uri": absolute(an) });
+                spec.folds = crease_jobs::FoldSpec::Anchors { uri: absolute(an) };
             }
-            if let Some(m) = &a.mode {
-                spec["deform"] = serde_json::json!({ "mode": m });
+            if let Some(m) = a.mode {
+                spec.deform.mode = m;
             }
             if let Some(p) = a.priority {
-                spec["priority"] = p.into();
+                spec.priority = p;
             }
-            if let Some(t) = &a.client_token {
-                spec["client_token"] = t.clone().into();
-            }
-            (spec.to_string(), "json")
+            spec.client_token = a.client_token.clone();
+            (serde_json::to_string(&spec)?, "json")
         }
         (Some(_), _, _) => bail!("give either a job file or --input/--output, not both"),
         _ => bail!("give a job file (crease submit job.toml) or both --input and --output"),

@@ -14,8 +14,6 @@ mod error_text;
 mod eval;
 mod export;
 mod farm;
-mod folds_stretch;
-mod folds_video;
 #[cfg(test)]
 mod help_tree;
 mod limits_args;
@@ -24,8 +22,10 @@ mod logging;
 mod logs;
 mod progress;
 mod run;
+mod run_spec;
 mod security_args;
 mod threads;
+mod tuning;
 mod urls;
 mod view;
 mod watch;
@@ -47,6 +47,8 @@ struct Cli {
 enum Command {
     /// Wrinkle a sequence with an anchors file; with no --input, generate the demo and run on it.
     Run(run::RunArgs),
+    /// List the tuning keys `run --set` and a job spec's [tuning] table take (defaults, ranges, meanings).
+    Tuning(tuning::TuningArgs),
     /// Write the procedural demo sequence (OBJ frames) and its anchors file.
     Demo(run::DemoArgs),
     /// Fold fidelity of a result against ground truth, beside the captured baseline (docs/fidelity.md).
@@ -122,6 +124,7 @@ fn main() {
     }
     let result = match cli.command {
         Command::Run(a) => run::run(a),
+        Command::Tuning(a) => tuning::tuning(a),
         Command::Demo(a) => run::demo(a),
         Command::Eval(a) => eval::eval(a),
         Command::Bench(a) => bench::bench(a),

@@ -164,10 +164,34 @@ fn bad_inputs_get_clear_errors_and_no_report() {
             vec!["--anchors".into(), anchors.display().to_string()],
             vec!["a.json", "triangle 99999999 is out of range"],
         ),
-        (vec!["--shift".into(), "0".into()], vec!["shift"]),
-        (vec!["--window".into(), "0".into()], vec!["window"]),
-        (vec!["--c-a".into(), "-1".into()], vec!["c_a"]),
-        (vec!["--cg-tol".into(), "2".into()], vec!["cg_tolerance"]),
+        (
+            vec!["--set".into(), "deform.shift=0".into()],
+            vec!["deform.shift"],
+        ),
+        (
+            vec!["--set".into(), "deform.window=0".into()],
+            vec!["deform.window"],
+        ),
+        (
+            vec!["--set".into(), "deform.shift=11".into()],
+            vec!["deform.shift:", "window (10)"],
+        ),
+        (
+            vec!["--set".into(), "deform.c_a=-1".into()],
+            vec!["deform.c_a"],
+        ),
+        (
+            vec!["--set".into(), "deform.cg_tolerance=2".into()],
+            vec!["deform.cg_tolerance"],
+        ),
+        (
+            vec!["--set".into(), "deform.cg_tol=1e-4".into()],
+            vec!["`deform.cg_tol` is not a tuning key"],
+        ),
+        (
+            vec!["--set".into(), "deform.operator_block=7".into()],
+            vec!["was removed"],
+        ),
         (vec!["--mode".into(), "magic".into()], vec!["magic"]),
         (
             vec!["--preview-frames".into(), "9".into()],

@@ -164,7 +164,7 @@ fn subdivided_output_keeps_the_original_vertices_first() {
 }
 
 #[test]
-fn bad_stretch_parameters_name_their_flag() {
+fn bad_stretch_parameters_name_their_key() {
     let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/sleeve");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
@@ -177,20 +177,20 @@ fn bad_stretch_parameters_name_their_flag() {
     ];
     let cases: [(&[&str], &str); 6] = [
         (
-            &["--folds", "stretch", "--stretch-theta0", "95"],
-            "--stretch-theta0",
+            &["--folds", "stretch", "--set", "stretch.theta0_deg=95"],
+            "stretch.theta0_deg",
         ),
         (
-            &["--folds", "stretch", "--stretch-theta0", "0"],
-            "(0°, 90°)",
+            &["--folds", "stretch", "--set", "stretch.theta0_deg=0"],
+            "(0, 90)",
         ),
         (
-            &["--folds", "stretch", "--stretch-fold-width", "-1"],
-            "--stretch-fold-width",
+            &["--folds", "stretch", "--set", "stretch.fold_width=-1"],
+            "stretch.fold_width",
         ),
         (
-            &["--folds", "stretch", "--stretch-alpha", "nan"],
-            "--stretch-alpha",
+            &["--folds", "stretch", "--set", "stretch.alpha=nan"],
+            "stretch.alpha",
         ),
         (
             &["--folds", "stretch", "--anchors", "a.json"],

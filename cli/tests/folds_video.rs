@@ -60,12 +60,12 @@ fn demo_video_then_run_with_video_folds() {
         s(&d.join("cameras.json")),
         "--out",
         s(&out),
-        "--overlay-frames",
-        "1",
+        "--set",
+        "video.overlay_frames=1",
         "--preview-size",
         "64",
-        "--stretch-passes",
-        "1",
+        "--set",
+        "deform.stretch_passes=1",
     ]));
     assert!(log.contains("tracked vertices"), "{log}");
     let anchors: serde_json::Value =
@@ -91,10 +91,10 @@ fn demo_video_then_run_with_video_folds() {
         s(&d.join("cameras.json")),
         "--out",
         s(&out),
-        "--front-vertex",
-        "0",
-        "--back-vertex",
-        "999999",
+        "--set",
+        "video.front_vertex=0",
+        "--set",
+        "video.back_vertex=999999",
     ]);
     assert!(!e.status.success());
     assert!(String::from_utf8_lossy(&e.stderr).contains("999999"));

@@ -1,7 +1,7 @@
 //! The mesh's winding is arbitrary (files from different tools disagree): it must not decide which way a fold
 //! rises. Flipping every triangle of the input must give the same output geometry.
 
-use crease_core::folds::stretch::{Flattening, StretchDetector};
+use crease_core::folds::stretch::StretchDetector;
 use crease_core::folds::{AnchorSet, FoldDetector};
 use crease_core::mesh::{FrameSource, MemorySink, Sequence, Topology};
 use crease_core::progress::NoProgress;
@@ -10,10 +10,9 @@ use crease_core::synth;
 use crease_core::vec3;
 use std::sync::Arc;
 
-fn output(seq: &Sequence, flattening: Flattening) -> (AnchorSet, Vec<Vec<[f64; 3]>>) {
+fn output(seq: &Sequence) -> (AnchorSet, Vec<Vec<[f64; 3]>>) {
     let n = seq.n_frames();
-    let mut detector = StretchDetector::default();
-    detector.params.flattening = flattening;
+    let detector = StretchDetector::default();
     let frames = detector.detect(seq, 0..n, &NoProgress).unwrap();
     let anchors = AnchorSet::from_frame_anchors(frames, seq.topology.n_triangles(), None).unwrap();
     let mut sink = MemorySink::default();
@@ -29,18 +28,10 @@ fn output(seq: &Sequence, flattening: Flattening) -> (AnchorSet, Vec<Vec<[f64; 3
     (anchors, sink.frames.into_values().collect())
 }
 
+/// Patches are flattened by unfolding (LSCM where a patch folds over); both give the mirrored layout bit for bit
+/// under the flip.
 #[test]
 fn flipped_winding_gives_identical_geometry() {
-    flipped_winding_is_the_same(Flattening::default());
-}
-
-/// The same with patches flattened by unfolding (mirrored bit for bit under the flip).
-#[test]
-fn flipped_winding_gives_identical_geometry_when_unfolding() {
-    flipped_winding_is_the_same(Flattening::Unfold);
-}
-
-fn flipped_winding_is_the_same(flattening: Flattening) {
     let seq = synth::compressed_tube(2500, 10, 0.3, 0.5).unwrap();
     let flipped: Vec<[u32; 3]> = seq
         .topology
@@ -50,8 +41,8 @@ fn flipped_winding_is_the_same(flattening: Flattening) {
         .collect();
     let topo = Arc::new(Topology::new(seq.topology.n_vertices(), flipped).unwrap());
     let seq2 = Sequence::new(topo, seq.frames.clone()).unwrap();
-    let (a1, out1) = output(&seq, flattening);
-    let (a2, out2) = output(&seq2, flattening);
+    let (a1, out1) = output(&seq);
+    let (a2, out2) = output(&seq2);
     assert!(a1.total() > 50, "only {} anchors", a1.total());
     // The same triangles get the same rotations.
     for t in 0..seq.n_frames() {

@@ -3,15 +3,12 @@
 use crease_core::folds::{Anchor, AnchorSet};
 use crease_core::mesh::{MemorySink, Sequence};
 use crease_core::progress::NoProgress;
-use crease_core::spacetime::blend::CrossFade;
+use crease_core::spacetime::blend::so3;
+use crease_core::spacetime::position::stretch::StretchRotation;
 use crease_core::spacetime::weights::operator::SpaceTimeOperator;
 use crease_core::spacetime::weights::per_anchor::LocalCg;
-use crease_core::spacetime::position::PositionSystem;
-use crease_core::spacetime::stages::position_frame;
-use crease_core::spacetime::position::stretch::StretchRotation;
 use crease_core::spacetime::weights::{solve_window, WindowProblem};
-use crease_core::spacetime::windows::{plan_windows, Window};
-use crease_core::spacetime::blend::so3;
+use crease_core::spacetime::windows::Window;
 use crease_core::spacetime::{deform, Coefficients, DeformParams, WeightMode};
 use crease_core::synth::{self, DemoSpec};
 use crease_core::vec3;
@@ -647,81 +644,4 @@ fn results_are_bit_identical_across_thread_counts() {
             assert!(same, "{mode}: output depends on the thread count");
         }
     }
-}
-
-/// With a shared positioning operator (`operator_block` 3), frames positioned one by one, out of order and
-/// by two separate systems (two workers, each factorising the block leaders it needs), give the driver's
-/// bits; and the output differs from the exact per-frame operator's only off the block leaders.
-#[test]
-fn a_shared_operator_is_the_same_wherever_frames_are_positioned() {
-    let bits = |v: &[vec3::V3]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
-    let (seq, anchors) = synth::demo(&DemoSpec {
-        triangles: 800,
-        frames: 9,
-        ..Default::default()
-    })
-    .unwrap();
-    let topo = seq.topology.clone();
-    let params = DeformParams {
-        window: 5,
-        shift: 3,
-        operator_block: 3,
-        ..Default::default()
-    };
-    let run = |p: &DeformParams| {
-        let mut sink = MemorySink::default();
-        deform(&seq, &anchors, p, &mut sink, &NoProgress, &[]).unwrap();
-        sink.frames
-    };
-    let driven = run(&params);
-    let exact = run(&DeformParams {
-        operator_block: 1,
-        ..params.clone()
-    });
-    let windows = plan_windows(9, params.window, params.shift);
-    let mut fade = CrossFade::new(windows.clone(), topo.n_triangles());
-    let mut phis = Vec::new();
-    for w in &windows {
-        let problem = WindowProblem::new(&topo, &anchors, *w, params.coefficients);
-        let (field, _) = solve_window(&problem, &params, &NoProgress).unwrap();
-        phis.extend(fade.push(&field));
-    }
-    phis.sort_by_key(|f| f.0);
-    // The default strain limit runs in `deform` too: each worker limits against the same rest lengths.
-    let limiter = params.strain_limiter(&seq).unwrap();
-    let worker = |frames: &[usize]| {
-        let sys = PositionSystem::new(topo.clone(), params.pinning, params.screen())
-            .unwrap()
-            .with_operator_block(params.operator_block);
-        frames
-            .iter()
-            .map(|&t| {
-                let f = position_frame(
-                    &sys,
-                    &seq,
-                    t,
-                    &phis[t].1,
-                    params.stretch_passes,
-                    params.stretch_rotation,
-                    params.restoration(),
-                    limiter.as_ref(),
-                )
-                .unwrap();
-                (t, f.out)
-            })
-            .collect::<Vec<_>>()
-    };
-    let mut moved_off_leaders = 0;
-    for (t, out) in worker(&[8, 4, 1])
-        .into_iter()
-        .chain(worker(&[7, 0, 5, 2, 6, 3]))
-    {
-        assert_eq!(bits(&out), bits(&driven[&t]), "frame {t}");
-        if t % 3 == 0 {
-            assert_eq!(bits(&out), bits(&exact[&t]), "leader {t}");
-        } else if out != exact[&t] {
-            moved_off_leaders += 1;
-        }
-    }
-    assert!(moved_off_leaders > 0, "the shared operator changed nothing");
 }

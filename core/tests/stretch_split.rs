@@ -5,7 +5,7 @@ use crease_core::folds::stretch::split::{
     overlay_frame, reconcile, steps, trace_chunk, ChunkTracer, Pass, PhaseCode, Phases, StepRecord,
     TracedChunk,
 };
-use crease_core::folds::stretch::{Flattening, StretchDetector, StretchParams};
+use crease_core::folds::stretch::{StretchDetector, StretchParams};
 use crease_core::folds::FoldDetector;
 use crease_core::mesh::{FrameSource, Sequence};
 use crease_core::progress::NoProgress;
@@ -167,18 +167,4 @@ fn split_detection_is_the_streaming_run_for_any_chunking() {
     .unwrap();
     check(&demo, StretchParams::default(), "demo");
     check(&demo, with_memory(), "demo, seed memory");
-}
-
-/// The same with patches flattened by unfolding instead of LSCM (`flattening = "unfold"`).
-#[test]
-fn split_detection_with_unfolding_is_the_streaming_run() {
-    let mut env = vec![0.0];
-    env.extend((1..=6).map(|i| i as f64 / 6.0));
-    env.extend([1.0, 0.5]);
-    let seq = synth::compressed_sheet(24, 24, 0.1, 0.5, (0.35, 0.65), 0.12, 0.03, &env).unwrap();
-    let unfold = StretchParams {
-        flattening: Flattening::Unfold,
-        ..Default::default()
-    };
-    check(&seq, unfold, "compressed sheet, unfolding");
 }

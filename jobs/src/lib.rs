@@ -41,8 +41,12 @@
 //! [preview]
 //! frames = [5, 20]                         # default: four spread over the sequence
 //! size = 384
+//!
+//! [tuning]                                 # any tuning key (docs/tuning.md, `crease tuning`), set over
+//! deform.strain_limit = 0.03               # the tables above: the same keys `crease run --set` takes
 //! "#).unwrap();
 //! assert_eq!(job.params().anchor_block, 256);
+//! assert_eq!(job.deform.strain_limit, 0.03);
 //! ```
 //!
 //! Errors name the field: `job spec: \`partition.anchor_block\`: …`, `input /data/x: …`.
@@ -129,6 +133,7 @@ pub mod inspect;
 pub mod keys;
 pub mod limits;
 pub mod plan;
+pub mod report;
 pub mod s3;
 pub mod settle_tasks;
 pub mod spec;
@@ -137,6 +142,7 @@ pub mod storage;
 pub mod storage_errors;
 pub mod stretch_tasks;
 pub mod task;
+pub mod tuning;
 
 pub use confine::StorageRoots;
 pub use error::{JobError, TaskError};

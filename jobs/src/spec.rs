@@ -6,6 +6,7 @@
 
 use crate::error::JobError;
 use crate::storage::parse_location;
+use crate::tuning::Tuning;
 use crease_core::folds::stretch::StretchParams;
 use crease_core::folds::video::VideoParams;
 use crease_core::spacetime::DeformParams;
@@ -52,6 +53,10 @@ pub struct JobSpec {
     /// DeepWrinkles training or inference instead of a deformation ([`crate::deep`]).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub deep: Option<crate::deep::DeepSpec>,
+    /// Tuning keys ([`crate::tuning`]), applied over the tables they name when the spec is read, which leaves
+    /// this empty.
+    #[serde(default, skip_serializing_if = "Tuning::is_empty")]
+    pub tuning: Tuning,
 }
 
 fn default_max_task_attempts() -> u32 {
@@ -194,34 +199,66 @@ impl Default for PreviewOptions {
 }
 
 impl JobSpec {
-    /// Parses a TOML job file and validates it.
+    /// A job that deforms `input` into `output` with every other field at its default.
+    pub fn new(input: impl Into<String>, output: impl Into<String>) -> Self {
+        JobSpec {
+            name: String::new(),
+            input: input.into(),
+            output: output.into(),
+            folds: FoldSpec::default(),
+            deform: DeformParams::default(),
+            priority: 0,
+            partition: Partition::default(),
+            client_token: None,
+            max_task_attempts: default_max_task_attempts(),
+            max_task_failures_per_job: default_max_task_failures_per_job(),
+            preview: PreviewOptions::default(),
+            export: Default::default(),
+            deep: None,
+            tuning: Tuning::default(),
+        }
+    }
+
+    /// Parses a TOML job file, applies its `[tuning]` and validates it.
     pub fn from_toml_str(text: &str) -> Result<Self, JobError> {
         let spec: JobSpec = toml::from_str(text).map_err(|e| {
             let field = missing_field(e.message())
                 .or_else(|| e.span().and_then(|span| toml_field_at(text, span.start)))
                 .filter(|f| !f.is_empty())
                 .unwrap_or_else(|| "job spec (TOML)".to_string());
-            JobError::spec(field, e.message().trim().to_string())
+            JobError::spec(field, with_removal_reason(e.message().trim()))
         })?;
-        spec.validate()?;
-        Ok(spec)
+        spec.resolved()
     }
 
-    /// Parses a JSON job spec and validates it.
+    /// Parses a JSON job spec, applies its `tuning` and validates it.
     pub fn from_json_str(text: &str) -> Result<Self, JobError> {
         let spec: JobSpec = serde_json::from_str(text).map_err(|e| {
             let field = missing_field(&e.to_string())
                 .or_else(|| json_key_before(text, e.line(), e.column()))
                 .filter(|f| !f.is_empty())
                 .unwrap_or_else(|| "job (JSON)".to_string());
-            JobError::spec(field, e.to_string())
+            JobError::spec(field, with_removal_reason(&e.to_string()))
         })?;
-        spec.validate()?;
-        Ok(spec)
+        spec.resolved()
+    }
+
+    /// The spec with its tuning keys applied ([`crate::tuning::apply`]), validated: what a spec built in code
+    /// (`crease run`) goes through before it is submitted, as a parsed one does.
+    pub fn resolved(mut self) -> Result<Self, JobError> {
+        crate::tuning::apply(&mut self)?;
+        self.validate()?;
+        Ok(self)
     }
 
     /// Checks everything that can be checked without touching storage, naming the field at fault.
     pub fn validate(&self) -> Result<(), JobError> {
+        if let Some((key, _)) = self.tuning.iter().next() {
+            return Err(JobError::spec(
+                format!("tuning.{key}"),
+                "is not applied: read specs with `from_toml_str` / `from_json_str`, or call `resolved`",
+            ));
+        }
         parse_location(&self.input, "input")?;
         parse_location(&self.output, "output")?;
         for (field, uri) in crate::confine::spec_uris(self) {
@@ -230,16 +267,9 @@ impl JobSpec {
         if let Some(deep) = &self.deep {
             deep.validate(self)?;
         }
-        // The detectors name parameters as their CLI flags do (`fold-width`, `theta0`); the spec names fields.
         let param_err = |e: crease_core::Error| match e {
             crease_core::Error::Param { name, msg } => {
-                let field = match name.as_str() {
-                    "theta0" | "max-turn" | "max-angle" | "narrow_angle" | "wide_angle" => {
-                        format!("{}_deg", name.replace('-', "_"))
-                    }
-                    _ => name.replace('-', "_"),
-                };
-                JobError::spec(format!("folds.params.{field}"), msg)
+                JobError::spec(format!("folds.params.{name}"), msg)
             }
             e => JobError::spec("folds.params", e.to_string()),
         };
@@ -358,6 +388,19 @@ impl JobSpec {
             anchor_block: self.partition.anchor_block,
             ..self.deform.clone()
         }
+    }
+}
+
+/// A parse error's message, with the reason when it is about a field that was removed (`unknown field
+/// `operator_block``): an old spec then says what became of the setting.
+fn with_removal_reason(message: &str) -> String {
+    let field = message
+        .find("unknown field `")
+        .map(|i| &message[i + "unknown field `".len()..])
+        .and_then(|rest| rest.find('`').map(|end| &rest[..end]));
+    match field.and_then(crate::tuning::removed) {
+        Some(why) => format!("{message} (`{}` was removed: {why})", field.unwrap_or("")),
+        None => message.to_string(),
     }
 }
 

@@ -1,5 +1,6 @@
-//! Job spec names follow one rule: a field with a `crease run` flag is spelled like the flag (`cg_max_iter`,
-//! `c_s`, `theta0`), and the library's longer names are accepted too. Errors name the field at fault.
+//! Job spec names: a field is spelled as its tuning key names it (`c_s`, `cg_max_iterations`, `theta0_deg`), and
+//! the older short names (`cg_max_iter`, `theta0`, `canny_radii`) and the nested `coefficients` table are read
+//! too. Errors name the field at fault.
 
 use crease_jobs::{FoldSpec, JobError, JobSpec};
 

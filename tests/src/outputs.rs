@@ -38,7 +38,14 @@ pub fn write_anchors(path: &Path) {
 
 /// Parameters shared by the job files and the reference `crease run`: short windows so there are several
 /// windows, cross-fades and reduce tasks on four frames.
-pub const MODE_ARGS: [&str; 6] = ["--window", "3", "--shift", "2", "--anchor-block", "8"];
+pub const MODE_ARGS: [&str; 6] = [
+    "--set",
+    "deform.window=3",
+    "--set",
+    "deform.shift=2",
+    "--set",
+    "partition.anchor_block=8",
+];
 
 pub fn job_file(
     dir: &Path,

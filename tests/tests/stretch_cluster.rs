@@ -21,7 +21,8 @@ fn split_stretch_detection_on_two_workers_matches_crease_run() {
             "stretch",
         ])
         .args(["--out", reference.to_str().unwrap(), "--mode", "fused"])
-        .args(["--window", "3", "--shift", "2", "--preview-size", "64"])
+        .args(["--set", "deform.window=3", "--set", "deform.shift=2"])
+        .args(["--preview-size", "64"])
         .args(["--threads", "2"])
         .output()
         .unwrap();

@@ -88,12 +88,12 @@ fn exit_status_tells_failed_cancelled_and_lost_apart() {
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(3), "{err}");
     assert!(err.contains("failed") && !err.contains(" done:"), "{err}");
-    assert!(err.contains("--cg-max-iter"), "{err}");
-    let help = Command::new(bin())
-        .args(["run", "--help"])
+    assert!(err.contains("deform.cg_max_iterations"), "{err}");
+    let keys = Command::new(bin())
+        .args(["tuning", "deform.cg"])
         .output()
         .unwrap();
-    assert!(String::from_utf8_lossy(&help.stdout).contains("--cg-max-iter "));
+    assert!(String::from_utf8_lossy(&keys.stdout).contains("deform.cg_max_iterations = "));
 
     // Cancelled.
     let slow = job_file(d, "slow", &fixture(), &anchors, &d.join("o2"), "fused", "");

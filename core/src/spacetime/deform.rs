@@ -20,12 +20,12 @@ use crate::mesh::{Frame, FrameSink, FrameSource};
 use crate::metrics::{StretchAccumulator, StretchStats};
 use crate::progress::Progress;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// Seconds spent per stage, summed over all frames and windows (work time: with frames positioned in parallel
 /// the wall time is lower; see `wall`).
-#[derive(Debug, Clone, Default, Serialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub struct StageTimings {
     pub symbolic: f64,
     pub read: f64,
@@ -46,7 +46,7 @@ pub struct StageTimings {
 }
 
 /// What a deformation did and measured.
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct DeformReport {
     pub params: DeformParams,
     pub frames: usize,
@@ -100,8 +100,7 @@ pub fn deform(
     let t0 = Instant::now();
     let edge = crate::shape::mean_edge_length(&topo, &source.read_frame(0)?);
     let scales = params.scales(edge);
-    let system = PositionSystem::new(topo.clone(), params.pinning, scales.screen)?
-        .with_operator_block(params.operator_block);
+    let system = PositionSystem::new(topo.clone(), params.pinning, scales.screen)?;
     // The fold relief of every frame, when the job puts folds in at all (no anchors: the input comes back as it
     // was, bit for bit).
     let mut relief = (anchors.total() > 0 && params.relief.is_active())

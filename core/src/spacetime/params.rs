@@ -58,8 +58,8 @@ pub struct Scales {
 
 /// Everything the deformation needs besides the sequence and the anchors.
 ///
-/// Read from a job spec's `[deform]` table through [`DeformFields`], which also accepts each `crease run`
-/// flag's own name (`c_s`, `cg_tol`, `cg_max_iter`), so a flag and its spec field are spelled the same.
+/// Read from a job spec's `[deform]` table through [`DeformFields`], which takes the coefficients flat (`c_s`,
+/// as their tuning keys `deform.c_s` name them) or nested, and the older names `cg_tol` and `cg_max_iter`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "DeformFields")]
 pub struct DeformParams {
@@ -93,12 +93,6 @@ pub struct DeformParams {
     /// turns it off; it acts only with the shape screen on (`shape_cutoff` > 0: `off` is the paper's
     /// unconstrained system).
     pub shape_projection: f64,
-    /// Frames per positioning operator (see [`super::position::PositionSystem::with_operator_block`]): 1
-    /// (default) factorises every frame's own stiffness matrix, the exact least-squares fit; k > 1 positions
-    /// each block of k frames (t − t mod k, …) with the factor of the block's first frame and the frame's own
-    /// right-hand side, one numeric factorisation per k frames instead of one per frame. 7 keeps the four
-    /// public cases within the quality targets (bench/results/2026-12-03-fused-positioning.md).
-    pub operator_block: usize,
 
     /// Strain limit (see [`super::position::strain_limit`]): the last step of the positioning shortens every edge
     /// longer than (1 + this) times its reference length back to it; a fraction, 0 turns it off.
@@ -126,7 +120,6 @@ impl Default for DeformParams {
             pinning: Pinning::Centroid,
             relief: ReliefParams::default(),
             shape_projection: super::shape::projection::DEFAULT_SHAPE_PROJECTION,
-            operator_block: 1,
 
             strain_limit: super::position::strain_limit::DEFAULT_STRAIN_LIMIT,
             strain_limit_sweeps: super::position::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS,
@@ -135,9 +128,9 @@ impl Default for DeformParams {
     }
 }
 
-/// The `[deform]` table as written: every field optional (paper defaults), each under the name of its
-/// `crease run` flag (`--c-s` → `c_s`, `--cg-max-iter` → `cg_max_iter`) or its longer struct name
-/// (`coefficients.c_s`, `cg_max_iterations`).
+/// The `[deform]` table as written: every field optional (paper defaults), each under the name of its tuning
+/// key (`c_s`, `cg_max_iterations`), its place in the struct (`coefficients.c_s`) or its older name
+/// (`cg_max_iter`).
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct DeformFields {
@@ -160,7 +153,6 @@ struct DeformFields {
     pinning: Option<Pinning>,
     relief: Option<ReliefParams>,
     shape_projection: Option<f64>,
-    operator_block: Option<usize>,
 
     strain_limit: Option<f64>,
     strain_limit_sweeps: Option<usize>,
@@ -208,7 +200,6 @@ impl TryFrom<DeformFields> for DeformParams {
             pinning: f.pinning.unwrap_or(d.pinning),
             relief: f.relief.unwrap_or(d.relief),
             shape_projection: f.shape_projection.unwrap_or(d.shape_projection),
-            operator_block: f.operator_block.unwrap_or(d.operator_block),
 
             strain_limit: f.strain_limit.unwrap_or(d.strain_limit),
             strain_limit_sweeps: f.strain_limit_sweeps.unwrap_or(d.strain_limit_sweeps),
@@ -253,12 +244,6 @@ impl DeformParams {
 
     /// Rejects values the solver cannot honour, naming the parameter.
     pub fn validate(&self) -> Result<()> {
-        if self.operator_block == 0 {
-            return Err(Error::param(
-                "operator_block",
-                "must be at least 1 frame (1: every frame its own operator)",
-            ));
-        }
         let c = &self.coefficients;
         let finite_nonneg = |name: &str, v: f64| {
             if !v.is_finite() || v < 0.0 {

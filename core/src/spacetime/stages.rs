@@ -99,15 +99,13 @@ pub fn position_frame(
     let read = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
-    let fp = system
-        .factor_frame_at(&rest, t, |r| source.read_frame(r))
-        .map_err(|e| match e {
-            Error::Numeric { stage, msg } => Error::numeric(
-                stage,
-                format!("frame {t} ({}): {msg}", source.describe_frame(t)),
-            ),
-            e => e.at(None, Some(t)),
-        })?;
+    let fp = system.factor_frame(&rest).map_err(|e| match e {
+        Error::Numeric { stage, msg } => Error::numeric(
+            stage,
+            format!("frame {t} ({}): {msg}", source.describe_frame(t)),
+        ),
+        e => e.at(None, Some(t)),
+    })?;
     let factor = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();

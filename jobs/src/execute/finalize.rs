@@ -10,6 +10,7 @@ use super::weights::WindowRecord;
 use crate::error::{JobError, TaskError};
 use crate::inspect::{output_files, output_sink, writes_frames};
 use crate::keys;
+use crate::report::{AnchorsSource, FoldDetection, JobReport, SecondsPerFrame, Summary, VsRest};
 use crate::spec::FoldSpec;
 use crease_core::mesh::{Frame, FrameSource};
 use crease_core::metrics::StretchAccumulator;
@@ -205,70 +206,75 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let last = report.stretch.last().copied().unwrap_or_default();
     let per_frame = |s: f64| s / n as f64;
     let t = &report.timings;
-    let anchors_source = match &job.folds {
-        FoldSpec::None => Value::Null,
-        FoldSpec::Anchors { uri } => json!(uri),
+    let anchors_file = match &job.folds {
+        FoldSpec::None => None,
+        FoldSpec::Anchors { uri } => Some(AnchorsSource::File(uri.clone())),
         #[allow(unreachable_patterns)]
-        other => json!({ "detected": other.kind(), "file": env.out.describe(keys::ANCHORS) }),
+        other => Some(AnchorsSource::Detected {
+            detected: other.kind().into(),
+            file: env.out.describe(keys::ANCHORS),
+        }),
     };
-    let fold_detection: Value = if crate::detect::granularity(&job.folds).is_some() {
-        env.get_json(keys::FOLD_SUMMARY)?
+    let fold_detection: Option<FoldDetection> = if crate::detect::granularity(&job.folds).is_some()
+    {
+        Some(env.get_json(keys::FOLD_SUMMARY)?)
     } else {
-        Value::Null
+        None
     };
-    let doc = json!({
-        "complete": true,
-        "crease_version": env!("CARGO_PKG_VERSION"),
-        "job": job.display_name(),
-        "input": job.input,
-        "input_layout": opened.layout.kind(),
-        "anchors_file": anchors_source,
-        "fold_detection": fold_detection,
-        "output": job.output,
-        "output_files": written.iter().map(|k| env.out.describe(k)).collect::<Vec<_>>(),
-        "preview": [env.out.describe(keys::PREVIEW), env.out.describe(keys::STRETCH_PLOT)],
-        "parameters": params,
-        "partition": job.partition,
-        "summary": {
-            "frames": n,
-            "vertices": topo.n_vertices(),
-            "triangles": topo.n_triangles(),
-            "anchors": report.anchors,
-            "stretch_reference": "per triangle, max(s1 - 1, 1 - s2) against the captured triangle of the same frame",
-            "stretch_after_positioning": first,
-            "stretch_final": last,
-            "stretch_vs_rest": {
-                "reference": rest_stretch::REFERENCE,
-                "final": vs_rest.stats(),
-            },
-            "shape_kept": shape_kept.stats(),
-            "seconds_per_frame": {
-                "weights": per_frame(t.weights),
-                "blend": per_frame(t.blend),
-                "factor": per_frame(t.factor),
-                "position": per_frame(t.position),
-                "stretch_passes": t.stretch_passes.iter().map(|s| per_frame(*s)).collect::<Vec<_>>(),
-            },
-            "timings_note": "work seconds summed over tasks (report.timings.wall is 0: the job's wall time is in the coordinator's record)",
-            "preview_seconds": preview_seconds,
-        },
-        "report": report,
-    });
     // Every key this run owns (crease_jobs::stale): the next run on this output removes those it does not write.
     let mut manifest = env.block_on(crate::stale::owned_now(&env.out));
     if manifest.is_empty() {
         manifest = written.clone();
         manifest.push(keys::REPORT.into());
     }
-    let mut doc = doc;
-    doc["manifest"] = json!(manifest);
-    let text = serde_json::to_string_pretty(&doc)
+    let doc = JobReport {
+        complete: true,
+        crease_version: env!("CARGO_PKG_VERSION").into(),
+        job: job.display_name(),
+        input: job.input.clone(),
+        input_layout: opened.layout.kind().into(),
+        anchors_file,
+        fold_detection,
+        output: job.output.clone(),
+        output_files: written.iter().map(|k| env.out.describe(k)).collect(),
+        preview: vec![env.out.describe(keys::PREVIEW), env.out.describe(keys::STRETCH_PLOT)],
+        parameters: params.clone(),
+        partition: job.partition.clone(),
+        summary: Summary {
+            frames: n,
+            vertices: topo.n_vertices(),
+            triangles: topo.n_triangles(),
+            anchors: report.anchors,
+            stretch_reference:
+                "per triangle, max(s1 - 1, 1 - s2) against the captured triangle of the same frame".into(),
+            stretch_after_positioning: first,
+            stretch_final: last,
+            stretch_vs_rest: VsRest {
+                reference: rest_stretch::REFERENCE.into(),
+                output: vs_rest.stats(),
+            },
+            shape_kept: shape_kept.stats(),
+            seconds_per_frame: SecondsPerFrame {
+                weights: per_frame(t.weights),
+                blend: per_frame(t.blend),
+                factor: per_frame(t.factor),
+                position: per_frame(t.position),
+                stretch_passes: t.stretch_passes.iter().map(|s| per_frame(*s)).collect(),
+            },
+            timings_note: "work seconds summed over tasks (report.timings.wall is 0: the job's wall time is in the coordinator's record)".into(),
+            preview_seconds,
+        },
+        report,
+        manifest,
+    };
+    let text = doc
+        .to_text()
         .map_err(|e| TaskError::fatal(format!("finalize: report: {e}")))?;
     env.put(keys::REPORT, text)?;
     written.push(keys::REPORT.into());
     lap.lap("finalize: exports, report");
     Ok((
-        json!({ "frames": n, "stretch_final": last, "anchors": report.anchors }),
+        json!({ "frames": n, "stretch_final": last, "anchors": doc.report.anchors }),
         written,
     ))
 }

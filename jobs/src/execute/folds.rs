@@ -15,6 +15,7 @@ use super::phase_times::Lap;
 use crate::detect::{detection_chunks, detector, granularity};
 use crate::error::TaskError;
 use crate::keys;
+use crate::report::FoldDetection;
 use crate::spec::FoldSpec;
 use crease_core::folds::anchors::binary;
 use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors};
@@ -135,7 +136,7 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     lap.lap("fold-merge: anchor set, binary form read back");
     env.put(keys::ANCHORS_BIN, bin)?;
     lap.lap("fold-merge: write anchors.bin");
-    // What finalize puts into report.json as `fold_detection`.
+    // What finalize puts into report.json as `fold_detection` ([`FoldDetection`]).
     let mut summary = json!({ "source": d.name(), "anchors": back.total() });
     if let (Some(s), Some(extra)) = (summary.as_object_mut(), summary_extra.as_object_mut()) {
         s.append(extra);
@@ -146,6 +147,11 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     if let (Some(s), Value::Object(extra)) = (summary.as_object_mut(), extra) {
         s.extend(extra);
     }
+    // The type finalize reads it back as; stored as a JSON value, whose keys are sorted as in the report.
+    let summary: FoldDetection = serde_json::from_value(summary)
+        .map_err(|e| TaskError::fatal(format!("fold merge: detection summary: {e}")))?;
+    let summary = serde_json::to_value(&summary)
+        .map_err(|e| TaskError::fatal(format!("fold merge: detection summary: {e}")))?;
     env.put_json(keys::FOLD_SUMMARY, &summary)?;
     let counts: Vec<usize> = (0..n).map(|t| back.frame(t).len()).collect();
     lap.lap("fold-merge: summary");

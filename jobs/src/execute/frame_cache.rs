@@ -1,10 +1,10 @@
 //! Parsed input frames kept per worker process, shared by the tasks that read the same opened input.
 //!
-//! Why: in a per-anchor job every positioning task reads its frames (and, with an operator block, the block's
-//! lead frame), the strain limiter reads every frame once per process for its sequence reference, and finalize
-//! reads frames again for the previews. Each read parsed the frame's file (an OBJ of 100K triangles is tens of
-//! milliseconds), where the in-process deformation reads each frame once. The first read of a frame now keeps
-//! the parsed positions, and later reads through the same opened input copy them.
+//! Why: in a per-anchor job every positioning task reads its frames, the strain limiter reads every frame once
+//! per process for its sequence reference, and finalize reads frames again for the previews. Each read parsed
+//! the frame's file (an OBJ of 100K triangles is tens of milliseconds), where the in-process deformation reads
+//! each frame once. The first read of a frame now keeps the parsed positions, and later reads through the same
+//! opened input copy them.
 //!
 //! Safety: the cache lives inside the opened input ([`super::env::TaskEnv::open_input`]), which is reopened
 //! (with an empty cache) as soon as any of the input's files changes size or modification time, so a frame is

@@ -212,12 +212,11 @@ fn store_frame(
     Ok([kp, ks, kt])
 }
 
-/// A positioning system this process built: (input, pinning, screen bits, operator block, system).
+/// A positioning system this process built: (input, pinning, screen bits, system).
 type BuiltSystem = (
     Arc<OpenedSequence>,
     Pinning,
     Option<u64>,
-    usize,
     Arc<PositionSystem>,
 );
 
@@ -238,14 +237,11 @@ fn position_system(
 ) -> Result<(Arc<PositionSystem>, f64), TaskError> {
     let (pinning, screen) = (env.params.pinning, scales.screen);
     let screen_bits = screen.map(f64::to_bits);
-    let block = env.params.operator_block;
     let found = |systems: &[BuiltSystem]| {
         systems
             .iter()
-            .find(|(o, p, s, b, _)| {
-                Arc::ptr_eq(o, opened) && *p == pinning && *s == screen_bits && *b == block
-            })
-            .map(|(_, _, _, _, sys)| Arc::clone(sys))
+            .find(|(o, p, s, _)| Arc::ptr_eq(o, opened) && *p == pinning && *s == screen_bits)
+            .map(|(_, _, _, sys)| Arc::clone(sys))
     };
     if let Some(sys) = found(&SYSTEMS.lock().unwrap_or_else(|p| p.into_inner())) {
         return Ok((sys, 0.0));
@@ -254,22 +250,14 @@ fn position_system(
     let clock = std::time::Instant::now();
     let topo = opened.source.topology().clone();
     let sys = Arc::new(
-        PositionSystem::new(topo, pinning, screen)
-            .map_err(|e| TaskError::from_core(label, e))?
-            .with_operator_block(block),
+        PositionSystem::new(topo, pinning, screen).map_err(|e| TaskError::from_core(label, e))?,
     );
     let seconds = clock.elapsed().as_secs_f64();
     let mut systems = SYSTEMS.lock().unwrap_or_else(|p| p.into_inner());
     if found(&systems).is_none() {
         systems.insert(
             0,
-            (
-                Arc::clone(opened),
-                pinning,
-                screen_bits,
-                block,
-                Arc::clone(&sys),
-            ),
+            (Arc::clone(opened), pinning, screen_bits, Arc::clone(&sys)),
         );
         systems.truncate(2);
     }

@@ -26,7 +26,7 @@ pub mod tracer;
 pub mod unfold;
 mod wide_sweep;
 
-pub use params::{Flattening, StretchParams};
+pub use params::StretchParams;
 pub use trace::TracedFold;
 pub use tracer::FrameFolds;
 

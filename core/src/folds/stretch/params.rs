@@ -64,49 +64,6 @@ pub struct StretchParams {
     pub seed_memory: bool,
     /// Folds whose traced axis is shorter than this (mean edge lengths) are dropped as noise.
     pub min_length: f64,
-    /// How each seed's patch is laid out in the plane before its axis is traced (§4.4).
-    pub flattening: Flattening,
-}
-
-/// The patch parameterisation of fold tracing. Chen 2011 uses ABF++; both choices here keep angles and need no
-/// non-linear solve, which matters because one patch is flattened per fold seed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Flattening {
-    /// Unfolding from the seed outwards, each vertex at the mean of where its laid-out triangles put it
-    /// ([`super::unfold`]): exact on developable patches, no solve. A patch too curved to unfold without
-    /// triangles folding over (a fifth of the patches on the sleeve sample) is flattened by LSCM instead. The
-    /// default: half the detection time of LSCM at 100K triangles and a third of its memory, with fold figures
-    /// within 0.003 of LSCM's on both public stretch cases and a lower drift max (docs/folds.md).
-    #[default]
-    Unfold,
-    /// Least-squares conformal map, one sparse Cholesky solve per seed ([`super::lscm`]): spreads the
-    /// distortion of a curved patch over all of it instead of outwards from the seed.
-    Lscm,
-}
-
-impl Flattening {
-    /// The name the CLI and job specs use.
-    pub fn name(self) -> &'static str {
-        match self {
-            Flattening::Unfold => "unfold",
-            Flattening::Lscm => "lscm",
-        }
-    }
-}
-
-impl std::str::FromStr for Flattening {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "unfold" => Ok(Flattening::Unfold),
-            "lscm" => Ok(Flattening::Lscm),
-            _ => Err(Error::param(
-                "flattening",
-                format!("must be `unfold` or `lscm`, got `{s}`"),
-            )),
-        }
-    }
 }
 
 impl Default for StretchParams {
@@ -129,13 +86,12 @@ impl Default for StretchParams {
             min_length: 2.0,
             temporal_radius: 2,
             seed_memory: false,
-            flattening: Flattening::Unfold,
         }
     }
 }
 
 impl StretchParams {
-    /// Checks every field; errors name the field as the CLI spells it.
+    /// Checks every field; errors name the field.
     pub fn validate(&self) -> Result<()> {
         let finite_pos = |name: &str, v: f64| -> Result<()> {
             if !v.is_finite() || v <= 0.0 {
@@ -157,7 +113,7 @@ impl StretchParams {
         };
         if !(self.theta0_deg > 0.0 && self.theta0_deg < 90.0) {
             return Err(Error::param(
-                "theta0",
+                "theta0_deg",
                 format!(
                     "must lie in (0°, 90°) (directions are axial), got {}°",
                     self.theta0_deg
@@ -167,13 +123,13 @@ impl StretchParams {
         finite_nonneg("isometry", self.isometry)?;
         if self.smooth_iterations > 1000 {
             return Err(Error::param(
-                "smooth-iterations",
+                "smooth_iterations",
                 format!("at most 1000, got {}", self.smooth_iterations),
             ));
         }
         if !(self.max_change.is_finite() && self.max_change > 1.0) {
             return Err(Error::param(
-                "max-change",
+                "max_change",
                 format!(
                     "is an absolute change (≥ 1) and must exceed 1, got {}",
                     self.max_change
@@ -182,16 +138,16 @@ impl StretchParams {
         }
         if !(self.tail_fraction.is_finite() && (0.0..0.5).contains(&self.tail_fraction)) {
             return Err(Error::param(
-                "tail-fraction",
+                "tail_fraction",
                 format!("must lie in [0, 0.5), got {}", self.tail_fraction),
             ));
         }
-        finite_pos("min-shrink", self.min_shrink)?;
+        finite_pos("min_shrink", self.min_shrink)?;
         if self.min_shrink + 1.0 >= self.max_change {
             return Err(Error::param(
-                "min-shrink",
+                "min_shrink",
                 format!(
-                    "1 + min-shrink ({}) must be below max-change ({})",
+                    "1 + min_shrink ({}) must be below max_change ({})",
                     1.0 + self.min_shrink,
                     self.max_change
                 ),
@@ -205,30 +161,30 @@ impl StretchParams {
         }
         if !(self.max_turn_deg > 0.0 && self.max_turn_deg <= 90.0) {
             return Err(Error::param(
-                "max-turn",
+                "max_turn_deg",
                 format!("must lie in (0°, 90°], got {}°", self.max_turn_deg),
             ));
         }
-        finite_pos("fold-width", self.fold_width)?;
+        finite_pos("fold_width", self.fold_width)?;
         finite_pos("alpha", self.alpha)?;
-        finite_pos("patch-radius", self.patch_radius)?;
+        finite_pos("patch_radius", self.patch_radius)?;
         if self.patch_radius > 1000.0 {
             return Err(Error::param(
-                "patch-radius",
+                "patch_radius",
                 format!("at most 1000 edge lengths, got {}", self.patch_radius),
             ));
         }
-        finite_nonneg("angle-gain", self.angle_gain)?;
+        finite_nonneg("angle_gain", self.angle_gain)?;
         if !(self.max_angle_deg > 0.0 && self.max_angle_deg <= 180.0) {
             return Err(Error::param(
-                "max-angle",
+                "max_angle_deg",
                 format!("must lie in (0°, 180°], got {}°", self.max_angle_deg),
             ));
         }
-        finite_nonneg("min-length", self.min_length)?;
+        finite_nonneg("min_length", self.min_length)?;
         if self.temporal_radius > 50 {
             return Err(Error::param(
-                "temporal-radius",
+                "temporal_radius",
                 format!("at most 50 frames, got {}", self.temporal_radius),
             ));
         }
@@ -249,21 +205,21 @@ mod tests {
                     theta0_deg: 0.0,
                     ..Default::default()
                 },
-                "theta0",
+                "theta0_deg",
             ),
             (
                 StretchParams {
                     theta0_deg: 95.0,
                     ..Default::default()
                 },
-                "theta0",
+                "theta0_deg",
             ),
             (
                 StretchParams {
                     fold_width: -1.0,
                     ..Default::default()
                 },
-                "fold-width",
+                "fold_width",
             ),
             (
                 StretchParams {
@@ -277,14 +233,14 @@ mod tests {
                     max_change: 0.5,
                     ..Default::default()
                 },
-                "max-change",
+                "max_change",
             ),
             (
                 StretchParams {
                     tail_fraction: 0.7,
                     ..Default::default()
                 },
-                "tail-fraction",
+                "tail_fraction",
             ),
             (
                 StretchParams {
@@ -298,20 +254,16 @@ mod tests {
                     max_angle_deg: 0.0,
                     ..Default::default()
                 },
-                "max-angle",
+                "max_angle_deg",
             ),
             (
                 StretchParams {
                     min_shrink: 3.0,
                     ..Default::default()
                 },
-                "min-shrink",
+                "min_shrink",
             ),
         ];
-        assert_eq!("lscm".parse::<Flattening>().unwrap(), Flattening::Lscm);
-        assert_eq!("unfold".parse::<Flattening>().unwrap(), Flattening::Unfold);
-        let e = "abf".parse::<Flattening>().unwrap_err().to_string();
-        assert!(e.contains("`flattening`") && e.contains("abf"), "{e}");
         for (p, name) in cases {
             let e = p.validate().unwrap_err().to_string();
             assert!(e.contains(&format!("`{name}`")), "{name}: {e}");

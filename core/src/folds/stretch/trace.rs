@@ -21,7 +21,7 @@
 //!   the length the capture lost.
 
 use super::lscm::lscm_with;
-use super::params::{Flattening, StretchParams};
+use super::params::StretchParams;
 use super::smooth::FrameGeometry;
 use super::symbolic::SymbolicCache;
 use super::tensor::shape;
@@ -181,7 +181,7 @@ impl SeedWork {
         s: usize,
         centroid: V3,
     ) -> Outcome {
-        let patch = self.patch(f, s, params.patch_radius * f.h, params.flattening)?;
+        let patch = self.patch(f, s, params.patch_radius * f.h)?;
         let out = self.axis(f, params, s, &patch).map(|axis| {
             let fold = self.control_lines(f, params, s, &patch, &axis, centroid);
             let reach = params.alpha * f.shrink[s] * f.h;
@@ -192,9 +192,10 @@ impl SeedWork {
     }
 
     /// Triangles whose centroid lies within `radius` of the seed's (breadth-first, so the patch is connected),
-    /// flattened by `how`. Fills `tri_local` / `vert_local`; [`Self::release`] clears them. Either flattening
-    /// is laid out from vertex indices, not corner order, so a flipped triangle gives the mirrored flattening.
-    fn patch(&mut self, f: &FrameField, s: usize, radius: f64, how: Flattening) -> Option<Patch> {
+    /// flattened by unfolding, or by LSCM where the unfolding folds triangles over. Fills `tri_local` /
+    /// `vert_local`; [`Self::release`] clears them. Either flattening is laid out from vertex indices, not corner
+    /// order, so a flipped triangle gives the mirrored flattening.
+    fn patch(&mut self, f: &FrameField, s: usize, radius: f64) -> Option<Patch> {
         let (topo, geom) = (f.topo, f.geom);
         let c0 = geom.centroids[s];
         // `norm(d) <= radius` without the square root, decided exactly as with it (see `SqrtBound`).
@@ -242,24 +243,21 @@ impl SeedWork {
                 .unwrap_or(pin0);
             lscm_with(&pos, local_tris, (pin0, pin1), Some(&self.patterns))
         };
-        let patch_uv = match how {
-            Flattening::Unfold => self
-                .unfolder
-                .unfold(
-                    &PatchRef {
-                        topo,
-                        n_tris: tris.len(),
-                        p: f.p,
-                        tri_local: &self.tri_local,
-                        vert_local: &self.vert_local,
-                        verts: &verts,
-                    },
-                    s,
-                )
-                .filter(|uv| unfolds_without_overlap(&corners, uv))
-                .or_else(|| lscm(&self.vert_local)),
-            Flattening::Lscm => lscm(&self.vert_local),
-        };
+        let patch_uv = self
+            .unfolder
+            .unfold(
+                &PatchRef {
+                    topo,
+                    n_tris: tris.len(),
+                    p: f.p,
+                    tri_local: &self.tri_local,
+                    vert_local: &self.vert_local,
+                    verts: &verts,
+                },
+                s,
+            )
+            .filter(|uv| unfolds_without_overlap(&corners, uv))
+            .or_else(|| lscm(&self.vert_local));
         let patch = Patch {
             tris,
             corners,

@@ -1,6 +1,6 @@
-//! Flattening a fold seed's patch by unfolding it (the default `flattening = "unfold"`): a patch
-//! parameterisation of tracing without the sparse LSCM solve per seed ([`super::lscm`], selectable). Tracing falls back to LSCM
-//! for a patch whose unfolded layout folds triangles over (`trace.rs`, `unfolds_without_overlap`).
+//! Flattening a fold seed's patch by unfolding it: the patch parameterisation of tracing, without a sparse
+//! solve per seed. Tracing falls back to LSCM ([`super::lscm`]) for a patch whose unfolded layout folds
+//! triangles over (`trace.rs`, `unfolds_without_overlap`).
 //!
 //! Vertices are laid out from the seed outwards, in order of their 3D distance from the seed triangle's
 //! centroid. A vertex can be placed once some patch triangle holds it and two vertices already laid out; each

@@ -1,5 +1,5 @@
 //! Which cameras a frame's anchors come from when the views are chosen by coverage
-//! ([`super::VideoParams::cover_views`]).
+//! ([`super::Views::Cover`], the default).
 //!
 //! Popa et al. analyse one front and one back view. That covers a sheet, whose two faces those views see
 //! head-on, but not a tube in a ring of cameras: the front and back cameras see its sides edge-on, where fold

@@ -83,20 +83,12 @@ fn to_byte(v: f32) -> f32 {
 
 /// Canny's low and high thresholds at `level`, on a grid of `factor` level pixels per full-resolution pixel.
 ///
-/// Enlarging by `u` divides image gradients by `u`, so the thresholds are scaled to match. With
-/// [`VideoParams::contrast_thresholds`] they are also divided by the level's radius (in pixels of the
-/// resolution-`scale` image): a step of grey-level height `H` blurred by σ = `r` has a peak Sobel gradient of
-/// `8 H / (√(2π) r)`, so fixed thresholds ask a wide level for an edge `r` times as contrasted as at radius 1,
-/// and the soft contours of wide folds — whose gradient the blur cannot raise — pass at no radius. Divided by
-/// `r`, every level keeps the edges of the same contrast (`canny_high` = 30 is a step of about 9 grey levels),
-/// and a wider level still needs a contour that wide: blur lowers a narrow feature's gradient further and
-/// lowers the noise's gradient faster (∝ 1/r²), so the lower thresholds do not admit the fine-scale noise the
-/// narrow levels see.
+/// Enlarging by `u` divides image gradients by `u`, so the thresholds are scaled to match. The same thresholds
+/// hold at every radius: a wider level asks for a contour that much more contrasted, which keeps the soft
+/// contours of wide folds out along with the noise (dividing them by the radius found those contours but as
+/// many false ones, bench/results/2026-12-02-sleeve-video-kappa.md).
 pub fn canny_thresholds(level: Level, factor: f64, params: &VideoParams) -> (f32, f32) {
-    let mut k = level.scale / factor;
-    if params.contrast_thresholds {
-        k /= level.radius;
-    }
+    let k = level.scale / factor;
     let low = (params.canny_low * k) as f32;
     let high = (params.canny_high * k) as f32;
     (low, high.max(low))

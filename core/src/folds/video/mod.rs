@@ -31,7 +31,7 @@ pub mod shading;
 pub mod views;
 
 pub use cameras::{CameraRig, Photo};
-pub use params::VideoParams;
+pub use params::{VideoParams, Views};
 
 use super::{Anchor, Artifact, FoldDetector, FrameAnchors, Granularity};
 use crate::error::{Error, Result};
@@ -224,13 +224,13 @@ impl VideoFolds {
         let mut cover = None;
         let mut ready: Vec<Option<project::MeshCaster>> =
             (0..self.rig.cameras.len()).map(|_| None).collect();
-        if self.params.all_views {
+        if self.params.views == Views::All {
             for cam in 0..self.rig.cameras.len() {
                 if !roles.iter().any(|r| r.1 == cam) && seeing(cam) {
                     roles.push(("side", cam));
                 }
             }
-        } else if self.params.cover_views {
+        } else if self.params.views == Views::Cover {
             for (cam, slot) in ready.iter_mut().enumerate() {
                 if seeing(cam) {
                     *slot = Some(project::MeshCaster::new(
@@ -307,7 +307,7 @@ impl VideoFolds {
                 shading: lit,
             });
         }
-        let owners = self.params.all_views.then(|| {
+        let owners = (self.params.views == Views::All).then(|| {
             let h_frame = crate::folds::stretch::mean_edge_length(topo, positions);
             ownership::Ownership::new(topo, positions, &casters, h_frame)
         });
@@ -604,42 +604,6 @@ mod tests {
         assert!(w > 1.5 && w < 6.0);
         let want = 60.0 * 30.0 / (30.0 + (w - 1.5) / (6.0 - 1.5) * 30.0);
         assert!((angles[0].to_degrees() - want).abs() < 1e-6, "{angles:?}");
-    }
-
-    /// The soft contour of a wide fold: a valley 20 grey levels deep with a Gaussian profile of σ = 4 px, whose
-    /// steepest gradient (Sobel 24) the blur of no level can raise to the high threshold of 30. With the
-    /// thresholds divided by each level's radius the wider levels find its two contours and pair them as a
-    /// valley about 8 px wide (its inflection points); the narrowest level sees the same edges either way.
-    #[test]
-    fn contrast_thresholds_find_the_soft_contours_of_a_wide_fold() {
-        let img = image::RgbaImage::from_fn(160, 100, |x, _| {
-            let d = x as f64 - 80.0;
-            let g = (150.0 - 20.0 * (-d * d / 32.0).exp()).round() as u8;
-            image::Rgba([g, g, g, 255])
-        });
-        let photo = Photo::from_rgba(&img);
-        let fixed = VideoParams::default();
-        assert!(!fixed.contrast_thresholds);
-        let (fixed_levels, none) = image_pairs(&photo, &fixed);
-        assert!(none.is_empty(), "{none:?}");
-        let scaled = VideoParams {
-            contrast_thresholds: true,
-            ..fixed
-        };
-        let (levels, pairs) = image_pairs(&photo, &scaled);
-        assert_eq!(pairs.len(), 1, "{pairs:?}");
-        let p = &pairs[0];
-        assert!(!p.ridge);
-        assert!((p.width - 8.0).abs() < 2.5, "width {}", p.width);
-        assert!(p.length > 2.0 * 60.0, "length {}", p.length);
-        assert!(
-            levels[p.level].level.radius >= 1.5,
-            "{:?}",
-            levels[p.level].level
-        );
-        // Radius 1 keeps its thresholds.
-        assert_eq!(levels[0].level.radius, 1.0);
-        assert_eq!(levels[0].chains, fixed_levels[0].chains);
     }
 
     /// A view holding only `pairs` (frame_anchors reads nothing else).

@@ -1,9 +1,9 @@
 //! Which camera a triangle's anchors come from when every camera is analysed
-//! ([`super::VideoParams::all_views`], off by default).
+//! ([`super::Views::All`], not the default).
 //!
 //! Popa et al. pick one front and one back view. That covers a sheet, but not a tube: with cameras in a ring
 //! around a sleeve, the front and back cameras see its sides edge-on, where pairs are dropped as silhouette, so
-//! about half of the tube gets no anchors. With `all_views`, every camera that sees the garment is analysed and
+//! about half of the tube gets no anchors. With `views = all`, every camera that sees the garment is analysed and
 //! each triangle keeps only the anchors of the camera that sees it most squarely among those that see it at all
 //! (not hidden by other cloth, inside the image): there its fold edges are the least foreshortened, so the
 //! pair's width (which sets the angle) and direction are measured best, and two cameras never stack their

@@ -18,12 +18,6 @@ pub struct VideoParams {
     /// Canny hysteresis thresholds on the Sobel gradient magnitude of the 0–255 grey image.
     pub canny_low: f64,
     pub canny_high: f64,
-    /// Divide the Canny thresholds by each level's radius, so every radius keeps edges of the same grey-level
-    /// contrast rather than of the same gradient ([`super::edges::canny_thresholds`]); the thresholds then
-    /// mean the gradient of an edge seen at radius 1. Off by default: on the sleeve it finds the soft contours
-    /// of wide folds (fold fraction 0.142 → 0.204) but with them as many false ones (κ 0.296 → 0.305,
-    /// correlation 0.550 → 0.509, normal error 8.04° → 8.40°; bench/results/2026-12-02-sleeve-video-kappa.md).
-    pub contrast_thresholds: bool,
     /// Shortest edge kept after chaining, fitting and splitting.
     pub min_edge_length: f64,
     /// Largest distance of a chain point from its fitted quadric (pixels of the level) before it is split.
@@ -86,15 +80,8 @@ pub struct VideoParams {
     pub flank_min_tilt_deg: f64,
     /// Prior scale of a flank's tilt, degrees: the estimate is shrunk towards 0 by `Σs² / (Σs² + σ²/prior²)`.
     pub flank_prior_deg: f64,
-    /// Analyse every camera that sees the garment, each triangle taking the anchors of the camera that sees it
-    /// most squarely ([`super::ownership`]). Off by default: it helps the tube-like sleeve and hurts the sheet
-    /// (bench/results/2026-12-02-video-views.md); `cover_views` helps the sleeve without hurting the sheet.
-    pub all_views: bool,
-    /// Choose the views by coverage ([`super::cover`]): the front and back views, plus, greedily, the cameras
-    /// that see squarely a part of the garment they see only obliquely; those cameras anchor only that part.
-    /// On by default (bench/results/2026-12-02-video-views.md: it lifts the sleeve and leaves the sheet as it was); `false`
-    /// gives Popa's two views. Ignored when `all_views` is set.
-    pub cover_views: bool,
+    /// Which cameras are analysed ([`Views`]).
+    pub views: Views,
     /// |cos| between a triangle's normal and the viewing ray from which a camera sees the triangle squarely
     /// (0.5 = 60°: a fold's width appears halved).
     pub square_cos: f64,
@@ -108,6 +95,22 @@ pub struct VideoParams {
     pub stable_normal_rings: usize,
 }
 
+/// The cameras video fold estimation analyses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Views {
+    /// The front and back views, plus, greedily, the cameras that see squarely a part of the garment those see
+    /// only obliquely; each added camera anchors only that part ([`super::cover`]). It lifts the tube-like
+    /// sleeve and leaves the sheet as it was (bench/results/2026-12-02-video-views.md).
+    #[default]
+    Cover,
+    /// The front and back views only, as Popa et al. analyse them.
+    FrontBack,
+    /// Every camera that sees the garment, each triangle taking the anchors of the camera that sees it most
+    /// squarely ([`super::ownership`]). It helps the sleeve less than `Cover` and hurts the sheet.
+    All,
+}
+
 impl Default for VideoParams {
     fn default() -> Self {
         VideoParams {
@@ -115,7 +118,6 @@ impl Default for VideoParams {
             scales: vec![1.0],
             canny_low: 12.0,
             canny_high: 30.0,
-            contrast_thresholds: false,
             min_edge_length: 8.0,
             fit_tolerance: 1.0,
             max_curvature: 0.08,
@@ -140,8 +142,7 @@ impl Default for VideoParams {
             flank_band: 3.0,
             flank_min_tilt_deg: 10.0,
             flank_prior_deg: 20.0,
-            all_views: false,
-            cover_views: true,
+            views: Views::Cover,
             square_cos: 0.5,
             min_cover_gain: 0.1,
             temporal_radius: 2,
@@ -209,7 +210,7 @@ impl VideoParams {
         pos("merge_gap", self.merge_gap)?;
         if !(self.max_angle_deg > 0.0 && self.max_angle_deg < 90.0) {
             return Err(Error::param(
-                "max_angle",
+                "max_angle_deg",
                 format!("must be in (0, 90) degrees, got {}", self.max_angle_deg),
             ));
         }
@@ -224,8 +225,8 @@ impl VideoParams {
         frac("min_cover_gain", self.min_cover_gain)?;
         frac("max_off_garment", self.max_off_garment)?;
         for (name, a) in [
-            ("narrow_angle", self.narrow_angle_deg),
-            ("wide_angle", self.wide_angle_deg),
+            ("narrow_angle_deg", self.narrow_angle_deg),
+            ("wide_angle_deg", self.wide_angle_deg),
         ] {
             if !(a.is_finite() && (0.0..=180.0).contains(&a)) {
                 return Err(Error::param(

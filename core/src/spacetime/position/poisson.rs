@@ -48,7 +48,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// How the translational degree of freedom of each connected component is removed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -79,19 +79,7 @@ pub struct PositionSystem {
     symbolic: SymbolicCholesky<usize>,
     /// The three-column triangular solves' view of the factor structure (None: not supernodal; faer solves).
     solve_plan: Option<super::factor_solve::SolvePlan>,
-    /// Frames per shared operator: 1 factorises every frame's own stiffness matrix (exact); k > 1 positions
-    /// every frame of a block of k (frames t − t mod k …) with the factor of the block's first frame.
-    operator_block: usize,
-    /// Factors of block-leading frames (frame, factor values), the most recent few.
-    shared_factors: Mutex<Vec<(usize, SharedFactor)>>,
 }
-
-/// One block's factor, computed by the first frame of the block that asks for it (the others wait for it).
-type SharedFactor = Arc<Mutex<Option<Arc<Vec<f64>>>>>;
-
-/// Block factors kept at once: frames are positioned a window's release at a time, in parallel, so at most a
-/// couple of blocks are in use together.
-const SHARED_FACTORS_KEPT: usize = 4;
 
 const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0)];
 
@@ -184,29 +172,7 @@ impl PositionSystem {
             scatter,
             symbolic,
             solve_plan,
-            operator_block: 1,
-            shared_factors: Mutex::new(Vec::new()),
         })
-    }
-
-    /// Shares one positioning operator among every `k` frames ([`PositionSystem::factor_frame_at`]; 0 counts as
-    /// 1, every frame its own).
-    ///
-    /// Why this is a reasonable approximation: K is the cotangent stiffness (plus the screen's λ M) of the
-    /// captured frame, which depends on its metric only (edge lengths, angles, areas), and cloth barely
-    /// stretches, so the K of nearby frames differ by the capture's small strain. The right-hand side keeps
-    /// the frame's own gradients, areas and rotations, so the fit still asks for that frame's deformation
-    /// gradients; only the weighting of the least-squares residuals is the block leader's. The numeric
-    /// factorisation was the positioning's largest per-frame cost (0.047 s at 100K triangles, more than the
-    /// three solves together).
-    pub fn with_operator_block(mut self, k: usize) -> Self {
-        self.operator_block = k.max(1);
-        self
-    }
-
-    /// Frames per shared positioning operator (see [`PositionSystem::with_operator_block`]).
-    pub fn operator_block(&self) -> usize {
-        self.operator_block
     }
 
     pub fn topology(&self) -> &Arc<Topology> {
@@ -217,16 +183,6 @@ impl PositionSystem {
     /// the pattern of [`PositionSystem::pattern`]), with the per-triangle gradients, areas and unit normals.
     #[allow(clippy::type_complexity)]
     pub fn assemble(&self, rest: &[V3]) -> Result<(Vec<f64>, Vec<[V3; 3]>, Vec<f64>, Vec<V3>)> {
-        let (values, grads, areas, normals, _) = self.assemble_screened(rest)?;
-        Ok((values, grads, areas, normals))
-    }
-
-    /// [`PositionSystem::assemble`] and the frame's screen weight λ (0 without the screen).
-    #[allow(clippy::type_complexity)]
-    fn assemble_screened(
-        &self,
-        rest: &[V3],
-    ) -> Result<(Vec<f64>, Vec<[V3; 3]>, Vec<f64>, Vec<V3>, f64)> {
         let topo = &self.topo;
         let mut grads = Vec::with_capacity(topo.n_triangles());
         let mut areas = Vec::with_capacity(topo.n_triangles());
@@ -263,7 +219,7 @@ impl PositionSystem {
             areas.push(area);
             normals.push(nh);
         }
-        Ok((values, grads, areas, normals, screen))
+        Ok((values, grads, areas, normals))
     }
 
     /// Sparsity pattern (CSC, lower triangle) of the reduced system: (column pointers, row indices).
@@ -283,62 +239,9 @@ impl PositionSystem {
 
     /// Assembles and factorises the stiffness matrix of one original frame.
     pub fn factor_frame<'a>(&'a self, rest: &'a [V3]) -> Result<FramePositioner<'a>> {
-        let (values, grads, areas, normals, screen) = self.assemble_screened(rest)?;
+        let (values, grads, areas, normals) = self.assemble(rest)?;
         let l_values = Arc::new(self.factorize(&values)?);
-        Ok(self.positioner(rest, l_values, grads, areas, normals, screen))
-    }
-
-    /// [`PositionSystem::factor_frame`] for frame `t`, with the operator of [`PositionSystem::operator_block`]:
-    /// the frame's own (block 1), or the factor of its block's first frame, read with `read` and factorised
-    /// once for the block. The right-hand sides are always frame `t`'s own.
-    pub fn factor_frame_at<'a>(
-        &'a self,
-        rest: &'a [V3],
-        t: usize,
-        read: impl FnOnce(usize) -> Result<Frame>,
-    ) -> Result<FramePositioner<'a>> {
-        if self.operator_block <= 1 {
-            return self.factor_frame(rest);
-        }
-        let lead = t - t % self.operator_block;
-        let cell = {
-            let mut kept = self
-                .shared_factors
-                .lock()
-                .unwrap_or_else(|e| e.into_inner());
-            match kept.iter().find(|(f, _)| *f == lead) {
-                Some((_, c)) => c.clone(),
-                None => {
-                    let c = SharedFactor::default();
-                    if kept.len() >= SHARED_FACTORS_KEPT {
-                        kept.remove(0);
-                    }
-                    kept.push((lead, c.clone()));
-                    c
-                }
-            }
-        };
-        let (own_values, grads, areas, normals, screen) = self.assemble_screened(rest)?;
-        let l_values = {
-            let mut slot = cell.lock().unwrap_or_else(|e| e.into_inner());
-            match &*slot {
-                Some(l) => l.clone(),
-                None => {
-                    let values = if lead == t {
-                        own_values
-                    } else {
-                        let lead_rest = read(lead)?;
-                        self.assemble_screened(&lead_rest)
-                            .map_err(|e| e.at(None, Some(lead)))?
-                            .0
-                    };
-                    let l = Arc::new(self.factorize(&values)?);
-                    *slot = Some(l.clone());
-                    l
-                }
-            }
-        };
-        Ok(self.positioner(rest, l_values, grads, areas, normals, screen))
+        Ok(self.positioner(rest, l_values, grads, areas, normals))
     }
 
     fn positioner<'a>(
@@ -348,7 +251,6 @@ impl PositionSystem {
         grads: Vec<[V3; 3]>,
         areas: Vec<f64>,
         normals: Vec<V3>,
-        screen: f64,
     ) -> FramePositioner<'a> {
         let topo = &self.topo;
         let vertex_area = {
@@ -368,7 +270,6 @@ impl PositionSystem {
             normals,
             l_values,
             vertex_area,
-            screen,
         }
     }
 
@@ -420,8 +321,6 @@ pub struct FramePositioner<'a> {
     normals: Vec<V3>,
     l_values: Arc<Vec<f64>>,
     vertex_area: Vec<f64>,
-    /// The shape screen's weight λ for this frame (0 without the screen).
-    screen: f64,
 }
 
 impl FramePositioner<'_> {
@@ -441,27 +340,6 @@ impl FramePositioner<'_> {
     /// sense of the module documentation.
     pub fn solve(&self, rotations: &[M3]) -> Frame {
         let mut rhs = self.rhs(rotations);
-        self.solve_in_place(&mut rhs);
-        self.finish(&rhs)
-    }
-
-    /// [`FramePositioner::solve`] with the shape screen pulling toward `target` instead of the original frame:
-    /// min Σ A ‖F − R‖² + λ ‖x − target‖²_M, whose normal equations add λ M (target − rest) to the right-hand
-    /// side (same factor). Without the screen this is [`FramePositioner::solve`].
-    pub fn solve_toward(&self, rotations: &[M3], target: &[V3]) -> Frame {
-        let mut rhs = self.rhs(rotations);
-        if self.screen > 0.0 {
-            for (v, &fi) in self.sys.free_index.iter().enumerate() {
-                if fi == NONE {
-                    continue;
-                }
-                let w = self.screen * self.vertex_area[v];
-                let d = vec3::sub(target[v], self.rest[v]);
-                for (c, dc) in d.iter().enumerate() {
-                    rhs[(fi as usize, c)] += w * dc;
-                }
-            }
-        }
         self.solve_in_place(&mut rhs);
         self.finish(&rhs)
     }
@@ -554,111 +432,5 @@ impl FramePositioner<'_> {
 
     pub fn topology(&self) -> &Arc<Topology> {
         &self.sys.topo
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::synth;
-
-    /// With identity rotations the screened solve toward a target is the target wherever the target is a rigid
-    /// translation of the frame (F = I costs nothing, the screen is met exactly); toward the frame itself it is
-    /// the plain solve.
-    #[test]
-    fn screen_toward_a_translated_target_moves_the_output_with_it() {
-        let (topo, p) = synth::sheet(12, 9, 0.1).unwrap();
-        let sys = PositionSystem::new(topo.clone(), Pinning::Centroid, Some(10.0)).unwrap();
-        let fp = sys.factor_frame(&p).unwrap();
-        let identity = vec![vec3::IDENTITY; topo.n_triangles()];
-        let shift = [0.03, -0.02, 0.05];
-        let target: Vec<V3> = p.iter().map(|q| vec3::add(*q, shift)).collect();
-        let got = fp.solve_toward(&identity, &target);
-        for (g, t) in got.iter().zip(&target) {
-            assert!(vec3::norm(vec3::sub(*g, *t)) < 1e-9, "{g:?} vs {t:?}");
-        }
-        let r: Vec<M3> = (0..topo.n_triangles())
-            .map(|t| crate::spacetime::blend::so3::exp([0.0, 0.01 * (t % 7) as f64, 0.0]))
-            .collect();
-        assert_eq!(fp.solve_toward(&r, &p), fp.solve(&r));
-        // Without the screen there is nothing to pull: the plain solve.
-        let bare = PositionSystem::new(topo, Pinning::Centroid, None).unwrap();
-        let fb = bare.factor_frame(&p).unwrap();
-        assert_eq!(fb.solve_toward(&r, &target), fb.solve(&r));
-    }
-
-    /// A shared operator: a block's first frame is solved exactly as with its own factor (bit for bit), a
-    /// later frame reads the leader once and is positioned with its factor — close to, but not, the exact fit
-    /// of its own operator (here a 2% anisotropic stretch of the leader) — and identity rotations still give
-    /// the frame back bit for bit.
-    #[test]
-    fn a_shared_operator_reuses_the_block_leaders_factor() {
-        let (topo, p0) = synth::sheet(14, 11, 0.1).unwrap();
-        let p1: Vec<V3> = p0
-            .iter()
-            .map(|q| [1.02 * q[0], q[1], q[2] + 0.01 * (q[1] * 20.0).sin()])
-            .collect();
-        let sys = PositionSystem::new(topo.clone(), Pinning::Centroid, Some(10.0))
-            .unwrap()
-            .with_operator_block(4);
-        assert_eq!(sys.operator_block(), 4);
-        let r: Vec<M3> = (0..topo.n_triangles())
-            .map(|t| crate::spacetime::blend::so3::exp([0.02 * (t % 5) as f64, 0.0, 0.01]))
-            .collect();
-        let reads = std::cell::Cell::new(0);
-        let lead = sys
-            .factor_frame_at(&p0, 4, |_| panic!("the leader reads nothing"))
-            .unwrap();
-        let exact0 = sys.factor_frame(&p0).unwrap();
-        assert_eq!(lead.solve(&r), exact0.solve(&r));
-        // Frame 6 of block 4..8: its leader is frame 4 (already factorised: nothing read); frame 9 of block
-        // 8..12 reads frame 8 once.
-        let shared = sys
-            .factor_frame_at(&p1, 6, |_| panic!("block 4 is factorised"))
-            .unwrap();
-        let other = sys
-            .factor_frame_at(&p1, 9, |f| {
-                assert_eq!(f, 8);
-                reads.set(reads.get() + 1);
-                Ok(p0.clone())
-            })
-            .unwrap();
-        assert_eq!(reads.get(), 1);
-        let exact1 = sys.factor_frame(&p1).unwrap();
-        let (got, want) = (shared.solve(&r), exact1.solve(&r));
-        assert_eq!(got, other.solve(&r));
-        let (mut diff, mut size) = (0.0f64, 0.0f64);
-        for v in 0..p1.len() {
-            diff = diff.max(vec3::norm(vec3::sub(got[v], want[v])));
-            size = size.max(vec3::norm(vec3::sub(want[v], p1[v])));
-        }
-        assert!(diff > 0.0 && diff < 0.1 * size, "{diff:e} vs {size:e}");
-        let identity = vec![vec3::IDENTITY; topo.n_triangles()];
-        assert_eq!(shared.solve(&identity), p1);
-        // Block 1 (and 0, read as 1) is the frame's own operator.
-        let own = PositionSystem::new(topo, Pinning::Centroid, Some(10.0))
-            .unwrap()
-            .with_operator_block(0);
-        assert_eq!(own.operator_block(), 1);
-        let fp = own
-            .factor_frame_at(&p1, 6, |_| panic!("nothing to read"))
-            .unwrap();
-        assert_eq!(fp.solve(&r), want);
-    }
-
-    /// `operator_block` is read from a job spec's `[deform]` table (default 1) and 0 is refused by name.
-    #[test]
-    fn the_operator_block_is_read_and_validated() {
-        use crate::spacetime::DeformParams;
-        assert_eq!(DeformParams::default().operator_block, 1);
-        let p: DeformParams = serde_json::from_str(r#"{"operator_block": 7}"#).unwrap();
-        assert_eq!(p.operator_block, 7);
-        p.validate().unwrap();
-        let zero = DeformParams {
-            operator_block: 0,
-            ..DeformParams::default()
-        };
-        let err = zero.validate().unwrap_err().to_string();
-        assert!(err.contains("operator_block"), "{err}");
     }
 }

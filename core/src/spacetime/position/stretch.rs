@@ -159,18 +159,6 @@ pub fn pass(fp: &FramePositioner, current: &[V3], kind: StretchRotation, blended
     fp.solve(&pass_rotations(fp, current, kind, blended))
 }
 
-/// [`pass`] with the shape screen pulling toward `target` instead of the original frame
-/// ([`FramePositioner::solve_toward`]).
-pub fn pass_toward(
-    fp: &FramePositioner,
-    current: &[V3],
-    kind: StretchRotation,
-    blended: &[M3],
-    target: &[V3],
-) -> Frame {
-    fp.solve_toward(&pass_rotations(fp, current, kind, blended), target)
-}
-
 fn pass_rotations(
     fp: &FramePositioner,
     current: &[V3],

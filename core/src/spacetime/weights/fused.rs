@@ -125,7 +125,7 @@ pub fn solve3(
     Err(Error::numeric(
         "weights (fused CG)",
         format!(
-            "did not reach relative residual {tol:e} in {max_iter} iterations (at {:.3e}); raise --cg-max-iter (cg_max_iter in a job spec) or --cg-tol",
+            "did not reach relative residual {tol:e} in {max_iter} iterations (at {:.3e}); raise the tuning key deform.cg_max_iterations or deform.cg_tolerance",
             stats.relative_residual
         ),
     ))

@@ -153,7 +153,7 @@ pub(super) fn no_convergence(tol: f64, max_iter: usize, reached: f64) -> Error {
     Error::numeric(
         "weights (fused CG)",
         format!(
-            "did not reach relative residual {tol:e} in {max_iter} iterations (at {reached:.3e}); raise --cg-max-iter (cg_max_iter in a job spec) or --cg-tol"
+            "did not reach relative residual {tol:e} in {max_iter} iterations (at {reached:.3e}); raise the tuning key deform.cg_max_iterations or deform.cg_tolerance"
         ),
     )
 }
@@ -451,6 +451,6 @@ mod tests {
         let e = solve3_lean(&problem.op, &b[1..], 1e-3, 1000).unwrap_err();
         assert!(e.to_string().contains("right-hand side"), "{e}");
         let e = solve3_lean(&problem.op, &b, 1e-3, 2).unwrap_err();
-        assert!(e.to_string().contains("cg-max-iter"), "{e}");
+        assert!(e.to_string().contains("deform.cg_max_iterations"), "{e}");
     }
 }

@@ -204,7 +204,7 @@ impl LocalCg {
         Err(Error::numeric(
             "weights (per-anchor CG)",
             format!(
-                "anchor node {node}: no convergence to {tol:e} in {max_iter} iterations; raise --cg-max-iter (cg_max_iter in a job spec) or --cg-tol"
+                "anchor node {node}: no convergence to {tol:e} in {max_iter} iterations; raise the tuning key deform.cg_max_iterations or deform.cg_tolerance"
             ),
         ))
     }

@@ -63,7 +63,7 @@ impl<'a> WindowProblem<'a> {
 }
 
 /// What one window's solve did.
-#[derive(Debug, Clone, Default, serde::Serialize)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct WindowStats {
     pub start: usize,
     pub len: usize,

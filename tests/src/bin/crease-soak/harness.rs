@@ -594,13 +594,12 @@ fn prepare_cases(exe: &Path, dir: &Path) -> Result<Vec<Case>> {
             .arg("--out")
             .arg(&reference)
             .args(["--mode", def.mode])
+            .args(["--set", &format!("deform.window={WINDOW}")])
+            .args(["--set", &format!("deform.shift={SHIFT}")])
             .args([
-                "--window",
-                &WINDOW.to_string(),
-                "--shift",
-                &SHIFT.to_string(),
+                "--set",
+                &format!("partition.anchor_block={}", def.anchor_block),
             ])
-            .args(["--anchor-block", &def.anchor_block.to_string()])
             .args(["--preview-size", &PREVIEW_SIZE.to_string()])
             .args(["--quiet", "--local-workers", "1"])
             .output()
@@ -1181,8 +1180,9 @@ fn summarise(
             "anchors": c.anchors_total, "input": c.input.display().to_string(),
             "anchors_file": c.anchors.display().to_string(), "reference": c.reference.display().to_string(),
             "reference_seconds": c.reference_seconds,
-            "run_args": ["--mode", c.def.mode, "--window", WINDOW.to_string(), "--shift", SHIFT.to_string(),
-                "--anchor-block", c.def.anchor_block.to_string(), "--preview-size", PREVIEW_SIZE.to_string()],
+            "run_args": ["--mode", c.def.mode, "--set", format!("deform.window={WINDOW}"),
+                "--set", format!("deform.shift={SHIFT}"), "--set", format!("partition.anchor_block={}", c.def.anchor_block),
+                "--preview-size", PREVIEW_SIZE.to_string()],
         })).collect::<Vec<_>>(),
         "kill_log": kills.iter().map(|k| json!({
             "at_seconds": k.at, "worker": k.worker, "generation": k.generation, "pid": k.pid, "down_ms": k.down_ms,

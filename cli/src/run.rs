@@ -77,6 +77,11 @@ pub struct RunArgs {
     /// subdivided mesh, original vertices first.
     #[arg(long, default_value_t = 0, help_heading = FOLDS)]
     pub subdivide: u32,
+    /// Detail scale, in the input's length unit (0.03 = 3 cm on a mesh in metres): the fold width a capture is
+    /// taken to blur; the fold relief undoes a generic low-pass at it, and the shape is held at twice it
+    /// [default: five mean edge lengths of the first frame].
+    #[arg(long, value_name = "LENGTH", help_heading = FOLDS)]
+    pub detail_scale: Option<f64>,
     /// Weight solve: `fused` (3 right-hand sides per window) or `per-anchor` (one CG column per anchor, in
     /// blocks) [default: fused].
     #[arg(long, help_heading = SOLVE)]
@@ -195,8 +200,11 @@ fn write_demo_video(a: &DemoArgs) -> Result<()> {
         // Popa's stretch passes, not crease's fold-keeping default: the truth stays what it was whatever the
         // reconstruction's defaults become.
         stretch_rotation: StretchRotation::Polar,
-        // Nor is the fold restoration: it reads the captured surface, which the truth is made from.
-        fold_restore: 0.0,
+        // Nor is the fold relief: it reads the captured surface, which the truth is made from.
+        relief: crease_core::spacetime::shape::relief::ReliefParams {
+            steps: 0,
+            ..Default::default()
+        },
         // Nor the strain limit, a step of the reconstruction.
         strain_limit: 0.0,
         ..DeformParams::default()

@@ -160,6 +160,9 @@ fn tuning(a: &RunArgs) -> Result<Tuning> {
     if let Some(l) = a.strain_limit {
         flag(t.insert("deform.strain_limit", Value::from(l)))?;
     }
+    if let Some(l) = a.detail_scale {
+        flag(t.insert("deform.relief.scale", Value::from(l)))?;
+    }
     for item in &a.set {
         let (key, text) = item.split_once('=').ok_or_else(|| {
             anyhow!("--set {item}: write KEY=VALUE (`crease tuning` lists the keys)")
@@ -182,6 +185,7 @@ fn spec_error(spec: &JobSpec, a: &RunArgs, e: JobError) -> anyhow::Error {
         f => match key_of_field(spec, f).or_else(|| f.strip_prefix("tuning.")) {
             Some("deform.mode") if a.mode.is_some() => "--mode".to_string(),
             Some("deform.strain_limit") if a.strain_limit.is_some() => "--strain-limit".to_string(),
+            Some("deform.relief.scale") if a.detail_scale.is_some() => "--detail-scale".to_string(),
             Some(key) => key.to_string(),
             None => f.to_string(),
         },

@@ -35,6 +35,14 @@ use image::RgbImage;
 use rayon::prelude::*;
 use serde::Serialize;
 
+/// `crease eval`'s drift ruler: Taubin's λ|μ low-pass (λ 0.5, μ −0.53, 40 iterations of one λ and one μ step,
+/// uniform weights, a rim smoothed along itself). A fixed ruler, the same for every run, so drift figures
+/// compare across results and settings; it is not what crease keeps the shape with (its own low-pass is the heat
+/// kernel of [`crate::heat`]), and nothing in a run depends on it.
+pub fn drift_ruler(topo: &Topology) -> TaubinFilter {
+    TaubinFilter::new(topo, 0.5, -0.53, 80)
+}
+
 /// Evaluation settings.
 #[derive(Debug, Clone, Copy)]
 pub struct EvalParams {
@@ -370,9 +378,9 @@ fn evaluate_frame(
     };
     let (d_r, d_gt) = (dilate(&in_r), dilate(&in_rgt));
     let mut shape_out = ShapeAccumulator::default();
-    shape_out.add_frame(topo, filter, &p_in, &p_out);
+    shape_out.add_frame(topo, &|d: &[V3]| filter.apply(d), &p_in, &p_out);
     let mut shape_gt = ShapeAccumulator::default();
-    shape_gt.add_frame(topo, filter, &p_in, &p_gt);
+    shape_gt.add_frame(topo, &|d: &[V3]| filter.apply(d), &p_in, &p_gt);
     let mut dilated = Agreement::default();
     for v in 0..n {
         dilated.push(d_r[v], d_gt[v]);
@@ -442,7 +450,7 @@ pub fn evaluate(
         Agreement::default(),
     );
     let (mut err_out, mut err_in) = (0.0, 0.0);
-    let filter = TaubinFilter::captured(&topo);
+    let filter = drift_ruler(&topo);
     let (mut shape_out, mut shape_gt) = (ShapeAccumulator::default(), ShapeAccumulator::default());
     // The rest lengths need the whole input before any frame is measured: one more read of it.
     let rest = RestLengths::of_sequence(input)?;

@@ -12,6 +12,7 @@ pub mod export;
 pub mod float_text;
 pub mod folds;
 pub mod fsutil;
+pub mod heat;
 pub mod mesh;
 pub mod metrics;
 pub mod npy;

@@ -1,28 +1,17 @@
 //! "Shape kept" figures (docs/fidelity.md): how far a result moved the garment itself, as opposed to adding folds.
 //!
 //! Folds are short-wavelength; the garment's pose and outline are long-wavelength. So the displacement
-//! d = output − captured is split with the very low-pass filter that produced the captured data from the
-//! simulation (Taubin λ 0.5, μ −0.53, 40 iterations, uniform weights, boundary vertices smoothed along their
-//! boundary loop): what survives the filter is **drift**, a change the capture would have seen and so one the
-//! folds must not make. The ground truth's own displacement gt − captured is the yardstick: real folds drift by
-//! a few hundredths of an edge. Lengths are in units of the captured frame's mean edge length, so figures compare
-//! across garments and resolutions; the extent change is a fraction of the captured frame's largest extent.
+//! d = output − captured is split by a low-pass: what survives it is **drift**, a change of the garment's shape
+//! that the folds must not make. The low-pass is the caller's: `report.json` uses crease's own (the surface heat
+//! kernel at the run's shape scale, [`crate::heat`]), `crease eval` a fixed measuring ruler
+//! ([`crate::eval::drift_ruler`]) so its figures compare across runs and settings. The ground truth's own
+//! displacement gt − captured, measured the same way, is the yardstick: real folds drift by a few hundredths of
+//! an edge. Lengths are in units of the captured frame's mean edge length, so figures compare across garments
+//! and resolutions; the extent change is a fraction of the captured frame's largest extent.
 
 use crate::mesh::{Topology, NONE};
 use crate::vec3::{self, V3};
 use serde::{Deserialize, Serialize};
-
-/// Steps of the public data's capture filter: its "40 iterations" are 40 λ|μ pairs. Applied to `gt/`, 80
-/// alternating steps reproduce `captured/` to the OBJ files' 10 µm rounding (max 8 µm over every vertex of
-/// the sleeve's and the drape's frame 24), while 40 steps leave up to 1.4 mm (sleeve) and 2.3 mm (drape); the
-/// data's transfer figures (2% of a 4-edge fold, 46% at 6, 84% at 8 edges on its grid) are those of 40
-/// pairs as well. See [`TaubinFilter::capture`].
-pub const CAPTURE_STEPS: usize = 80;
-
-/// Steps of the drift filter ([`TaubinFilter::captured`]): the whole capture filter. Half of it would let part
-/// of every fold through as "drift" and inflate the ground truth's own figure (sleeve drift max 0.44 with 40
-/// steps, 0.30 with 80).
-pub const DRIFT_STEPS: usize = CAPTURE_STEPS;
 
 /// Taubin's λ|μ low-pass filter with uniform (umbrella) weights.
 #[derive(Debug, Clone)]
@@ -35,21 +24,9 @@ pub struct TaubinFilter {
 }
 
 impl TaubinFilter {
-    /// The drift filter (docs/fidelity.md): λ 0.5, μ −0.53, [`DRIFT_STEPS`] alternating steps — the filter that made
-    /// `captured/` ([`Self::capture`]).
-    pub fn captured(topo: &Topology) -> Self {
-        Self::new(topo, 0.5, -0.53, DRIFT_STEPS)
-    }
-
-    /// The filter that made `captured/` from `gt/` in the public data (λ 0.5, μ −0.53, 40 iterations, each
-    /// iteration one λ step and one μ step: [`CAPTURE_STEPS`] steps in all). The fold restoration undoes it.
-    pub fn capture(topo: &Topology) -> Self {
-        Self::new(topo, 0.5, -0.53, CAPTURE_STEPS)
-    }
-
     /// Interior vertices average over their whole one-ring; boundary vertices only over their neighbours along
-    /// the boundary, so an open rim is smoothed along itself instead of being pulled into the surface (this is
-    /// how the data's capture filter treats it; pulling the rim inwards would read as a shrinkage that is none).
+    /// the boundary, so an open rim is smoothed along itself instead of being pulled into the surface (pulling
+    /// the rim inwards would read as a shrinkage that is none).
     pub fn new(topo: &Topology, lambda: f64, mu: f64, iterations: usize) -> Self {
         let nv = topo.n_vertices();
         let mut boundary_nb: Vec<Vec<u32>> = vec![Vec::new(); nv];
@@ -143,7 +120,7 @@ pub struct ShapeStats {
     pub displacement_mean: f64,
     pub displacement_p99: f64,
     pub displacement_max: f64,
-    /// |Taubin(output − captured)| per vertex, in mean edge lengths.
+    /// |low-pass(output − captured)| per vertex, in mean edge lengths.
     pub drift_mean: f64,
     pub drift_max: f64,
     /// max over frames and axes of |extent(output) − extent(captured)| / largest extent(captured).
@@ -172,7 +149,7 @@ impl ShapeAccumulator {
     pub fn add_frame(
         &mut self,
         topo: &Topology,
-        filter: &TaubinFilter,
+        low_pass: &dyn Fn(&[V3]) -> Vec<V3>,
         captured: &[V3],
         out: &[V3],
     ) {
@@ -185,7 +162,7 @@ impl ShapeAccumulator {
             .zip(captured)
             .map(|(o, c)| vec3::sub(*o, *c))
             .collect();
-        let low = filter.apply(&d);
+        let low = low_pass(&d);
         if self.hist.is_empty() {
             self.hist = vec![0; BINS + 1];
         }
@@ -324,7 +301,7 @@ mod tests {
     #[test]
     fn taubin_keeps_constants_and_linear_fields() {
         let (topo, p) = sheet();
-        let f = TaubinFilter::captured(&topo);
+        let f = crate::eval::drift_ruler(&topo);
         // A constant field is a fixed point (every update is avg − x = 0).
         let c = vec![[0.3, -0.2, 0.1]; p.len()];
         for (a, b) in f.apply(&c).iter().zip(&c) {
@@ -340,7 +317,7 @@ mod tests {
     #[test]
     fn taubin_removes_short_waves_and_keeps_long_ones() {
         let (topo, p) = sheet();
-        let f = TaubinFilter::captured(&topo);
+        let f = crate::eval::drift_ruler(&topo);
         // Waves along x with 3 and 20 edges per period, evaluated at the centre row (far from the boundary).
         let wave = |edges: f64| -> f64 {
             let k = 2.0 * std::f64::consts::PI / (edges * 0.01);
@@ -360,13 +337,13 @@ mod tests {
     #[test]
     fn words_round_trip() {
         let (topo, p) = sheet();
-        let f = TaubinFilter::captured(&topo);
+        let f = crate::eval::drift_ruler(&topo);
         let bent: Vec<V3> = p
             .iter()
             .map(|q| [q[0], q[1], 0.02 * (40.0 * q[0]).sin() * q[1]])
             .collect();
         let mut a = ShapeAccumulator::default();
-        a.add_frame(&topo, &f, &p, &bent);
+        a.add_frame(&topo, &|d: &[V3]| f.apply(d), &p, &bent);
         let empty = ShapeAccumulator::default();
         let mut words = a.to_words();
         words.extend(empty.to_words());
@@ -392,7 +369,7 @@ mod tests {
     #[test]
     fn figures_of_known_displacements() {
         let (topo, p) = sheet();
-        let f = TaubinFilter::captured(&topo);
+        let f = crate::eval::drift_ruler(&topo);
         assert!((mean_edge_length(&topo, &p) - 0.01 * (2.0 + 2f64.sqrt()) / 3.0).abs() < 1e-4);
         let h = mean_edge_length(&topo, &p);
         // A translation by 3 mean edge lengths is all drift; the extent does not change.
@@ -401,7 +378,7 @@ mod tests {
             .map(|q| vec3::add(*q, [0.0, 0.0, 3.0 * h]))
             .collect();
         let mut acc = ShapeAccumulator::default();
-        acc.add_frame(&topo, &f, &p, &moved);
+        acc.add_frame(&topo, &|d: &[V3]| f.apply(d), &p, &moved);
         let s = acc.stats();
         assert!((s.displacement_mean - 3.0).abs() < 1e-9);
         assert!((s.displacement_max - 3.0).abs() < 1e-9);
@@ -416,7 +393,7 @@ mod tests {
             .map(|q| vec3::add(*q, [0.0, 0.0, h * (k * q[0]).cos()]))
             .collect();
         let mut acc = ShapeAccumulator::default();
-        acc.add_frame(&topo, &f, &p, &ripple);
+        acc.add_frame(&topo, &|d: &[V3]| f.apply(d), &p, &ripple);
         let s = acc.stats();
         assert!((s.displacement_max - 1.0).abs() < 1e-9);
         assert!(s.displacement_mean > 0.6, "{s:?}");
@@ -424,16 +401,16 @@ mod tests {
         // Scaling the sheet by 0.95 in x: the extent changes by 5% of the (square) sheet's largest extent.
         let narrow: Vec<V3> = p.iter().map(|q| [q[0] * 0.95, q[1], q[2]]).collect();
         let mut acc = ShapeAccumulator::default();
-        acc.add_frame(&topo, &f, &p, &narrow);
+        acc.add_frame(&topo, &|d: &[V3]| f.apply(d), &p, &narrow);
         assert!((acc.stats().extent_change - 0.05).abs() < 1e-9);
         // Merging two halves gives the figures of the whole.
         let mut a = ShapeAccumulator::default();
-        a.add_frame(&topo, &f, &p, &moved);
+        a.add_frame(&topo, &|d: &[V3]| f.apply(d), &p, &moved);
         let mut b = ShapeAccumulator::default();
-        b.add_frame(&topo, &f, &p, &narrow);
+        b.add_frame(&topo, &|d: &[V3]| f.apply(d), &p, &narrow);
         let mut whole = ShapeAccumulator::default();
-        whole.add_frame(&topo, &f, &p, &moved);
-        whole.add_frame(&topo, &f, &p, &narrow);
+        whole.add_frame(&topo, &|d: &[V3]| f.apply(d), &p, &moved);
+        whole.add_frame(&topo, &|d: &[V3]| f.apply(d), &p, &narrow);
         a.merge(&b);
         let (m, w) = (a.stats(), whole.stats());
         // Same sums, added in another order: equal up to round-off; maxima and the percentile exactly.

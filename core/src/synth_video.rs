@@ -124,8 +124,11 @@ pub fn folded_demo_image(triangles: usize, width: u32, height: u32) -> Result<Rg
         // Popa's stretch passes, not crease's fold-keeping default: the truth stays what it was whatever the
         // reconstruction's defaults become.
         stretch_rotation: crate::spacetime::position::stretch::StretchRotation::Polar,
-        // Nor crease's fold restoration, which reads the captured surface the truth is made from.
-        fold_restore: 0.0,
+        // Nor crease's fold relief, which reads the captured surface the truth is made from.
+        relief: crate::spacetime::shape::relief::ReliefParams {
+            steps: 0,
+            ..Default::default()
+        },
         // Nor its strain limit.
         strain_limit: 0.0,
         ..DeformParams::default()

@@ -50,8 +50,11 @@ fn synthetic_capture(
     // The truth is the anchors' full effect, made without crease's shape screen.
     let truth = DeformParams {
         shape_cutoff: 0.0,
-        // Nor crease's fold restoration (it reads the captured surface).
-        fold_restore: 0.0,
+        // Nor crease's fold relief (it reads the captured surface).
+        relief: crease_core::spacetime::shape::relief::ReliefParams {
+            steps: 0,
+            ..Default::default()
+        },
         ..DeformParams::default()
     };
     deform(&seq, &anchors, &truth, &mut sink, &NoProgress, &[]).unwrap();

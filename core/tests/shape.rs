@@ -7,7 +7,7 @@ use crease_core::folds::{Anchor, AnchorSet, FoldDetector, FrameAnchors};
 use crease_core::mesh::io::open_sequence;
 use crease_core::mesh::{geometry, MemorySink, Sequence};
 use crease_core::progress::NoProgress;
-use crease_core::shape::{ShapeAccumulator, TaubinFilter};
+use crease_core::shape::ShapeAccumulator;
 use crease_core::spacetime::blend::so3;
 use crease_core::spacetime::{deform, DeformParams};
 use crease_core::vec3::{self, V3};
@@ -45,17 +45,10 @@ fn hanging_sheet_keeps_its_width_and_does_not_drift() {
         "the fixture must have folds to add: {} anchors",
         anchors.total()
     );
-    // The fixture is the captured drape subsampled to half resolution, so the data's capture filter, which the
-    // fold restoration deconvolves on the mesh it is given, is not this mesh's: here it damps wavelengths (in
-    // this mesh's edges) that the real capture kept whole, and the default 8 steps amplify the sheet's wide
-    // pleats (extent change 2.5 %; the full-resolution drape measures 0.59 %, gt 0.57 %). One step, as much
-    // as the old restoration's residue, keeps the check about the positioning's screen.
-    let params = DeformParams {
-        fold_restore: 1.0,
-        ..DeformParams::default()
-    };
+    // The defaults, fold relief included.
+    let params = DeformParams::default();
     let out = run(&seq, &anchors, &params);
-    let filter = TaubinFilter::captured(&seq.topology);
+    let filter = crease_core::eval::drift_ruler(&seq.topology);
     let mut shape = ShapeAccumulator::default();
     let mut moved = 0.0f64;
     for (t, (o, c)) in out.iter().zip(&seq.frames).enumerate() {
@@ -67,7 +60,7 @@ fn hanging_sheet_keeps_its_width_and_does_not_drift() {
             width(c),
             100.0 * change
         );
-        shape.add_frame(&seq.topology, &filter, c, o);
+        shape.add_frame(&seq.topology, &|d: &[V3]| filter.apply(d), c, o);
         moved = moved.max(
             o.iter()
                 .zip(c)
@@ -169,59 +162,16 @@ fn rigid_motion_of_the_input_moves_the_output_rigidly() {
     );
 }
 
-/// `TaubinFilter::capture` is the filter that made the public data's `captured/` from `gt/`: applied to the
-/// sleeve's ground-truth frame 20 (`cli/tests/fixtures/sleeve-gt`) it gives the captured frame 20
-/// (`cli/tests/fixtures/sleeve`) to the OBJ files' 10 µm rounding. The 40 alternating steps (20 λ|μ pairs) of
-/// the drift filter `captured`, which the restoration used before, miss by up to 1.4 mm.
-#[test]
-fn captured_filter_reproduces_the_public_capture() {
-    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cli/tests/fixtures");
-    let gt = Sequence::load(
-        open_sequence(&fixtures.join("sleeve-gt"))
-            .unwrap()
-            .source
-            .as_ref(),
-    )
-    .unwrap();
-    let captured = Sequence::load(
-        open_sequence(&fixtures.join("sleeve"))
-            .unwrap()
-            .source
-            .as_ref(),
-    )
-    .unwrap();
-    assert_eq!(gt.topology.triangles(), captured.topology.triangles());
-    let filtered = TaubinFilter::capture(&gt.topology).apply(&gt.frames[0]);
-    let worst = filtered
-        .iter()
-        .zip(&captured.frames[0])
-        .map(|(a, b)| vec3::norm(vec3::sub(*a, *b)))
-        .fold(0.0f64, f64::max);
-    assert!(
-        worst < 2e-5,
-        "largest distance to the captured frame: {:.3} mm",
-        worst * 1e3
-    );
-    // 40 single steps (20 pairs), the reading of "40 iterations" the drift metric used before: measurably off.
-    let half = TaubinFilter::new(&gt.topology, 0.5, -0.53, 40).apply(&gt.frames[0]);
-    let half_worst = half
-        .iter()
-        .zip(&captured.frames[0])
-        .map(|(a, b)| vec3::norm(vec3::sub(*a, *b)))
-        .fold(0.0f64, f64::max);
-    assert!(half_worst > 5e-4, "{half_worst}");
-}
-
 fn load(dir: &Path) -> Sequence {
     Sequence::load(open_sequence(dir).unwrap().source.as_ref()).unwrap()
 }
 
-/// Shape figures of `out` (or of the ground truth) against the captured sequence, with the drift filter.
+/// Shape figures of `out` (or of the ground truth) against the captured sequence, with `crease eval`'s ruler.
 fn shape_of(seq: &Sequence, out: &[Vec<V3>]) -> crease_core::shape::ShapeStats {
-    let filter = TaubinFilter::captured(&seq.topology);
+    let filter = crease_core::eval::drift_ruler(&seq.topology);
     let mut acc = ShapeAccumulator::default();
     for (o, c) in out.iter().zip(&seq.frames) {
-        acc.add_frame(&seq.topology, &filter, c, o);
+        acc.add_frame(&seq.topology, &|d: &[V3]| filter.apply(d), c, o);
     }
     acc.stats()
 }

@@ -140,8 +140,11 @@ async fn video_folds_are_partition_and_order_independent() {
     // Made without the shape screen: the truth is the anchors' full effect (as `crease demo --with-video`).
     let truth = crease_core::spacetime::DeformParams {
         shape_cutoff: 0.0,
-        // Nor crease's fold restoration (it reads the captured surface).
-        fold_restore: 0.0,
+        // Nor crease's fold relief (it reads the captured surface).
+        relief: crease_core::spacetime::shape::relief::ReliefParams {
+            steps: 0,
+            ..Default::default()
+        },
         ..Default::default()
     };
     reference(&input, Some(&anchors), &truth, &gt);

@@ -453,7 +453,8 @@ fn export_case(
         .iter()
         .map(|&p| so3::exp(p))
         .collect();
-    let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?;
+    let edge = crease_core::shape::mean_edge_length(&topo, &seq.frames[0]);
+    let system = PositionSystem::new(topo.clone(), params.pinning, params.scales(edge).screen)?;
     let rest = &seq.frames[0];
     let (lower, _, _, _) = system.assemble(rest)?;
     let (col_ptr, row_idx) = system.pattern();

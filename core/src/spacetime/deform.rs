@@ -10,6 +10,7 @@
 use super::blend::CrossFade;
 use super::params::DeformParams;
 use super::position::PositionSystem;
+use super::shape::relief::ReliefFrames;
 use super::stages::{position_frame, PositionedFrame};
 use super::weights::{solve_window, WindowProblem, WindowStats};
 use super::windows::plan_windows;
@@ -97,7 +98,13 @@ pub fn deform(
         ..Default::default()
     };
     let t0 = Instant::now();
-    let system = PositionSystem::new(topo.clone(), params.pinning, params.screen())?;
+    let edge = crate::shape::mean_edge_length(&topo, &source.read_frame(0)?);
+    let scales = params.scales(edge);
+    let system = PositionSystem::new(topo.clone(), params.pinning, scales.screen)?;
+    // The fold relief of every frame, when the job puts folds in at all (no anchors: the input comes back as it
+    // was, bit for bit).
+    let mut relief = (anchors.total() > 0 && params.relief.is_active())
+        .then(|| ReliefFrames::new(params.relief, scales.detail, n));
     timings.symbolic = t0.elapsed().as_secs_f64();
     // The strain limit's reference lengths need every captured frame: read once (a few frames at a time) before
     // any frame is positioned. Without anchors no frame moves and the limit never applies: no reading pass.
@@ -121,14 +128,24 @@ pub fn deform(
     // wait on their slowest chunk). Every stage is a pure function of its inputs, so the overlap changes no
     // output bit; frames are still written in order, each window's as soon as it is positioned, and at most
     // one window's released frames are read before they are written.
-    let position_ready =
-        |ready: Vec<(usize, Vec<crate::vec3::V3>)>| -> Vec<Result<PositionedFrame>> {
+    let position_ready = |ready: Vec<(usize, Vec<crate::vec3::V3>)>,
+                          relief: Option<&mut ReliefFrames>|
+     -> Vec<Result<PositionedFrame>> {
+        let frames: Vec<usize> = ready.iter().map(|(t, _)| *t).collect();
+        let relief = match relief {
+            Some(r) => match r.prepare(source, &frames) {
+                Ok(()) => Some(&*r),
+                Err(e) => return vec![Err(e)],
+            },
+            None => None,
+        };
             ready
                 .into_par_iter()
                 .map(|(t, phi)| {
                     if progress.cancelled() {
                         return Err(Error::Cancelled);
                     }
+                    let heights = relief.map(|r| r.heights(&topo, t)).transpose()?;
                     let r = position_frame(
                         &system,
                         source,
@@ -136,7 +153,8 @@ pub fn deform(
                         &phi,
                         params.stretch_passes,
                         params.stretch_rotation,
-                        params.restoration(),
+                        &scales.ending,
+                        heights.as_deref(),
                         limiter.as_ref(),
                     );
                     progress.advance("position", 1);
@@ -157,7 +175,7 @@ pub fn deform(
                     solve_window(&problem, params, progress)
                 })
             },
-            || position_ready(released),
+            || position_ready(released, relief.as_mut()),
         );
         for o in outcomes {
             let o = o?;

@@ -6,14 +6,13 @@
 //! - [`blend`] — §5.3: the windows' rotation-vector fields cross-faded into per-frame rotations (Alexa blend);
 //! - [`position`] — §5.4 vertex positioning (gradient-domain Poisson solve, its parallel factor solve) and §5.5
 //!   stretch reduction, ending with the strain limit;
-//! - [`shape`] — what keeps the captured shape and folds: the shape projection and the fold restoration;
-//! - [`kernels`] — hand-vectorised sweeps, bit for bit their scalar forms;
+//! - [`shape`] — what keeps the captured shape and gives back the folds it damped: the shape projection and
+//!   the fold relief;
 //! - [`stages`] and [`deform`] — §5.2: the frame stages a cluster task runs, and the streaming driver that runs
 //!   them window by window on one machine; [`params`] — every setting of the deformation.
 
 pub mod blend;
 pub mod deform;
-mod kernels;
 pub mod params;
 pub mod position;
 pub mod shape;

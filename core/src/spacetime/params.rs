@@ -3,6 +3,8 @@
 use super::position::stretch::StretchRotation;
 use super::position::Pinning;
 use super::weights::operator::Coefficients;
+use super::shape::relief::ReliefParams;
+use super::shape::ShapeEnding;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -41,8 +43,18 @@ impl std::fmt::Display for WeightMode {
     }
 }
 
-/// Default cutoff wavelength of the shape screen, in mean edge lengths (docs/fidelity.md).
-pub const DEFAULT_SHAPE_CUTOFF: f64 = 10.0;
+/// Default cutoff wavelength of the shape screen, in detail scales (docs/fidelity.md).
+pub const DEFAULT_SHAPE_CUTOFF: f64 = super::shape::SHAPE_SCALES;
+
+/// The lengths a sequence's deformation works at ([`DeformParams::scales`]), in the input's units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scales {
+    /// The detail scale ([`super::shape::relief`]).
+    pub detail: f64,
+    /// The shape screen's cutoff wavelength (None: no screen).
+    pub screen: Option<f64>,
+    pub ending: ShapeEnding,
+}
 
 /// Everything the deformation needs besides the sequence and the anchors.
 ///
@@ -66,23 +78,20 @@ pub struct DeformParams {
     pub stretch_passes: usize,
     /// Which rotation each stretch pass gives a triangle (see [`super::position::stretch`]).
     pub stretch_rotation: StretchRotation,
-    /// Cutoff wavelength ℓ_c of the positioning's shape screen, in mean edge lengths (see
-    /// [`super::position`]): displacements much longer than this are held to the captured shape, shorter ones
+    /// Cutoff wavelength ℓ_c of the positioning's shape screen, in detail scales (see [`super::position`] and
+    /// [`super::shape`]): displacements much longer than this are held to the captured shape, shorter ones
     /// (folds) are free. 0 turns the screen off (the paper's unscreened system, with `pinning`).
     pub shape_cutoff: f64,
     /// How the unscreened system (`shape_cutoff` 0) removes its translational null space; the screened one
     /// has none and keeps each component's area-weighted mean displacement at zero by itself.
     pub pinning: Pinning,
-    /// Fold restoration (see [`super::shape::restore`]): Van Cittert steps of the deconvolution of the capture filter
-    /// whose result is added along the captured normal where the deformation tilted the surface, giving back in
-    /// place the fold amplitude the capture smoothed away (a fractional part is a last partial step; one step is
-    /// the captured residue added once). 0 turns it off.
-    pub fold_restore: f64,
-    /// Shape projection (see [`super::shape::projection`]): the fraction of the capture filter's low-pass of the
-    /// positioned displacement removed after the stretch passes, before the fold restoration, so the folds add
-    /// only what the capture removed and the garment (its open rims included) keeps the captured shape. 0 turns
-    /// it off; it acts only with the shape screen on (`shape_cutoff` > 0: `off` is the paper's unconstrained
-    /// system).
+    /// The fold relief ([`super::shape::relief`]): the detail scale, the deconvolution's steps and the temporal
+    /// average.
+    pub relief: ReliefParams,
+    /// Shape projection (see [`super::shape::projection`]): the fraction of the low-pass (at the shape scale) of
+    /// the positioned displacement removed after the stretch passes, so the folds do not move the garment. 0
+    /// turns it off; it acts only with the shape screen on (`shape_cutoff` > 0: `off` is the paper's
+    /// unconstrained system).
     pub shape_projection: f64,
 
     /// Strain limit (see [`super::position::strain_limit`]): the last step of the positioning shortens every edge
@@ -94,14 +103,6 @@ pub struct DeformParams {
     /// frame's own ([`super::position::strain_limit::StrainReference`]).
     pub strain_reference: super::position::strain_limit::StrainReference,
 }
-
-/// Most fold restoration steps accepted: the deconvolution then multiplies what the capture kept of a fold by
-/// at most 21, the inverse of a fold the capture kept 5% of; below that the residue is noise rather than cloth.
-pub const MAX_FOLD_RESTORE: f64 = 20.0;
-
-/// Default fold restoration steps (docs/fidelity.md): 8 with the shape projection, which takes away the drift's
-/// share of the fold region and leaves popping its headroom (bench/results/2026-12-02-shape-projection.md).
-pub const DEFAULT_FOLD_RESTORE: f64 = 8.0;
 
 impl Default for DeformParams {
     fn default() -> Self {
@@ -117,7 +118,7 @@ impl Default for DeformParams {
             stretch_rotation: StretchRotation::Anchored,
             shape_cutoff: DEFAULT_SHAPE_CUTOFF,
             pinning: Pinning::Centroid,
-            fold_restore: DEFAULT_FOLD_RESTORE,
+            relief: ReliefParams::default(),
             shape_projection: super::shape::projection::DEFAULT_SHAPE_PROJECTION,
 
             strain_limit: super::position::strain_limit::DEFAULT_STRAIN_LIMIT,
@@ -150,7 +151,7 @@ struct DeformFields {
     stretch_rotation: Option<StretchRotation>,
     shape_cutoff: Option<f64>,
     pinning: Option<Pinning>,
-    fold_restore: Option<f64>,
+    relief: Option<ReliefParams>,
     shape_projection: Option<f64>,
 
     strain_limit: Option<f64>,
@@ -197,7 +198,7 @@ impl TryFrom<DeformFields> for DeformParams {
             stretch_rotation: f.stretch_rotation.unwrap_or(d.stretch_rotation),
             shape_cutoff: f.shape_cutoff.unwrap_or(d.shape_cutoff),
             pinning: f.pinning.unwrap_or(d.pinning),
-            fold_restore: f.fold_restore.unwrap_or(d.fold_restore),
+            relief: f.relief.unwrap_or(d.relief),
             shape_projection: f.shape_projection.unwrap_or(d.shape_projection),
 
             strain_limit: f.strain_limit.unwrap_or(d.strain_limit),
@@ -208,21 +209,21 @@ impl TryFrom<DeformFields> for DeformParams {
 }
 
 impl DeformParams {
-    /// The screen's cutoff for [`super::position::PositionSystem::new`] (None when off).
-    pub fn screen(&self) -> Option<f64> {
-        (self.shape_cutoff > 0.0).then_some(self.shape_cutoff)
-    }
-
-    /// What the positioning ends with: the shape projection ([`super::shape::projection`], only with the shape
-    /// screen on), then the fold restoration ([`super::shape::restore`]).
-    pub fn restoration(&self) -> super::shape::restore::Restoration {
-        super::shape::restore::Restoration {
-            steps: self.fold_restore,
-            reference_tilt: super::shape::restore::REFERENCE_TILT_DEG.to_radians(),
-            projection: if self.shape_cutoff > 0.0 {
-                self.shape_projection
-            } else {
-                0.0
+    /// The lengths of a sequence whose first frame has mean edge length `edge`: the detail scale, the shape
+    /// screen's cutoff (None when off) and the positioning's ending.
+    pub fn scales(&self, edge: f64) -> Scales {
+        let detail = self.relief.scale_for(edge);
+        let screen = (self.shape_cutoff > 0.0).then_some(self.shape_cutoff * detail);
+        Scales {
+            detail,
+            screen,
+            ending: ShapeEnding {
+                projection: if screen.is_some() {
+                    self.shape_projection
+                } else {
+                    0.0
+                },
+                shape_scale: super::shape::SHAPE_SCALES * detail,
             },
         }
     }
@@ -292,7 +293,7 @@ impl DeformParams {
             return Err(Error::param(
                 "shape_cutoff",
                 format!(
-                    "must be a wavelength ≥ 0 mean edge lengths (0: no screen), got {}",
+                    "must be a wavelength ≥ 0 detail scales (0: no screen), got {}",
                     self.shape_cutoff
                 ),
             ));
@@ -303,16 +304,7 @@ impl DeformParams {
                 "`vertex` needs the unscreened system: set shape_cutoff to 0 (off) to fix a vertex",
             ));
         }
-        if !(self.fold_restore.is_finite() && (0.0..=MAX_FOLD_RESTORE).contains(&self.fold_restore))
-        {
-            return Err(Error::param(
-                "fold_restore",
-                format!(
-                    "must be a gain in [0, {MAX_FOLD_RESTORE}] (0: off), got {}",
-                    self.fold_restore
-                ),
-            ));
-        }
+        self.relief.validate()?;
         let max_projection = super::shape::projection::MAX_SHAPE_PROJECTION;
         if !(self.shape_projection.is_finite()
             && (0.0..=max_projection).contains(&self.shape_projection))

@@ -15,7 +15,7 @@ use super::blend::{self, fade_into};
 use super::position::strain_limit::StrainLimiter;
 use super::position::stretch::StretchRotation;
 use super::position::PositionSystem;
-use super::shape::restore::Restoration;
+use super::shape::ShapeEnding;
 use super::windows::{crossfade_weight, Window};
 use crate::error::{Error, Result};
 use crate::mesh::{Frame, FrameSource};
@@ -79,9 +79,9 @@ pub struct PositionedFrame {
 
 /// Positions frame `t` of `source` from its cross-faded rotation-vector field `phi` (Alexa blend, gradient-
 /// domain solve), then runs `passes` stretch-reduction passes reusing the frame's factorisation, measuring
-/// stretch after each step, and ends with `restore`: the shape projection ([`projection`]) and the fold
-/// restoration ([`super::shape::restore`]), then the strain limit (`limit`, [`super::position::strain_limit`]);
-/// the last stretch figures are those of the finished frame.
+/// stretch after each step, and ends with `ending`: the shape projection and the fold relief `heights`
+/// ([`super::shape`]), then the strain limit (`limit`, [`super::position::strain_limit`]); the last stretch
+/// figures are those of the finished frame.
 #[allow(clippy::too_many_arguments)]
 pub fn position_frame(
     system: &PositionSystem,
@@ -90,7 +90,8 @@ pub fn position_frame(
     phi: &[V3],
     passes: usize,
     rotation: StretchRotation,
-    restore: Restoration,
+    ending: &ShapeEnding,
+    heights: Option<&[f64]>,
     limit: Option<&StrainLimiter>,
 ) -> Result<PositionedFrame> {
     let clock = Instant::now();
@@ -132,32 +133,33 @@ pub fn position_frame(
     // a pass would only add round-off (the closest rotation to an identity gradient is I up to rounding), and
     // no anchors must give the input back bit for bit.
     let moved = out != rest;
-    let restoring = moved && restore.is_active();
-    // The finished frame's last step: edges stretched past the cap are shortened (never a frame left in place).
-    let limit_strain = |out: &mut Frame| {
-        if let Some(l) = limit.filter(|_| moved) {
-            l.apply(&rest, out);
+    // The relief applies to every frame it has heights for, moved or not; the projection only to a moved one.
+    let relief = ending.is_active(heights);
+    let changed = moved || relief;
+    // The finished frame's last steps: the shape ending, then edges stretched past the cap are shortened (never
+    // in a frame nothing changed).
+    let finish = |out: Frame| -> Frame {
+        if !changed {
+            return out;
         }
+        let mut done = ending.finish(system.topology(), &rest, &out, heights);
+        if let Some(l) = limit {
+            l.apply(&rest, &mut done);
+        }
+        done
     };
-    if restoring && passes == 0 {
-        out = restore.finish(system.topology(), system.restore_mesh(), &rest, &out);
-    }
     if passes == 0 {
-        limit_strain(&mut out);
+        out = finish(out);
     }
     stretch.push(measure(&out, &mut metrics));
     let mut pass_times = Vec::with_capacity(passes);
     for k in 0..passes {
         let clock = Instant::now();
-        let last = k + 1 == passes;
         if moved {
             out = super::position::stretch::pass(&fp, &out, rotation, &rotations);
         }
-        if restoring && last {
-            out = restore.finish(system.topology(), system.restore_mesh(), &rest, &out);
-        }
-        if last {
-            limit_strain(&mut out);
+        if k + 1 == passes {
+            out = finish(out);
         }
         pass_times.push(clock.elapsed().as_secs_f64());
         stretch.push(measure(&out, &mut metrics));

@@ -2,7 +2,8 @@
 //!
 //! Each task kind has its own module named after what it computes: `folds` (detection and merge), `frame_cache` (parsed input frames kept per process), `settle`
 //! (temporal coherence of a frame range), `weights` (a fused window, an anchor block, the reduce of a window),
-//! `position` (cross-fade, positioning and stretch passes of a frame chunk), `finalize` (output sequence, previews, report). They share
+//! `relief` (the fold relief of captured frames), `position` (cross-fade, positioning, stretch passes and
+//! shape ending of a frame chunk), `finalize` (output sequence, previews, report). They share
 //! `env::TaskEnv`: the job's storage, input and anchors, opened the same way by every task.
 //!
 //! Determinism: a task reads only what its dependencies wrote under deterministic keys and calls the
@@ -21,6 +22,7 @@ pub mod frame_cache;
 mod partial_file;
 pub mod phase_times;
 mod position;
+mod relief;
 mod settle;
 mod stretch;
 mod weights;
@@ -115,6 +117,7 @@ fn run_kind(
             weights::anchor_block(&env, *window, *block)?
         }
         TaskSpec::Reduce { window, .. } => weights::reduce(&env, *window)?,
+        TaskSpec::Relief { frames, .. } => relief::relief(&env, frames.clone())?,
         TaskSpec::Position { frames, .. } => position::position(&env, frames.clone())?,
         TaskSpec::Finalize { .. } => finalize::finalize(&env)?,
         #[cfg(feature = "deep")]

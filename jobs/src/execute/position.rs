@@ -10,8 +10,11 @@ use crate::plan::inspect::{output_files, output_sink, writes_frames};
 use crate::storage::keys;
 use crease_core::mesh::io::OpenedSequence;
 use crease_core::mesh::{FrameSink, FrameSource};
-use crease_core::shape::{ShapeAccumulator, TaubinFilter};
 use crease_core::spacetime::position::strain_limit::{StrainLimiter, StrainReference};
+use crease_core::heat::{self, SurfaceOperator};
+use crease_core::shape::ShapeAccumulator;
+use crease_core::spacetime::params::Scales;
+use crease_core::spacetime::shape::relief;
 use crease_core::spacetime::position::{Pinning, PositionSystem};
 use crease_core::spacetime::stages::{self, PositionedFrame};
 use crease_core::spacetime::windows::Window;
@@ -57,14 +60,15 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     }
     let topo = source.topology().clone();
     let n_tri = topo.n_triangles();
-    let (system, symbolic) = position_system(env, &opened, &label)?;
+    let scales = sequence_scales(env, &opened, &label)?;
+    let (system, symbolic) = position_system(env, &opened, &scales, &label)?;
     let system = system.as_ref();
     let limiter = strain_limiter(env, &opened, &label)?;
     let limiter = limiter.as_deref();
     let windows = env.windows(n);
     let passes = env.params.stretch_passes;
-    let filter = shape_filter(&opened);
-    lap.lap("position: input, system, strain limiter, filter");
+    let reliefs = load_reliefs(env, &frames, n)?;
+    lap.lap("position: input, system, strain limiter, reliefs");
     env.progress().begin("position", frames.len() as u64);
     let mut written = Vec::new();
     // Frame files go straight to the output through the layout's sink (the same writer `crease run` uses), one
@@ -100,6 +104,20 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                     return Err(TaskError::cancelled());
                 }
                 let phi = load_faded(env, &windows, t, n_tri)?;
+                let heights = match &reliefs {
+                    Some((first, r)) => {
+                        let span = env.params.relief.span(t, n);
+                        let slices: Vec<&[f64]> = r[span.start - first..span.end - first]
+                            .iter()
+                            .map(|v| v.as_slice())
+                            .collect();
+                        Some(
+                            relief::heights(&topo, &env.params.relief, &slices, span.start, t)
+                                .map_err(|e| TaskError::from_core(&label, e))?,
+                        )
+                    }
+                    None => None,
+                };
                 let p = stages::position_frame(
                     system,
                     source,
@@ -107,16 +125,20 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                     &phi,
                     passes,
                     env.params.stretch_rotation,
-                    env.params.restoration(),
+                    &scales.ending,
+                    heights.as_deref(),
                     limiter,
                 )
                 .map_err(|e| TaskError::from_core(&label, e))?;
                 drop(phi);
                 // The frame's "shape kept" figures (docs/fidelity.md), here where the frame is, rather than in
-                // finalize, which would filter every frame again one after the other at the end of the job.
+                // finalize, which would filter every frame again one after the other at the end of the job. The
+                // drift is what crease's own low-pass at the shape scale keeps of the displacement.
                 let clock = std::time::Instant::now();
                 let mut shape = ShapeAccumulator::default();
-                shape.add_frame(&topo, &filter, &p.rest, &p.out);
+                let op = SurfaceOperator::with_rims_along_themselves(&topo, &p.rest);
+                let low = heat::low_pass(&op, scales.ending.shape_scale);
+                shape.add_frame(&topo, &|d: &[V3]| op.apply(&low, d), &p.rest, &p.out);
                 let shape_seconds = clock.elapsed().as_secs_f64();
                 let keys = store_frame(env, &p, &shape, shape_seconds, frames.start, symbolic)?;
                 let mut keys = keys.to_vec();
@@ -210,9 +232,10 @@ static SYSTEMS: Mutex<Vec<BuiltSystem>> = Mutex::new(Vec::new());
 fn position_system(
     env: &TaskEnv,
     opened: &Arc<OpenedSequence>,
+    scales: &Scales,
     label: &str,
 ) -> Result<(Arc<PositionSystem>, f64), TaskError> {
-    let (pinning, screen) = (env.params.pinning, env.params.screen());
+    let (pinning, screen) = (env.params.pinning, scales.screen);
     let screen_bits = screen.map(f64::to_bits);
     let found = |systems: &[BuiltSystem]| {
         systems
@@ -241,21 +264,46 @@ fn position_system(
     Ok((sys, seconds))
 }
 
-/// Shape-kept filters this process built, most recent first: (input, filter).
-#[allow(clippy::type_complexity)]
-static FILTERS: Mutex<Vec<(Arc<OpenedSequence>, Arc<TaubinFilter>)>> = Mutex::new(Vec::new());
-
-/// The input's "shape kept" filter (docs/fidelity.md). Its neighbour tables depend on the topology alone, so a worker
-/// builds them once per opened input (keyed like [`position_system`]) instead of once per positioning chunk.
-fn shape_filter(opened: &Arc<OpenedSequence>) -> Arc<TaubinFilter> {
-    let mut built = FILTERS.lock().unwrap_or_else(|p| p.into_inner());
-    if let Some((_, f)) = built.iter().find(|(o, _)| Arc::ptr_eq(o, opened)) {
-        return Arc::clone(f);
+/// The lengths of the job's deformation on this input ([`crease_core::spacetime::DeformParams::scales`]): the
+/// detail scale (by default from the mean edge length of the input's first frame), the shape screen's cutoff,
+/// the ending's shape scale. The same for every task of the job, being a function of frame 0 and the parameters.
+pub(super) fn sequence_scales(
+    env: &TaskEnv,
+    opened: &Arc<OpenedSequence>,
+    label: &str,
+) -> Result<Scales, TaskError> {
+    let source = &opened.source;
+    let first = source
+        .read_frame(0)
+        .map_err(|e| TaskError::from_core(label, e))?;
+    let edge = crease_core::shape::mean_edge_length(source.topology(), &first);
+    if !(edge.is_finite() && edge > 0.0) {
+        return Err(TaskError::fatal(format!(
+            "{label}: the first frame ({}) has mean edge length {edge}: no length to measure the folds by",
+            source.describe_frame(0)
+        )));
     }
-    let filter = Arc::new(TaubinFilter::captured(opened.source.topology()));
-    built.insert(0, (Arc::clone(opened), Arc::clone(&filter)));
-    built.truncate(2);
-    filter
+    Ok(env.params.scales(edge))
+}
+
+/// The reliefs the heights of `frames` read (their spans), as (first frame, reliefs), or None when the job has
+/// no relief.
+#[allow(clippy::type_complexity)]
+fn load_reliefs(
+    env: &TaskEnv,
+    frames: &Range<usize>,
+    n: usize,
+) -> Result<Option<(usize, Vec<Vec<f64>>)>, TaskError> {
+    if !crate::plan::graph::has_relief(env.job) {
+        return Ok(None);
+    }
+    let p = &env.params.relief;
+    let (lo, hi) = (p.span(frames.start, n).start, p.span(frames.end - 1, n).end);
+    let reliefs = (lo..hi)
+        .into_par_iter()
+        .map(|k| env.get_npy::<f64>(&keys::relief(k)).map(|(_, v)| v))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Some((lo, reliefs)))
 }
 
 /// A strain limiter this process built: (input, cap bits, sweeps, reference, limiter).

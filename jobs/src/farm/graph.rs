@@ -21,7 +21,8 @@ use serde_json::json;
 pub const DEFAULT_BLOCK_SLOTS: usize = 4;
 
 /// The stages, in graph order. Names are the farm's step names.
-pub const STAGES: [Stage; 11] = [
+pub const STAGES: [Stage; 12] = [
+    Stage::Relief,
     Stage::FoldSteps,
     Stage::FoldPhases,
     Stage::FoldDetect,
@@ -37,6 +38,8 @@ pub const STAGES: [Stage; 11] = [
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Stage {
+    /// The fold relief of frame chunks, from the input alone (jobs that add folds).
+    Relief,
     /// Stretch detector: step records of frame chunks.
     FoldSteps,
     /// Stretch detector: the phase test (one task).
@@ -59,6 +62,7 @@ impl Stage {
     /// kebab-case name (`crease task run --stage`, Flamenco task types).
     pub fn name(self) -> &'static str {
         match self {
+            Stage::Relief => "relief",
             Stage::FoldSteps => "fold-steps",
             Stage::FoldPhases => "fold-phases",
             Stage::FoldDetect => "fold-detect",
@@ -76,6 +80,7 @@ impl Stage {
     /// CamelCase name (OpenJD step and OpenCue layer names: no spaces or dashes needed).
     pub fn title(self) -> &'static str {
         match self {
+            Stage::Relief => "Relief",
             Stage::FoldSteps => "FoldSteps",
             Stage::FoldPhases => "FoldPhases",
             Stage::FoldDetect => "FoldDetect",
@@ -98,6 +103,7 @@ impl Stage {
 
     fn of(spec: &TaskSpec) -> Stage {
         match spec {
+            TaskSpec::Relief { .. } => Stage::Relief,
             TaskSpec::FoldSteps { .. } => Stage::FoldSteps,
             TaskSpec::FoldPhases { .. } => Stage::FoldPhases,
             TaskSpec::FoldDetect { .. } => Stage::FoldDetect,

@@ -74,7 +74,7 @@ pub async fn run_farm_task(
             let st = Stage::parse(stage).ok_or_else(|| {
                 JobError::Plan(format!(
                     "unknown stage `{stage}`; expected one of fold-steps, fold-phases, fold-detect, \
-                     fold-settle, fold-merge, fold-files, fold-plot, weights, reduce, position, finalize"
+                     fold-settle, fold-merge, fold-files, fold-plot, relief, weights, reduce, position, finalize"
                 ))
             })?;
             farm_graph(job, &info, *block_slots)?

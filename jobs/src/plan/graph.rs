@@ -10,7 +10,10 @@
 //!   weight-block (window, anchor block) ─► reduce (window) ─┐          (per-anchor mode)
 //!   weight-window (window) ─────────────────────────────────┤          (fused mode)
 //!                                                           ▼
-//!   position (frame chunk; depends on every window covering its frames) ─► finalize
+//!   relief (frame chunk, from the input alone) ─────────────┤          (jobs that add folds)
+//!                                                           ▼
+//!   position (frame chunk; depends on every window covering its frames, and on the reliefs of its frames
+//!             widened by the relief's temporal span) ─► finalize
 //! ```
 //!
 //! When the anchors are known at submit (an anchors file, or none), [`plan`] returns the whole graph. When
@@ -21,7 +24,7 @@
 //! so it runs beside the weight tasks instead of lengthening the chain every deformation task waits on.
 
 use crate::error::JobError;
-use crate::plan::chunks::{blocks_per_window, job_windows, position_chunks};
+use crate::plan::chunks::{blocks_per_window, chunk_ranges, job_windows, position_chunks};
 use crate::plan::detect;
 use crate::plan::input::InputInfo;
 use crate::plan::task::{TaskDef, TaskOutput, TaskSpec};
@@ -39,6 +42,7 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
     if n == 0 {
         return Err(JobError::Plan("the input has no frames".into()));
     }
+    let relief = relief_tasks(job, n);
     if let Some(counts) = &info.anchors_per_frame {
         if counts.len() != n {
             return Err(JobError::Plan(format!(
@@ -46,7 +50,9 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
                 counts.len()
             )));
         }
-        return Ok(deformation_tasks(job, n, counts, &[]));
+        let mut tasks = relief;
+        tasks.extend(deformation_tasks(job, n, counts, &[]));
+        return Ok(tasks);
     }
     let granularity = detect::granularity(&job.folds).ok_or_else(|| {
         JobError::Plan(format!(
@@ -55,7 +61,9 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
         ))
     })?;
     if matches!(job.folds, crate::spec::FoldSpec::Stretch { .. }) {
-        return Ok(crate::plan::stretch::tasks(job, info));
+        let mut tasks = crate::plan::stretch::tasks(job, info);
+        tasks.extend(relief);
+        return Ok(tasks);
     }
     let chunks = detect::detection_chunks(granularity, n, job.partition.fold_frames_per_chunk);
     let mut tasks: Vec<TaskDef> = chunks
@@ -87,7 +95,39 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
         deps: tasks.iter().map(|t| t.key.clone()).collect(),
         expands: true,
     });
+    tasks.extend(relief);
     Ok(tasks)
+}
+
+/// Whether a job's positioning adds the fold relief: every job that adds folds (from a file or a detector),
+/// when the relief is on. A job without folds gives its input back.
+pub fn has_relief(job: &JobSpec) -> bool {
+    !matches!(job.folds, crate::spec::FoldSpec::None) && job.params().relief.is_active()
+}
+
+/// The relief chunks: `[0, n)` in ranges of `partition.frames_per_chunk` frames.
+fn relief_chunks(job: &JobSpec, n: usize) -> Vec<std::ops::Range<usize>> {
+    chunk_ranges(n, job.partition.frames_per_chunk)
+}
+
+/// The relief tasks of a job (none without relief): they read the input alone, so they are planned at submit
+/// and run beside fold detection.
+fn relief_tasks(job: &JobSpec, n: usize) -> Vec<TaskDef> {
+    if !has_relief(job) {
+        return Vec::new();
+    }
+    relief_chunks(job, n)
+        .into_iter()
+        .map(|r| TaskDef {
+            key: keys::relief_task(r.start),
+            spec: TaskSpec::Relief {
+                job: job.clone(),
+                frames: r,
+            },
+            deps: vec![],
+            expands: false,
+        })
+        .collect()
 }
 
 /// The tasks to add after task `done_key` (marked `expands`) succeeded with `output`.
@@ -240,6 +280,19 @@ fn deformation_tasks(
     for r in position_chunks(n, &windows, job.partition.frames_per_chunk) {
         let key = keys::position_task(r.start);
         let mut deps = extra_deps.to_vec();
+        if has_relief(job) {
+            // The reliefs of the chunk's frames widened by the temporal span each frame's heights read.
+            let (lo, hi) = (
+                params.relief.span(r.start, n).start,
+                params.relief.span(r.end - 1, n).end,
+            );
+            deps.extend(
+                relief_chunks(job, n)
+                    .into_iter()
+                    .filter(|c| c.start < hi && lo < c.end)
+                    .map(|c| keys::relief_task(c.start)),
+            );
+        }
         let mut last = None;
         for (k, w) in windows.iter().enumerate() {
             if w.start < r.end && r.start < w.end() {

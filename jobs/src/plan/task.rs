@@ -45,6 +45,9 @@ pub enum TaskSpec {
     WeightWindow { job: JobSpec, window: usize },
     /// Per-anchor mode: sum the partial blends of window `window` in block order → the window's field.
     Reduce { job: JobSpec, window: usize },
+    /// The fold relief of captured `frames` (what a generic deconvolution adds along the normal), which the
+    /// positioning of each frame averages over its neighbours in time.
+    Relief { job: JobSpec, frames: Range<usize> },
     /// Cross-fade, position and stretch-reduce `frames`.
     Position { job: JobSpec, frames: Range<usize> },
     /// Write the output sequence, previews and `report.json` (last).
@@ -71,6 +74,7 @@ impl TaskSpec {
             TaskSpec::WeightBlock { .. } => "weight-block",
             TaskSpec::WeightWindow { .. } => "weight-window",
             TaskSpec::Reduce { .. } => "reduce",
+            TaskSpec::Relief { .. } => "relief",
             TaskSpec::Position { .. } => "position",
             TaskSpec::Finalize { .. } => "finalize",
             TaskSpec::DeepTrain { .. } => "deep-train",
@@ -92,6 +96,7 @@ impl TaskSpec {
             | TaskSpec::WeightBlock { job, .. }
             | TaskSpec::WeightWindow { job, .. }
             | TaskSpec::Reduce { job, .. }
+            | TaskSpec::Relief { job, .. }
             | TaskSpec::Position { job, .. }
             | TaskSpec::Finalize { job }
             | TaskSpec::DeepTrain { job }

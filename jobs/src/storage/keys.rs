@@ -47,6 +47,10 @@ pub fn weight_block_task(window: usize, block: usize) -> String {
 pub fn reduce_task(window: usize) -> String {
     format!("reduce/w{window:04}")
 }
+/// The fold relief of the frames starting at `first_frame`.
+pub fn relief_task(first_frame: usize) -> String {
+    format!("relief/f{first_frame:06}")
+}
 pub fn position_task(first_frame: usize) -> String {
     format!("position/f{first_frame:06}")
 }
@@ -96,6 +100,11 @@ pub fn window_field(window: usize, frame: usize) -> String {
 /// Statistics of window `window`'s weight solve (JSON `WindowStats`).
 pub fn window_stats(window: usize) -> String {
     format!("{WORK_DIR}/fields/w{window:04}/stats.json")
+}
+/// The fold relief of captured frame `frame` (`crease_core::spacetime::shape::relief::frame_relief`):
+/// (n_vertices,) f64.
+pub fn relief(frame: usize) -> String {
+    format!("{WORK_DIR}/relief/f{frame:06}.npy")
 }
 /// Output positions of frame `frame`: (n_vertices, 3) f64.
 pub fn positions(frame: usize) -> String {

@@ -24,12 +24,12 @@
 //! at long wavelengths, so the displacement is screened:
 //!
 //! ```text
-//!   (K + λ M) d = b,      λ = (2π / (ℓ_c h̄))²,      M = lumped (barycentric) vertex areas, h̄ = mean edge length
+//!   (K + λ M) d = b,      λ = (2π / ℓ_c)²,      M = lumped (barycentric) vertex areas
 //! ```
 //!
 //! An eigenmode of K with wavelength ℓ (K u = (2π/ℓ)² M u) is scaled by 1 / (1 + (ℓ/ℓ_c)²): folds, shorter
-//! than the cutoff ℓ_c, pass; the garment's shape, many cutoffs long, stays the captured one. λ is measured per
-//! frame in the frame's own edge length, so the cutoff means the same on every garment and resolution. The
+//! than the cutoff ℓ_c, pass; the garment's shape, many cutoffs long, stays the captured one. ℓ_c is a length of the
+//! sequence (a multiple of its detail scale, [`crate::spacetime::shape`]), the same in every frame. The
 //! system stays SPD and depends on the original frame only (one factor per frame, reused by the stretch
 //! passes), b = 0 still gives d = 0 bit for bit, and no vertex needs to be fixed: the translational null
 //! space is gone. Only vertices without triangles (no area, no stiffness) are fixed.
@@ -41,7 +41,6 @@
 
 use crate::error::{Error, Result};
 use crate::mesh::{Frame, Topology, NONE};
-use crate::spacetime::shape::restore::RestoreMesh;
 use crate::vec3::{self, M3, V3};
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{
@@ -49,7 +48,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, Mat, Par, Side};
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 /// How the translational degree of freedom of each connected component is removed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -80,22 +79,20 @@ pub struct PositionSystem {
     symbolic: SymbolicCholesky<usize>,
     /// The three-column triangular solves' view of the factor structure (None: not supernodal; faer solves).
     solve_plan: Option<super::factor_solve::SolvePlan>,
-    /// The fold restoration's connectivity tables, built by the first frame that needs them.
-    restore_mesh: OnceLock<RestoreMesh>,
 }
 
 const PAIRS: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (2, 0)];
 
 impl PositionSystem {
     /// Builds the pattern and the symbolic Cholesky analysis (AMD ordering) once per sequence.
-    /// `shape_cutoff` is the screen's cutoff wavelength ℓ_c in mean edge lengths (None: no screen, `pinning`
+    /// `shape_cutoff` is the screen's cutoff wavelength ℓ_c in the input's units (None: no screen, `pinning`
     /// removes the null space instead).
     pub fn new(topo: Arc<Topology>, pinning: Pinning, shape_cutoff: Option<f64>) -> Result<Self> {
         if let Some(l) = shape_cutoff {
             if !(l.is_finite() && l > 0.0) {
                 return Err(Error::param(
                     "shape_cutoff",
-                    format!("must be a finite wavelength > 0 mean edge lengths, got {l}"),
+                    format!("must be a finite wavelength > 0, got {l}"),
                 ));
             }
         }
@@ -175,19 +172,11 @@ impl PositionSystem {
             scatter,
             symbolic,
             solve_plan,
-            restore_mesh: OnceLock::new(),
         })
     }
 
     pub fn topology(&self) -> &Arc<Topology> {
         &self.topo
-    }
-
-    /// The fold restoration's connectivity tables for this mesh (built once, on first use, shared by every
-    /// frame and thread).
-    pub fn restore_mesh(&self) -> &RestoreMesh {
-        self.restore_mesh
-            .get_or_init(|| RestoreMesh::new(&self.topo))
     }
 
     /// Assembles the lower triangle of the reduced cotangent stiffness matrix of one original frame (values in
@@ -199,19 +188,10 @@ impl PositionSystem {
         let mut areas = Vec::with_capacity(topo.n_triangles());
         let mut normals = Vec::with_capacity(topo.n_triangles());
         let mut values = vec![0.0f64; self.row_idx.len()];
-        // Screen weight λ = (2π / (ℓ_c h̄))² of this frame (0 without the screen).
-        let screen = match self.shape_cutoff {
-            Some(l) => {
-                let h = crate::shape::mean_edge_length(topo, rest);
-                if !(h.is_finite() && h > 0.0) {
-                    return Err(Error::mesh(format!(
-                        "the mean edge length is {h}: the frame has no extent to screen"
-                    )));
-                }
-                (2.0 * std::f64::consts::PI / (l * h)).powi(2)
-            }
-            None => 0.0,
-        };
+        // Screen weight λ = (2π / ℓ_c)² (0 without the screen).
+        let screen = self
+            .shape_cutoff
+            .map_or(0.0, |l| (2.0 * std::f64::consts::PI / l).powi(2));
         for (t, &tri) in topo.triangles().iter().enumerate() {
             let [a, b, c] = tri.map(|i| rest[i as usize]);
             let n = vec3::cross(vec3::sub(b, a), vec3::sub(c, a));

@@ -1,0 +1,252 @@
+//! The fold relief (`spacetime/shape/relief.rs`) gives back, in place, the folds a capture smoothed without
+//! erasing — for a capture made by a low-pass it knows nothing about — never amplifies a capture's noise, and
+//! leaves a garment without anchors as it was.
+
+use crease_core::folds::{Anchor, AnchorSet};
+use crease_core::mesh::{geometry, MemorySink, Sequence, Topology};
+use crease_core::progress::NoProgress;
+use crease_core::spacetime::shape::relief::ReliefParams;
+use crease_core::spacetime::{deform, DeformParams};
+use crease_core::vec3::{self, V3};
+use std::sync::Arc;
+
+/// A flat sheet of near-equilateral triangles (`nx` × `ny` vertices, edge 1) in the z = 0 plane.
+fn sheet(nx: usize, ny: usize) -> (Topology, Vec<V3>) {
+    let mut p = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            p.push([
+                i as f64 + 0.5 * (j % 2) as f64,
+                j as f64 * 0.75f64.sqrt(),
+                0.0,
+            ]);
+        }
+    }
+    let mut tris = Vec::new();
+    for j in 0..ny - 1 {
+        for i in 0..nx - 1 {
+            let a = (j * nx + i) as u32;
+            let (b, c, d) = (a + 1, a + nx as u32, a + nx as u32 + 1);
+            if j % 2 == 0 {
+                tris.extend([[a, b, c], [b, d, c]]);
+            } else {
+                tris.extend([[a, b, d], [a, d, c]]);
+            }
+        }
+    }
+    (Topology::new(nx * ny, tris).unwrap(), p)
+}
+
+/// Ripples of 6 edges across x in [12, 30], height 0.35 edges, fading in and out: the real cloth.
+fn ripple(p: &[V3]) -> Vec<V3> {
+    p.iter()
+        .map(|q| {
+            let env = if (12.0..30.0).contains(&q[0]) {
+                (std::f64::consts::PI * (q[0] - 12.0) / 18.0).sin()
+            } else {
+                0.0
+            };
+            [
+                q[0],
+                q[1],
+                0.35 * env * (2.0 * std::f64::consts::PI * q[0] / 6.0).sin(),
+            ]
+        })
+        .collect()
+}
+
+fn mean_normal_error(topo: &Topology, a: &[V3], b: &[V3], keep: impl Fn(usize) -> bool) -> f64 {
+    let (na, nb) = (
+        geometry::vertex_normals(topo, a),
+        geometry::vertex_normals(topo, b),
+    );
+    let (mut sum, mut n) = (0.0, 0);
+    for v in (0..a.len()).filter(|&v| keep(v)) {
+        sum += vec3::dot(na[v], nb[v]).clamp(-1.0, 1.0).acos();
+        n += 1;
+    }
+    sum / n as f64
+}
+
+/// A low-pass of its own family, which the relief does not model: repeated implicit-like steps of the uniform
+/// (umbrella) Laplacian with a boundary kept in place.
+fn blur(topo: &Topology, p: &[V3], rounds: usize) -> Vec<V3> {
+    let mut x = p.to_vec();
+    for _ in 0..rounds {
+        x = (0..x.len())
+            .map(|v| {
+                let nb = topo.vertex_neighbors(v);
+                if nb.len() < 6 {
+                    return x[v];
+                }
+                let avg = nb.iter().fold([0.0; 3], |a, &u| vec3::add(a, x[u as usize]));
+                vec3::add(vec3::scale(x[v], 0.6), vec3::scale(avg, 0.4 / nb.len() as f64))
+            })
+            .collect();
+    }
+    x
+}
+
+/// A small deterministic generator (the tests must not depend on a random crate's stream).
+struct Lcg(u64);
+impl Lcg {
+    fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    }
+}
+
+const FRAMES: usize = 7;
+
+/// Seven frames of the captured sheet (the ripple after a low-pass of another family, plus `noise` edges of
+/// uniform noise, new in every frame) with anchors that tilt the rippled band a little (a detector that knows
+/// where the cloth folded, not where its ridges are).
+fn captured_case(noise: f64) -> (Sequence, AnchorSet, Vec<V3>) {
+    let (topo, flat) = sheet(42, 24);
+    let truth = ripple(&flat);
+    let smooth = blur(&topo, &truth, 6);
+    let mut rng = Lcg(99);
+    let frames: Vec<Vec<V3>> = (0..FRAMES)
+        .map(|_| {
+            smooth
+                .iter()
+                .map(|q| [q[0], q[1], q[2] + noise * 2.0 * rng.uniform()])
+                .collect()
+        })
+        .collect();
+    let topo = Arc::new(topo);
+    let anchors: Vec<Anchor> = (0..topo.n_triangles())
+        .filter(|&t| {
+            let x = topo.triangles()[t]
+                .iter()
+                .map(|&v| flat[v as usize][0])
+                .sum::<f64>()
+                / 3.0;
+            let y = flat[topo.triangles()[t][0] as usize][1];
+            (16.0..26.0).contains(&x) && (4.0..16.0).contains(&y) && t % 7 == 0
+        })
+        .map(|t| Anchor {
+            triangle: t as u32,
+            axis: [0.0, 1.0, 0.0],
+            angle: if t % 2 == 0 { 0.15 } else { -0.15 },
+        })
+        .collect();
+    assert!(anchors.len() > 10);
+    let seq = Sequence::new(topo.clone(), frames).unwrap();
+    let set = AnchorSet::from_frames(vec![anchors; FRAMES], topo.n_triangles(), None).unwrap();
+    (seq, set, truth)
+}
+
+fn run(seq: &Sequence, anchors: &AnchorSet, steps: u32) -> Vec<Vec<V3>> {
+    let params = DeformParams {
+        relief: ReliefParams {
+            steps,
+            ..Default::default()
+        },
+        ..DeformParams::default()
+    };
+    let mut sink = MemorySink::default();
+    deform(seq, anchors, &params, &mut sink, &NoProgress, &[]).unwrap();
+    sink.frames.into_values().collect()
+}
+
+#[test]
+fn the_relief_brings_the_output_closer_to_the_cloth_the_capture_smoothed() {
+    let (seq, anchors, truth) = captured_case(0.0);
+    let topo = seq.topology.clone();
+    let captured = &seq.frames[0];
+    // The interior of the anchored band, away from the sheet's rim.
+    let band = |v: usize| {
+        let q = captured[v];
+        (17.0..25.0).contains(&q[0]) && (5.0..15.0).contains(&q[1])
+    };
+    let plain = run(&seq, &anchors, 0);
+    let restored = run(&seq, &anchors, 8);
+    let t = FRAMES / 2;
+    let e_captured = mean_normal_error(&topo, captured, &truth, band);
+    let e_plain = mean_normal_error(&topo, &plain[t], &truth, band);
+    let e_restored = mean_normal_error(&topo, &restored[t], &truth, band);
+    assert!(
+        e_restored < 0.88 * e_captured && e_restored < 0.88 * e_plain,
+        "normal error vs the cloth: captured {e_captured}, plain {e_plain}, restored {e_restored}"
+    );
+    // In phase: what the relief added points the way the cloth's ripple does.
+    let n = geometry::vertex_normals(&topo, captured);
+    let (mut agree, mut moved) = (0, 0);
+    for v in (0..captured.len()).filter(|&v| band(v)) {
+        let added = vec3::dot(vec3::sub(restored[t][v], plain[t][v]), n[v]);
+        let real = vec3::dot(vec3::sub(truth[v], captured[v]), n[v]);
+        if added.abs() > 1e-3 && real.abs() > 1e-2 {
+            moved += 1;
+            agree += usize::from(added * real > 0.0);
+        }
+    }
+    assert!(
+        moved > 20 && agree as f64 > 0.9 * moved as f64,
+        "{agree} of {moved}"
+    );
+}
+
+/// A capture with reconstruction noise (fresh in every frame, a tenth of an edge) comes out no further from the
+/// cloth than it went in, over the whole sheet: the relief keeps only what stands above the noise it measures
+/// over time.
+#[test]
+fn a_noisy_capture_comes_out_no_further_from_the_cloth() {
+    let (seq, anchors, truth) = captured_case(0.1);
+    let topo = seq.topology.clone();
+    let everywhere = |_| true;
+    let out = run(&seq, &anchors, 8);
+    for t in 0..FRAMES {
+        let e_in = mean_normal_error(&topo, &seq.frames[t], &truth, everywhere);
+        let e_out = mean_normal_error(&topo, &out[t], &truth, everywhere);
+        assert!(
+            e_out <= e_in,
+            "frame {t}: normal error vs the cloth {e_out} after, {e_in} before"
+        );
+    }
+}
+
+#[test]
+fn without_anchors_the_relief_leaves_the_input_bit_for_bit() {
+    let (seq, _, _) = captured_case(0.0);
+    let none = AnchorSet::empty(seq.frames.len());
+    let out = run(&seq, &none, 8);
+    for (o, i) in out.iter().zip(&seq.frames) {
+        let bits = |f: &[V3]| f.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(o), bits(i));
+    }
+}
+
+#[test]
+fn the_relief_settings_are_validated_by_name() {
+    for (bad, key) in [
+        (
+            ReliefParams {
+                steps: 33,
+                ..Default::default()
+            },
+            "relief.steps",
+        ),
+        (
+            ReliefParams {
+                scale: f64::NAN,
+                ..Default::default()
+            },
+            "relief.scale",
+        ),
+        (
+            ReliefParams {
+                temporal_sigma: -1.0,
+                ..Default::default()
+            },
+            "relief.temporal_sigma",
+        ),
+    ] {
+        let params = DeformParams {
+            relief: bad,
+            ..DeformParams::default()
+        };
+        let err = params.validate().unwrap_err().to_string();
+        assert!(err.contains(key), "{key}: {err}");
+    }
+}

@@ -9,6 +9,7 @@ use crease_core::mesh::{geometry, MemorySink, Sequence};
 use crease_core::progress::NoProgress;
 use crease_core::shape::ShapeAccumulator;
 use crease_core::spacetime::blend::so3;
+use crease_core::spacetime::shape::relief::ReliefParams;
 use crease_core::spacetime::{deform, DeformParams};
 use crease_core::vec3::{self, V3};
 use std::path::Path;
@@ -204,14 +205,23 @@ fn sleeve_rims_drift_no_more_than_twice_the_ground_truth() {
         s.extent_change <= truth.extent_change + 0.01,
         "output {s:?}\nground truth {truth:?}"
     );
-    let unprojected = DeformParams {
-        shape_projection: 0.0,
+    // What the projection itself does, without the relief that follows it (the relief's heights are detail
+    // along the normal, which the drift partly counts).
+    let no_relief = DeformParams {
+        relief: ReliefParams {
+            steps: 0,
+            ..Default::default()
+        },
         ..DeformParams::default()
     };
+    let unprojected = DeformParams {
+        shape_projection: 0.0,
+        ..no_relief.clone()
+    };
+    let projected = shape_of(&seq, &run(&seq, &anchors, &no_relief));
     let old = shape_of(&seq, &run(&seq, &anchors, &unprojected));
-    // Measured: drift mean / max 0.019 / 0.266 projected, 0.031 / 0.312 without (gt 0.060 / 0.277).
     assert!(
-        s.drift_max < 0.9 * old.drift_max && s.drift_mean < 0.7 * old.drift_mean,
-        "projected {s:?}\nwithout the projection: {old:?}"
+        projected.drift_max < 0.9 * old.drift_max && projected.drift_mean < 0.7 * old.drift_mean,
+        "projected {projected:?}\nwithout the projection: {old:?}"
     );
 }

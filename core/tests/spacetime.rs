@@ -5,6 +5,7 @@ use crease_core::mesh::{MemorySink, Sequence};
 use crease_core::progress::NoProgress;
 use crease_core::spacetime::blend::so3;
 use crease_core::spacetime::position::stretch::StretchRotation;
+use crease_core::spacetime::shape::relief::ReliefParams;
 use crease_core::spacetime::weights::operator::SpaceTimeOperator;
 use crease_core::spacetime::weights::per_anchor::LocalCg;
 use crease_core::spacetime::weights::{solve_window, WindowProblem};
@@ -473,9 +474,13 @@ fn stretch_passes_lower_max_stretch() {
     let params = DeformParams {
         stretch_passes: 2,
         stretch_rotation: StretchRotation::Polar,
-        // The passes as such: the shape projection (on by default) ends the last pass and changes
-        // its figure (docs/fidelity.md).
+        // The passes as such: the shape projection and the relief (on by default) end the last pass and
+        // change its figure (docs/fidelity.md).
         shape_projection: 0.0,
+        relief: ReliefParams {
+            steps: 0,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let (_, report) = run(&seq, &anchors, &params);
@@ -522,8 +527,12 @@ fn anchored_passes_keep_the_folds_that_polar_passes_erase() {
         let params = DeformParams {
             stretch_passes: passes,
             stretch_rotation: rotation,
-            // The passes as such, without the shape projection that ends the last one.
+            // The passes as such, without the shape projection and the relief that end the last one.
             shape_projection: 0.0,
+            relief: ReliefParams {
+                steps: 0,
+                ..Default::default()
+            },
             ..Default::default()
         };
         let (out, report) = run(&seq, &anchors, &params);

@@ -112,8 +112,16 @@ pub fn position_frame(
     let rotations = blend::rotations(phi);
     let blend = clock.elapsed().as_secs_f64();
 
+    // A frame no anchor's weight reaches (every rotation vector exactly zero) stays exactly where it was
+    // captured: the solve would give it back only up to round-off, and no anchors must give the input back
+    // bit for bit.
+    let still = phi.iter().all(|p| *p == [0.0; 3]);
     let clock = Instant::now();
-    let mut out = fp.solve(&rotations);
+    let mut out = if still {
+        rest.clone()
+    } else {
+        fp.solve(&rotations)
+    };
     let position = clock.elapsed().as_secs_f64();
 
     // The captured frame's triangles, which every stretch measurement below compares against, once.
@@ -129,10 +137,9 @@ pub fn position_frame(
         *metrics += clock.elapsed().as_secs_f64();
         (acc, st)
     };
-    // A frame the positioning left exactly in place (no anchor's weight reaches it) has no stretch to reduce:
-    // a pass would only add round-off (the closest rotation to an identity gradient is I up to rounding), and
-    // no anchors must give the input back bit for bit.
-    let moved = out != rest;
+    // A frame the positioning left in place has no stretch to reduce: a pass would only add round-off (the
+    // closest rotation to an identity gradient is I up to rounding).
+    let moved = !still && out != rest;
     // The relief applies to every frame it has heights for, moved or not; the projection only to a moved one.
     let relief = ending.is_active(heights);
     let changed = moved || relief;

@@ -69,7 +69,8 @@ pub fn job_summary(s: &pb::JobStatus) -> Value {
 }
 
 /// Stages of the task graph in the order they run; a kind not listed here sorts after them.
-const STAGES: [(&str, &str); 12] = [
+const STAGES: [(&str, &str); 13] = [
+    ("relief", "fold relief (from the input alone)"),
     ("fold-steps", "fold steps (stretch)"),
     ("fold-phases", "fold phases (stretch)"),
     ("fold-detect", "fold detection"),

@@ -110,14 +110,17 @@ fn farm_graph_mirrors_the_planner_and_slots_cover_detected_blocks() {
         .collect();
     assert_eq!(planned, farm);
     let names: Vec<&str> = g.stages.iter().map(|s| s.stage.name()).collect();
-    assert_eq!(names, ["weights", "reduce", "position", "finalize"]);
+    assert_eq!(
+        names,
+        ["relief", "weights", "reduce", "position", "finalize"]
+    );
     // 9 frames, windows of 3 shifted by 2: 4 windows; 18 anchors a window in blocks of 8: 3 blocks each.
     assert_eq!(g.stage(Stage::Weights).unwrap().tasks.len(), 12);
     assert_eq!(g.stage(Stage::Position).unwrap().tasks.len(), 5);
     assert_eq!(g.stage(Stage::Reduce).unwrap().depends_on, [Stage::Weights]);
     assert_eq!(
         g.stage(Stage::Position).unwrap().depends_on,
-        [Stage::Reduce]
+        [Stage::Relief, Stage::Reduce]
     );
 
     // Detected: stretch steps, phases, tracing, merge, then 4 slots per window feeding each reduce.
@@ -126,6 +129,7 @@ fn farm_graph_mirrors_the_planner_and_slots_cover_detected_blocks() {
     assert_eq!(
         names,
         [
+            "relief",
             "fold-steps",
             "fold-phases",
             "fold-detect",

@@ -115,7 +115,10 @@ fn the_api_serves_jobs_workers_files_actions_and_events_to_client_tokens_only() 
         .iter()
         .map(|s| s["kind"].as_str().unwrap())
         .collect();
-    assert_eq!(kinds, ["weight-block", "reduce", "position", "finalize"]);
+    assert_eq!(
+        kinds,
+        ["relief", "weight-block", "reduce", "position", "finalize"]
+    );
     let stage_total: u64 = jr["stages"]
         .as_array()
         .unwrap()
@@ -123,7 +126,7 @@ fn the_api_serves_jobs_workers_files_actions_and_events_to_client_tokens_only() 
         .map(|s| s["counts"]["total"].as_u64().unwrap())
         .sum();
     assert_eq!(stage_total, t["total"].as_u64().unwrap());
-    let fin = &jr["stages"][3]["tasks"][0];
+    let fin = &jr["stages"][4]["tasks"][0];
     assert_eq!(fin["key"], "finalize");
     assert_eq!(fin["state"], "done");
     assert_eq!(fin["attempts"], 1);

@@ -265,8 +265,24 @@ mod tests {
             .filter(|t| matches!(t.spec, TaskSpec::FoldDetect { .. }))
             .count();
         assert_eq!(detect_tasks, if whole_sequence { 1 } else { 4 });
-        assert_eq!(tasks.len(), detect_tasks + 1, "detection and merge only");
-        assert!(tasks.last().unwrap().expands);
+        let relief_tasks = tasks
+            .iter()
+            .filter(|t| matches!(t.spec, TaskSpec::Relief { .. }))
+            .count();
+        assert_eq!(
+            relief_tasks, 4,
+            "the relief of every frame chunk, from the input alone"
+        );
+        assert_eq!(
+            tasks.len(),
+            detect_tasks + relief_tasks + 1,
+            "detection, relief and merge only"
+        );
+        let merge = tasks
+            .iter()
+            .find(|t| t.key == keys::FOLD_MERGE_TASK)
+            .unwrap();
+        assert!(merge.expands);
         let ctx = ExecContext {
             progress: Arc::new(NoProgress),
             cache_dir: root.join("cache"),

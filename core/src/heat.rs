@@ -404,7 +404,13 @@ pub(crate) mod tests {
         let f = |l: f64| 1.0 / (1.0 + 0.3 * l) + 0.1 * (-0.5 * l).exp();
         let series = Series::new(op.lambda_max(), f);
         let x: Vec<V3> = (0..n)
-            .map(|v| [(v as f64 * 0.37).sin(), (v as f64 * 0.11).cos(), v as f64 * 0.01])
+            .map(|v| {
+                [
+                    (v as f64 * 0.37).sin(),
+                    (v as f64 * 0.11).cos(),
+                    v as f64 * 0.01,
+                ]
+            })
             .collect();
         let got = op.apply(&series, &x);
         let eig = sym.self_adjoint_eigen(faer::Side::Lower).unwrap();
@@ -416,7 +422,10 @@ pub(crate) mod tests {
                 let mut s = 0.0;
                 for k in 0..n {
                     let l = vals[k];
-                    assert!(l > -1e-9 && l <= op.lambda_max() * (1.0 + 1e-9), "eigenvalue {l}");
+                    assert!(
+                        l > -1e-9 && l <= op.lambda_max() * (1.0 + 1e-9),
+                        "eigenvalue {l}"
+                    );
                     s += vecs[(i, k)] * f(l) * vecs[(j, k)];
                 }
                 fa[(i, j)] = s * (m[j] / m[i]).sqrt();
@@ -425,7 +434,11 @@ pub(crate) mod tests {
         for d in 0..3 {
             for i in 0..n {
                 let want: f64 = (0..n).map(|j| fa[(i, j)] * x[j][d]).sum();
-                assert!((got[i][d] - want).abs() < 1e-8, "{i},{d}: {} vs {want}", got[i][d]);
+                assert!(
+                    (got[i][d] - want).abs() < 1e-8,
+                    "{i},{d}: {} vs {want}",
+                    got[i][d]
+                );
             }
         }
     }

@@ -79,8 +79,13 @@ fn blur(topo: &Topology, p: &[V3], rounds: usize) -> Vec<V3> {
                 if nb.len() < 6 {
                     return x[v];
                 }
-                let avg = nb.iter().fold([0.0; 3], |a, &u| vec3::add(a, x[u as usize]));
-                vec3::add(vec3::scale(x[v], 0.6), vec3::scale(avg, 0.4 / nb.len() as f64))
+                let avg = nb
+                    .iter()
+                    .fold([0.0; 3], |a, &u| vec3::add(a, x[u as usize]));
+                vec3::add(
+                    vec3::scale(x[v], 0.6),
+                    vec3::scale(avg, 0.4 / nb.len() as f64),
+                )
             })
             .collect();
     }
@@ -91,7 +96,10 @@ fn blur(topo: &Topology, p: &[V3], rounds: usize) -> Vec<V3> {
 struct Lcg(u64);
 impl Lcg {
     fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (self.0 >> 11) as f64 / (1u64 << 53) as f64 - 0.5
     }
 }

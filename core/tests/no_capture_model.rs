@@ -27,7 +27,15 @@ fn rust_sources(dir: &Path, out: &mut Vec<PathBuf>) {
 fn no_product_source_carries_the_sample_data_capture_filter() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let mut files = Vec::new();
-    for krate in ["core", "jobs", "cli", "deep", "coordinator", "worker", "dashboard"] {
+    for krate in [
+        "core",
+        "jobs",
+        "cli",
+        "deep",
+        "coordinator",
+        "worker",
+        "dashboard",
+    ] {
         rust_sources(&root.join(krate).join("src"), &mut files);
     }
     assert!(files.len() > 50, "found only {} sources", files.len());
@@ -44,5 +52,9 @@ fn no_product_source_carries_the_sample_data_capture_filter() {
             }
         }
     }
-    assert!(hits.is_empty(), "the capture filter in product code:\n{}", hits.join("\n"));
+    assert!(
+        hits.is_empty(),
+        "the capture filter in product code:\n{}",
+        hits.join("\n")
+    );
 }

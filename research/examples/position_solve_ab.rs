@@ -70,7 +70,11 @@ fn main() -> crease_core::Result<()> {
     })?;
     let params = DeformParams::default();
     let edge = crease_core::shape::mean_edge_length(&seq.topology, &seq.frames[0]);
-    let sys = PositionSystem::new(seq.topology.clone(), params.pinning, params.scales(edge).screen)?;
+    let sys = PositionSystem::new(
+        seq.topology.clone(),
+        params.pinning,
+        params.scales(edge).screen,
+    )?;
     let (vals, _, _, _) = sys.assemble(&seq.frames[0])?;
     let (cp, ri) = sys.pattern();
     let n = cp.len() - 1;

@@ -5,7 +5,6 @@
 
 use std::process::Command;
 
-
 #[test]
 fn bench_deep_reports_rasterisation_forward_and_training_times() {
     let tmp = tempfile::tempdir().unwrap();

@@ -7,7 +7,6 @@ use crease_core::mesh::Topology;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-
 fn tube_tris(na: usize, nr: usize) -> Vec<[u32; 3]> {
     let mut tris = Vec::new();
     for j in 0..nr - 1 {

@@ -11,7 +11,6 @@ use crease_e2e::{fixture, stderr};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-
 fn export(input: &Path, format: &str, out: &Path) -> std::process::Output {
     Command::new(crease_e2e::bin())
         .args([

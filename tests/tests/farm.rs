@@ -9,7 +9,6 @@ use crease_e2e::*;
 use std::path::Path;
 use std::process::Command;
 
-
 fn crease(args: &[&str]) -> std::process::Output {
     Command::new(crease_e2e::bin()).args(args).output().unwrap()
 }
@@ -44,7 +43,10 @@ fn openjd_export_check_run(dir: &Path, job: &Path, extra: &[&str]) -> String {
         .arg("run")
         .arg(&template)
         .args(["--step", "Finalize", "--run-dependencies"])
-        .args(["--job-param", &format!("CreaseExe={}", crease_e2e::bin().display())])
+        .args([
+            "--job-param",
+            &format!("CreaseExe={}", crease_e2e::bin().display()),
+        ])
         .output()
         .unwrap();
     let log = format!(

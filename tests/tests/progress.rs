@@ -104,7 +104,10 @@ fn status_shows_the_running_task_its_worker_and_progress() {
         let text = String::from_utf8_lossy(&o.stdout).into_owned();
         let running = state["running"].as_array().cloned().unwrap_or_default();
         let named = running.iter().any(|r| {
-            let (k, w) = (r["key"].as_str().unwrap_or(""), r["worker"].as_str().unwrap_or(""));
+            let (k, w) = (
+                r["key"].as_str().unwrap_or(""),
+                r["worker"].as_str().unwrap_or(""),
+            );
             !k.is_empty() && !w.is_empty() && text.contains(&format!("running {k} on {w}"))
         });
         if named {

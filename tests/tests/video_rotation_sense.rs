@@ -8,7 +8,6 @@ use crease_core::mesh::geometry::triangle_normals;
 use crease_core::mesh::io::open_sequence;
 use std::process::Command;
 
-
 fn crease(args: &[&str]) {
     let o = Command::new(crease_e2e::bin()).args(args).output().unwrap();
     assert!(

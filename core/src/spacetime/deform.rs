@@ -139,29 +139,29 @@ pub fn deform(
             },
             None => None,
         };
-            ready
-                .into_par_iter()
-                .map(|(t, phi)| {
-                    if progress.cancelled() {
-                        return Err(Error::Cancelled);
-                    }
-                    let heights = relief.map(|r| r.heights(&topo, t)).transpose()?;
-                    let r = position_frame(
-                        &system,
-                        source,
-                        t,
-                        &phi,
-                        params.stretch_passes,
-                        params.stretch_rotation,
-                        &scales.ending,
-                        heights.as_deref(),
-                        limiter.as_ref(),
-                    );
-                    progress.advance("position", 1);
-                    r
-                })
-                .collect()
-        };
+        ready
+            .into_par_iter()
+            .map(|(t, phi)| {
+                if progress.cancelled() {
+                    return Err(Error::Cancelled);
+                }
+                let heights = relief.map(|r| r.heights(&topo, t)).transpose()?;
+                let r = position_frame(
+                    &system,
+                    source,
+                    t,
+                    &phi,
+                    params.stretch_passes,
+                    params.stretch_rotation,
+                    &scales.ending,
+                    heights.as_deref(),
+                    limiter.as_ref(),
+                );
+                progress.advance("position", 1);
+                r
+            })
+            .collect()
+    };
     let mut ready = Vec::new();
     for k in 0..=windows.len() {
         if progress.cancelled() {

@@ -2,9 +2,9 @@
 
 use super::position::stretch::StretchRotation;
 use super::position::Pinning;
-use super::weights::operator::Coefficients;
 use super::shape::relief::ReliefParams;
 use super::shape::ShapeEnding;
+use super::weights::operator::Coefficients;
 use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 

@@ -173,7 +173,11 @@ pub fn evaluate(dirs: &[PathBuf], p: &EvalParams, progress: &dyn Progress) -> Re
     let last_held = (0..seqs.len())
         .rev()
         .find(|&i| p.held_out.is_empty() || p.held_out.contains(&name_of(&seqs[i].dir)));
-    if let Some(n) = p.held_out.iter().find(|n| !seqs.iter().any(|s| &name_of(&s.dir) == *n)) {
+    if let Some(n) = p
+        .held_out
+        .iter()
+        .find(|n| !seqs.iter().any(|s| &name_of(&s.dir) == *n))
+    {
         return Err(Error::param(
             "held_out",
             format!("{n} is not the name of a --data directory"),

@@ -5,12 +5,12 @@ use super::spec::{DeepSpec, DeepTrainParams, MapSpace, Mirror, PoseFeatures, Reg
 use crate::error::JobError;
 use crease_deep::cgan::CganConfig;
 use crease_deep::detail::DetailParams;
-use crease_deep::regression::lstm::LstmConfig;
-use crease_deep::regression::pose_lowpass::PoseLowpass;
-use crease_deep::subspace::mirror::MirrorMode;
 use crease_deep::model::RegressorKind;
 use crease_deep::normal_maps::Space;
+use crease_deep::regression::lstm::LstmConfig;
 use crease_deep::regression::pose_features::PoseFeatureMode;
+use crease_deep::regression::pose_lowpass::PoseLowpass;
+use crease_deep::subspace::mirror::MirrorMode;
 use crease_deep::train::TrainParams;
 use std::path::PathBuf;
 
@@ -160,7 +160,14 @@ mod tests {
             (t.pose_lowpass.components, t.pose_lowpass.half_wavelength),
             (t.detail.degree, t.detail.captures_per_frame),
             (t.resolution, t.uv),
-            (c.filters, c.disc_filters, c.w_temporal, c.depth, c.crop, c.steps),
+            (
+                c.filters,
+                c.disc_filters,
+                c.w_temporal,
+                c.depth,
+                c.crop,
+                c.steps,
+            ),
         );
         let got = (
             (

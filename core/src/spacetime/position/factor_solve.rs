@@ -590,8 +590,12 @@ mod tests {
         .unwrap();
         let params = DeformParams::default();
         let edge = crate::shape::mean_edge_length(&seq.topology, &seq.frames[0]);
-        let sys = PositionSystem::new(seq.topology.clone(), params.pinning, params.scales(edge).screen)
-            .unwrap();
+        let sys = PositionSystem::new(
+            seq.topology.clone(),
+            params.pinning,
+            params.scales(edge).screen,
+        )
+        .unwrap();
         let (vals, _, _, _) = sys.assemble(&seq.frames[0]).unwrap();
         let (cp, ri) = sys.pattern();
         let n = cp.len() - 1;

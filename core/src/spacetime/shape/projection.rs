@@ -39,7 +39,11 @@ pub fn project(
     if fraction <= 0.0 || out == rest {
         return out.to_vec();
     }
-    let d: Vec<V3> = out.iter().zip(rest).map(|(o, c)| vec3::sub(*o, *c)).collect();
+    let d: Vec<V3> = out
+        .iter()
+        .zip(rest)
+        .map(|(o, c)| vec3::sub(*o, *c))
+        .collect();
     let smooth = op.apply(low, &d);
     out.iter()
         .zip(&smooth)

@@ -93,7 +93,10 @@ impl ReliefParams {
         if !(self.scale.is_finite() && self.scale >= 0.0) {
             return Err(Error::param(
                 "relief.scale",
-                format!("must be a length ≥ 0 in metres (0 = automatic), got {}", self.scale),
+                format!(
+                    "must be a length ≥ 0 in metres (0 = automatic), got {}",
+                    self.scale
+                ),
             ));
         }
         if self.steps > 32 {
@@ -105,7 +108,10 @@ impl ReliefParams {
         if !(self.temporal_sigma.is_finite() && (0.0..=8.0).contains(&self.temporal_sigma)) {
             return Err(Error::param(
                 "relief.temporal_sigma",
-                format!("must be between 0 and 8 frames, got {}", self.temporal_sigma),
+                format!(
+                    "must be between 0 and 8 frames, got {}",
+                    self.temporal_sigma
+                ),
             ));
         }
         Ok(())
@@ -222,15 +228,18 @@ pub fn heights(
     t: usize,
 ) -> Result<Vec<f64>> {
     let n = topo.n_vertices();
-    let k = t.checked_sub(first).filter(|&k| k < reliefs.len()).ok_or_else(|| {
-        Error::param(
-            "relief",
-            format!(
-                "frame {t} is not among the {} reliefs given from frame {first}",
-                reliefs.len()
-            ),
-        )
-    })?;
+    let k = t
+        .checked_sub(first)
+        .filter(|&k| k < reliefs.len())
+        .ok_or_else(|| {
+            Error::param(
+                "relief",
+                format!(
+                    "frame {t} is not among the {} reliefs given from frame {first}",
+                    reliefs.len()
+                ),
+            )
+        })?;
     if let Some(bad) = reliefs.iter().position(|r| r.len() != n) {
         return Err(Error::param(
             "relief",
@@ -272,9 +281,8 @@ pub fn heights(
         return Ok(vec![0.0; n]);
     }
     estimates.sort_by(|a, b| a.total_cmp(b));
-    let noise = NOISE_MARGIN
-        * estimates[estimates.len() / 2]
-        * weights.iter().map(|w| w * w).sum::<f64>();
+    let noise =
+        NOISE_MARGIN * estimates[estimates.len() / 2] * weights.iter().map(|w| w * w).sum::<f64>();
     // Local power of the averaged relief, smoothed over a few rings.
     let mut power: Vec<f64> = averaged.iter().map(|a| a * a).collect();
     let mut next = vec![0.0; n];
@@ -325,7 +333,11 @@ impl ReliefFrames {
 
     /// Computes (in parallel) the reliefs frames `frames` need that are not there yet, and drops those no frame
     /// from the smallest of `frames` on needs.
-    pub fn prepare(&mut self, source: &dyn crate::mesh::FrameSource, frames: &[usize]) -> Result<()> {
+    pub fn prepare(
+        &mut self,
+        source: &dyn crate::mesh::FrameSource,
+        frames: &[usize],
+    ) -> Result<()> {
         use rayon::prelude::*;
         let Some(&first) = frames.iter().min() else {
             return Ok(());
@@ -397,7 +409,9 @@ mod tests {
                     if nb.len() < 6 {
                         return x[v];
                     }
-                    let avg = nb.iter().fold([0.0; 3], |a, &u| vec3::add(a, x[u as usize]));
+                    let avg = nb
+                        .iter()
+                        .fold([0.0; 3], |a, &u| vec3::add(a, x[u as usize]));
                     vec3::add(
                         vec3::scale(x[v], 0.6),
                         vec3::scale(avg, 0.4 / nb.len() as f64),
@@ -437,14 +451,18 @@ mod tests {
     fn wide_shapes_are_left_alone() {
         let (topo, p) = waved_grid(80, 40, 40.0, 2.0);
         let eta = frame_relief(&topo, &p, 5.0, 8);
-        let inner = (0..p.len()).filter(|&v| (20.0..60.0).contains(&p[v][0]) && (8.0..25.0).contains(&p[v][1]));
+        let inner = (0..p.len())
+            .filter(|&v| (20.0..60.0).contains(&p[v][0]) && (8.0..25.0).contains(&p[v][1]));
         for v in inner {
             assert!(eta[v].abs() < 0.05 * 2.0, "vertex {v}: {}", eta[v]);
         }
     }
 
     fn sequence_reliefs(frames: &[Vec<V3>], topo: &Topology) -> Vec<Vec<f64>> {
-        frames.iter().map(|f| frame_relief(topo, f, 5.0, 8)).collect()
+        frames
+            .iter()
+            .map(|f| frame_relief(topo, f, 5.0, 8))
+            .collect()
     }
 
     /// Noise that is new in every frame gets no height: the Wiener fraction of pure noise is zero almost
@@ -454,7 +472,9 @@ mod tests {
         let (topo, flat) = waved_grid(40, 30, 6.0, 0.0);
         let mut state = 12345u64;
         let mut noise = || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.1
         };
         let frames: Vec<Vec<V3>> = (0..9)
@@ -475,11 +495,18 @@ mod tests {
         let captured = blur(&topo, &truth, 6);
         let mut state = 777u64;
         let mut noise = || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.02
         };
         let frames: Vec<Vec<V3>> = (0..9)
-            .map(|_| captured.iter().map(|q| [q[0], q[1], q[2] + noise()]).collect())
+            .map(|_| {
+                captured
+                    .iter()
+                    .map(|q| [q[0], q[1], q[2] + noise()])
+                    .collect()
+            })
             .collect();
         let reliefs = sequence_reliefs(&frames, &topo);
         let refs: Vec<&[f64]> = reliefs.iter().map(|r| r.as_slice()).collect();
@@ -513,7 +540,11 @@ mod tests {
             scale: -1.0,
             ..Default::default()
         };
-        assert!(bad.validate().unwrap_err().to_string().contains("relief.scale"));
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("relief.scale"));
         let bad = ReliefParams {
             temporal_sigma: f64::NAN,
             ..Default::default()

@@ -6,8 +6,9 @@
 //! MSE is the vertex MSE up to a constant and the large components count as much as they move the surface.
 //! candle (CPU, f32); weights are seeded (see [`crate::nn::seed`]).
 
-use crate::model::RegressorKind;
 use crate::nn::seed::{init_vars, Rng};
+use crate::nn::vars::SortedVars;
+use crate::regression::kind::RegressorKind;
 use candle_core::{DType, Device, Module, Tensor};
 use candle_nn::rnn::{LSTMConfig, LSTM, RNN};
 use candle_nn::{linear, Linear, Optimizer, VarBuilder, VarMap};
@@ -458,22 +459,5 @@ impl LstmRegressor {
             )
         })?;
         Ok(net)
-    }
-}
-
-/// Sorted variables, so the optimizer's order (and float summation order) never depends on hashing.
-pub trait SortedVars {
-    fn all_vars_sorted(&self) -> Vec<candle_core::Var>;
-}
-
-impl SortedVars for VarMap {
-    fn all_vars_sorted(&self) -> Vec<candle_core::Var> {
-        let data = match self.data().lock() {
-            Ok(d) => d,
-            Err(p) => p.into_inner(),
-        };
-        let mut named: Vec<(&String, &candle_core::Var)> = data.iter().collect();
-        named.sort_by(|a, b| a.0.cmp(b.0));
-        named.into_iter().map(|(_, v)| v.clone()).collect()
     }
 }

@@ -25,7 +25,7 @@ def put(target, name, data):
 
 def sleeve_piece(n_vertices=120):
     """The first vertices of a fixture frame and the faces that use only them."""
-    path = os.path.join(REPO, "cli/tests/fixtures/sleeve/frame_0020.obj")
+    path = os.path.join(REPO, "tests/fixtures/sleeve/frame_0020.obj")
     vs, fs = [], []
     with open(path) as f:
         for line in f:

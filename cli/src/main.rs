@@ -19,6 +19,7 @@ mod logging;
 mod logs;
 mod progress;
 mod run;
+mod run_args;
 mod run_spec;
 mod security_args;
 mod threads;

@@ -2,7 +2,7 @@
 //! its files, the weight mode and strain limit from their flags, every other setting from `--set` as tuning
 //! keys, checked by the same registry as a job spec's `[tuning]` table.
 
-use crate::run::{Folds, RunArgs};
+use crate::run_args::{Folds, RunArgs};
 use anyhow::{anyhow, bail, Context, Result};
 use crease_core::spacetime::position::strain_limit::{StrainReference, REST_STATE_STRAIN_LIMIT};
 use crease_jobs::tuning::{key_of_field, Tuning};

@@ -188,7 +188,7 @@ fn shape_of(seq: &Sequence, out: &[Vec<V3>]) -> crease_core::shape::ShapeStats {
 /// bench/results/2026-12-02-shape-projection.md.
 #[test]
 fn sleeve_rims_drift_no_more_than_twice_the_ground_truth() {
-    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../cli/tests/fixtures");
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures");
     let seq = load(&fixtures.join("sleeve"));
     let gt = load(&fixtures.join("sleeve-gt"));
     let anchors = anchors_of(&seq);

@@ -134,7 +134,7 @@ mod tests {
     async fn only_rows_that_changed_since_last_sent_are_pushed_again() {
         let dir = tempfile::tempdir().unwrap();
         let fixture =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../cli/tests/fixtures/sleeve");
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/sleeve");
         let spec = format!(
             "input = {:?}\noutput = {:?}\n",
             fixture.display().to_string(),

@@ -1,4 +1,4 @@
-//! `crease deep apply`: a trained model run on a pose sequence or on coarse meshes, writing the DESIGN §7
+//! `crease deep apply`: a trained model run on a pose sequence or on coarse meshes, writing the
 //! output contract. Every frame depends only on the inputs (pose history included) and the model, never on
 //! which other frames were computed in the same run, so a frame range gives the same bytes as the full run:
 //! that is what lets the job system split apply into frame chunks.

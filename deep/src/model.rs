@@ -31,43 +31,7 @@ pub const MODEL_VERSION: u32 = 9;
 pub const MODEL_VERSION_MIN: u32 = 9;
 pub const MODEL_FORMAT: &str = "crease-deep-model";
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum RegressorKind {
-    /// Pose (+ velocity, acceleration, lags) only.
-    Linear,
-    /// Pose and the model's own previous shape coefficients, rolled out from the first frame.
-    Autoregressive,
-    Lstm,
-    /// Weighted mean of the linear map and the autoregressive rollout ([`crate::regression::blend`]).
-    Blend,
-}
-
-impl RegressorKind {
-    pub fn name(self) -> &'static str {
-        match self {
-            RegressorKind::Linear => "linear",
-            RegressorKind::Autoregressive => "autoregressive",
-            RegressorKind::Lstm => "lstm",
-            RegressorKind::Blend => "blend",
-        }
-    }
-}
-
-impl std::str::FromStr for RegressorKind {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        match s {
-            "linear" => Ok(RegressorKind::Linear),
-            "autoregressive" => Ok(RegressorKind::Autoregressive),
-            "lstm" => Ok(RegressorKind::Lstm),
-            "blend" => Ok(RegressorKind::Blend),
-            _ => Err(format!(
-                "unknown regressor `{s}` (linear, autoregressive, blend or lstm)"
-            )),
-        }
-    }
-}
+pub use crate::regression::kind::RegressorKind;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FileEntry {

@@ -103,7 +103,7 @@ impl Default for TrainParams {
         TrainParams {
             k: 200,
             // Defaults chosen by the mean vertex error over the three leave-one-sequence-out splits of
-            // sleeve-train (docs/deepwrinkles.md): no pose lags (the pose-only map: 7.57 mm without, 8.33 mm
+            // sleeve-train (bench/results/2026-12-05-deep-regression.md): no pose lags (the pose-only map: 7.57 mm without, 8.33 mm
             // with lags 1..32), and the autoregressive regressor feeding back 10 coefficients, fitted for 20
             // steps on its own rollout (7.20 mm).
             lags: vec![],

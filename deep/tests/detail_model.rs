@@ -131,7 +131,7 @@ fn read_tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
     out
 }
 
-/// Mean DESIGN §9 normal error of the written maps against `fine`.
+/// Mean normal error of the written maps against `fine`.
 fn map_error(out: &Path, model: &Model, fine: &[Vec<V3>]) -> f64 {
     fine.iter()
         .enumerate()

@@ -100,7 +100,7 @@ fn registration_is_the_same_to_the_bit_on_one_thread_and_on_four() {
     assert_eq!(bits(&one), bits(&four));
 }
 
-/// The sleeve's case (docs/deepwrinkles.md, "Registration"): the scan's noise (σ ≈ 0.35 mean edge lengths per
+/// The sleeve's case (bench/results/2026-12-05-deep-registration.md): the scan's noise (σ ≈ 0.35 mean edge lengths per
 /// coordinate) is as large as the deformation, and a fit that follows its nearest scan points slides along the
 /// surface after them. The defaults (point-to-plane data term, floor of ω_r, ω_s tied to the scan's noise) must
 /// follow the noise much less than the previous schedule (nearest point, floor 1). Neither beats the

@@ -6,7 +6,8 @@
 
 use crate::error::JobError;
 use crate::storage::location::parse_location;
-use crate::tuning::Tuning;
+use crate::tuning::removed::removed;
+use crate::tuning::table::Tuning;
 use crease_core::folds::stretch::StretchParams;
 use crease_core::folds::video::VideoParams;
 use crease_core::spacetime::DeformParams;
@@ -246,14 +247,6 @@ impl JobSpec {
         spec.resolved()
     }
 
-    /// The spec with its tuning keys applied ([`crate::tuning::apply`]), validated: what a spec built in code
-    /// (`crease run`) goes through before it is submitted, as a parsed one does.
-    pub fn resolved(mut self) -> Result<Self, JobError> {
-        crate::tuning::apply(&mut self)?;
-        self.validate()?;
-        Ok(self)
-    }
-
     /// Every storage location of a job, with the spec field that names it.
     pub fn uris(&self) -> Vec<(&'static str, &str)> {
         let mut v = vec![
@@ -452,7 +445,7 @@ fn with_removal_reason(message: &str) -> String {
         .find("unknown field `")
         .map(|i| &message[i + "unknown field `".len()..])
         .and_then(|rest| rest.find('`').map(|end| &rest[..end]));
-    match field.and_then(crate::tuning::removed) {
+    match field.and_then(removed) {
         Some(why) => format!("{message} (`{}` was removed: {why})", field.unwrap_or("")),
         None => message.to_string(),
     }

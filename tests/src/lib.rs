@@ -10,6 +10,7 @@ pub mod cluster;
 pub mod http;
 pub mod outputs;
 pub mod process;
+pub mod tools;
 
 pub use binary::bin;
 pub use cluster::Coordinator;

@@ -9,7 +9,7 @@ use std::process::Command;
 
 /// The captured sleeve frames (kept with the CLI's own tests, which read them too).
 pub fn fixture() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../cli/tests/fixtures/sleeve")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/sleeve")
 }
 
 /// Anchors on the sleeve fixture: 40 per frame, so per-anchor mode with 8-column blocks has 5+ blocks per

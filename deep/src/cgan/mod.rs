@@ -24,8 +24,8 @@ pub mod training;
 
 use crate::nn::adam::Adam;
 use crate::nn::seed::{init_vars, Rng};
+use crate::nn::vars::SortedVars;
 use crate::normal_maps::NormalMap;
-use crate::regression::lstm::SortedVars;
 use candle_core::{DType, Device, ModuleT, Tensor};
 use candle_nn::{
     batch_norm, conv2d, conv_transpose2d, BatchNorm, BatchNormConfig, Conv2d, Conv2dConfig,

@@ -1,4 +1,4 @@
-//! The DESIGN §7 output contract: per frame N, `OUT/mesh/frame_NNNN.obj` (the coarse mesh with `vt`, faces
+//! The output contract (docs/formats.md, docs/deepwrinkles.md): per frame N, `OUT/mesh/frame_NNNN.obj` (the coarse mesh with `vt`, faces
 //! `f v/vt`) and `OUT/normals/frame_NNNN.png` (the normal map in that layout). Every file is written atomically
 //! (temporary name, then rename), so a reader never sees half a frame; `OUT/done.json` is written last, after
 //! all frames, and is what says the output is complete.

@@ -122,7 +122,7 @@ pub fn bake_sequence(
     contract::finish(out, n, params.space, params.resolution, "crease bake")
 }
 
-/// Normal error (DESIGN §9) of maps against a reference: per original vertex, the map normal sampled at its
+/// Normal error (docs/fidelity.md) of maps against a reference: per original vertex, the map normal sampled at its
 /// UVs and averaged over its corners, against the reference's area-weighted vertex normal. Returns (mean
 /// angle in degrees, share of vertices the map reached).
 pub fn map_normal_error(

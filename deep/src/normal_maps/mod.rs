@@ -214,7 +214,7 @@ impl NormalMap {
         }
     }
 
-    /// Bilinear lookup at (u, v) (DESIGN §7 pixel convention), weighting only covered texels; `None` when none
+    /// Bilinear lookup at (u, v) (the output contract's pixel convention), weighting only covered texels; `None` when none
     /// of the four is covered.
     pub fn sample(&self, uv: [f64; 2]) -> Option<V3> {
         let x = uv[0] * self.width as f64 - 0.5;
@@ -543,7 +543,7 @@ pub fn convert_space(
     out
 }
 
-/// Per original vertex: the map sampled at each of its face corners' UVs and averaged (DESIGN §7/§9).
+/// Per original vertex: the map sampled at each of its face corners' UVs and averaged (as the normal error is measured).
 /// Vertices no covered texel reaches get `None`.
 pub fn sample_vertex_normals(
     map: &NormalMap,

@@ -15,7 +15,7 @@ pub struct TexelMap {
 }
 
 impl TexelMap {
-    /// Texel centre (x, y) is at u = (x + 0.5) / W, v = 1 − (y + 0.5) / H (DESIGN §7: x = u·W − 0.5,
+    /// Texel centre (x, y) is at u = (x + 0.5) / W, v = 1 − (y + 0.5) / H (the output contract: x = u·W − 0.5,
     /// y = (1 − v)·H − 0.5). A texel on a shared edge goes to the first triangle that claims it.
     pub fn new(layout: &UvLayout, width: usize, height: usize) -> Self {
         let mut tri = vec![NONE; width * height];

@@ -490,7 +490,7 @@ fn pack(uv: &mut [[f64; 2]], boxes: &[(usize, usize, [f64; 2], [f64; 2])], gutte
     }
 }
 
-/// Writes an OBJ with `vt` lines and `f v/vt` faces (1-based), the mesh half of the DESIGN §7 output contract.
+/// Writes an OBJ with `vt` lines and `f v/vt` faces (1-based), the mesh half of the output contract.
 pub fn write_obj_with_uv(
     path: &Path,
     topo: &Topology,

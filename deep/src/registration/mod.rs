@@ -109,7 +109,7 @@ impl Default for RegisterParams {
             // the vertices back where the template's own layout says. On sleeve-train seed_3 (gt frame 1
             // tracked through scans of frames 11, 41, 81, 111) this measured 12.87 / 3.12 / 3.47 / 21.00 mm
             // against the unregistered 26.30 / 4.05 / 3.12 / 41.41 and the previous defaults' 12.31 / 5.50 /
-            // 5.52 / 22.07; the bend test 11.99 mm (12.94 before) (docs/deepwrinkles.md, "Registration").
+            // 5.52 / 22.07; the bend test 11.99 mm (12.94 before) (bench/results/2026-12-05-deep-registration.md).
             w_plane: 1.0,
             w_point: 0.01,
             max_normal_angle: 90.0,

@@ -6,8 +6,9 @@
 //! MSE is the vertex MSE up to a constant and the large components count as much as they move the surface.
 //! candle (CPU, f32); weights are seeded (see [`crate::nn::seed`]).
 
-use crate::model::RegressorKind;
 use crate::nn::seed::{init_vars, Rng};
+use crate::nn::vars::SortedVars;
+use crate::regression::kind::RegressorKind;
 use candle_core::{DType, Device, Module, Tensor};
 use candle_nn::rnn::{LSTMConfig, LSTM, RNN};
 use candle_nn::{linear, Linear, Optimizer, VarBuilder, VarMap};
@@ -54,7 +55,7 @@ impl Default for LstmConfig {
             lr: 1e-3,
             seed: 1,
             // The residual of the blend, cross-fitted, with early stopping: over the three
-            // leave-one-sequence-out splits of sleeve-train (docs/deepwrinkles.md, "LSTM as a residual").
+            // leave-one-sequence-out splits of sleeve-train (bench/results/2026-12-05-deep-regression.md).
             residual_of: Some(RegressorKind::Blend),
             cross_fit: true,
             early_stopping: true,
@@ -133,7 +134,7 @@ pub fn windows(controls: &[Vec<f64>], targets: &[Vec<f64>], len: usize) -> Vec<W
 /// standard deviation (what models before this did) weighs the 200th component, a fold detail no pose
 /// predicts, as much as the first: on sleeve-train the loss was then dominated by those components (the
 /// linear map itself scores 0.92 of their variance there), the shared hidden state was spent on them, and the
-/// network ended at 11.6 mm on held-out motion against 6.0 mm with the shared unit (docs/deepwrinkles.md).
+/// network ended at 11.6 mm on held-out motion against 6.0 mm with the shared unit (bench/results/2026-12-05-deep-regression.md).
 pub fn output_scale(targets: &[Vec<f64>]) -> Vec<f64> {
     let k = targets.first().map_or(0, Vec::len);
     let n = (targets.len() * k).max(1) as f64;
@@ -458,22 +459,5 @@ impl LstmRegressor {
             )
         })?;
         Ok(net)
-    }
-}
-
-/// Sorted variables, so the optimizer's order (and float summation order) never depends on hashing.
-pub trait SortedVars {
-    fn all_vars_sorted(&self) -> Vec<candle_core::Var>;
-}
-
-impl SortedVars for VarMap {
-    fn all_vars_sorted(&self) -> Vec<candle_core::Var> {
-        let data = match self.data().lock() {
-            Ok(d) => d,
-            Err(p) => p.into_inner(),
-        };
-        let mut named: Vec<(&String, &candle_core::Var)> = data.iter().collect();
-        named.sort_by(|a, b| a.0.cmp(b.0));
-        named.into_iter().map(|(_, v)| v.clone()).collect()
     }
 }

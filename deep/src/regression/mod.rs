@@ -3,6 +3,7 @@
 
 pub mod autoregress;
 pub mod blend;
+pub mod kind;
 pub mod linear;
 pub mod lstm;
 pub mod pose;

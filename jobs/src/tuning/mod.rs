@@ -10,109 +10,33 @@
 pub mod kind;
 pub mod markdown;
 pub mod registry;
+pub mod removed;
+pub mod table;
 
 use crate::error::JobError;
 use crate::spec::JobSpec;
 pub use kind::{Bound, Kind};
 pub use registry::{find, Knob, KNOBS};
-use serde::{Deserialize, Serialize};
-use serde_json::Value;
-use std::collections::BTreeMap;
-
-/// The `[tuning]` table: key → value, in key order. Nested tables (`deform.c_s = 1` in TOML, `{"deform":
-/// {"c_s": 1}}` in JSON) read as their dotted keys.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
-#[serde(transparent)]
-pub struct Tuning(BTreeMap<String, Value>);
+pub use removed::{removed, REMOVED};
+pub use table::Tuning;
 
 impl Tuning {
-    pub fn is_empty(&self) -> bool {
-        self.0.is_empty()
-    }
-
-    pub fn iter(&self) -> impl Iterator<Item = (&String, &Value)> {
-        self.0.iter()
-    }
-
     /// Sets `key` from `--set key=TEXT` (`text` read by the key's type); a key given twice is an error.
     pub fn set_text(&mut self, key: &str, text: &str) -> Result<(), String> {
         let knob = find(key).ok_or_else(|| unknown_key(key))?;
         let v = knob.kind.parse(text).map_err(|m| format!("`{key}`: {m}"))?;
         self.insert(key, v)
     }
-
-    /// Sets `key` to `value` (checked when the spec is read); a key given twice is an error.
-    pub fn insert(&mut self, key: &str, value: Value) -> Result<(), String> {
-        if self.0.insert(key.to_string(), value).is_some() {
-            return Err(format!("`{key}` is given twice"));
-        }
-        Ok(())
-    }
-
-    fn flatten(prefix: &str, v: Value, out: &mut BTreeMap<String, Value>) -> Result<(), String> {
-        match v {
-            Value::Object(map) => {
-                for (k, v) in map {
-                    let key = if prefix.is_empty() {
-                        k
-                    } else {
-                        format!("{prefix}.{k}")
-                    };
-                    Self::flatten(&key, v, out)?;
-                }
-                Ok(())
-            }
-            v if prefix.is_empty() => Err(format!("must be a table of keys, got {v}")),
-            v => match out.insert(prefix.to_string(), v) {
-                Some(_) => Err(format!("tuning key `{prefix}` is given twice")),
-                None => Ok(()),
-            },
-        }
-    }
 }
 
-impl<'de> Deserialize<'de> for Tuning {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let v = Value::deserialize(d)?;
-        let mut out = BTreeMap::new();
-        Tuning::flatten("", v, &mut out).map_err(serde::de::Error::custom)?;
-        Ok(Tuning(out))
+impl JobSpec {
+    /// The spec with its tuning keys applied ([`apply`]), validated: what a spec built in code (`crease run`)
+    /// goes through before it is submitted, as a parsed one does.
+    pub fn resolved(mut self) -> Result<Self, JobError> {
+        apply(&mut self)?;
+        self.validate()?;
+        Ok(self)
     }
-}
-
-/// Settings that were removed, with what replaced them: an old spec naming one gets this reason instead of a
-/// bare "unknown field".
-pub const REMOVED: &[(&str, &str)] = &[
-    (
-        "projection_order",
-        "the shape projection follows the last stretch pass (the other orders measured worse)",
-    ),
-    (
-        "operator_block",
-        "every frame is positioned with its own operator (a shared one measured no faster)",
-    ),
-    (
-        "flattening",
-        "patches are unfolded, with LSCM where one folds over (LSCM everywhere measured slower and no better)",
-    ),
-    (
-        "contrast_thresholds",
-        "the Canny thresholds hold at every radius (dividing them by the radius measured worse)",
-    ),
-    ("all_views", "replaced by `views = \"all\"`"),
-    (
-        "cover_views",
-        "replaced by `views = \"cover\"` (true) or `views = \"front-back\"` (false)",
-    ),
-];
-
-/// The reason a removed field is gone, for an error message about `field`.
-pub fn removed(field: &str) -> Option<&'static str> {
-    let last = field.rsplit('.').next().unwrap_or(field);
-    REMOVED
-        .iter()
-        .find(|(f, _)| *f == last)
-        .map(|(_, why)| *why)
 }
 
 /// Why `key` is not a tuning key, with the key meant where that is clear.
@@ -143,7 +67,7 @@ pub fn unknown_key(key: &str) -> String {
 /// coordinator stores and reads specs back) is the same spec. Errors name `tuning.<key>`.
 pub fn apply(spec: &mut JobSpec) -> Result<(), JobError> {
     let tuning = std::mem::take(&mut spec.tuning);
-    for (key, value) in tuning.0 {
+    for (key, value) in tuning.into_entries() {
         let field = format!("tuning.{key}");
         let knob = find(&key).ok_or_else(|| JobError::spec(&field, unknown_key(&key)))?;
         let v = knob

@@ -2,17 +2,15 @@
 //! Farms run crease's task graph: `crease export-job` writes an OpenJD template that `openjd check` accepts and
 //! `openjd run` executes end to end through `crease task run`, with outputs byte-identical to `crease run`.
 
-mod tools;
+use crease_e2e::tools;
 
 use crease_core::mesh::io::{open_sequence, read_pc2_header, read_pc2_sample_from};
 use crease_e2e::*;
 use std::path::Path;
 use std::process::Command;
 
-const BIN: &str = env!("CARGO_BIN_EXE_crease");
-
 fn crease(args: &[&str]) -> std::process::Output {
-    Command::new(BIN).args(args).output().unwrap()
+    Command::new(crease_e2e::bin()).args(args).output().unwrap()
 }
 
 /// Exports `job` for OpenJD, checks it, runs every step locally, and returns the run log.
@@ -45,7 +43,10 @@ fn openjd_export_check_run(dir: &Path, job: &Path, extra: &[&str]) -> String {
         .arg("run")
         .arg(&template)
         .args(["--step", "Finalize", "--run-dependencies"])
-        .args(["--job-param", &format!("CreaseExe={BIN}")])
+        .args([
+            "--job-param",
+            &format!("CreaseExe={}", crease_e2e::bin().display()),
+        ])
         .output()
         .unwrap();
     let log = format!(

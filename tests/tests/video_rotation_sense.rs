@@ -8,10 +8,8 @@ use crease_core::mesh::geometry::triangle_normals;
 use crease_core::mesh::io::open_sequence;
 use std::process::Command;
 
-const BIN: &str = env!("CARGO_BIN_EXE_crease");
-
 fn crease(args: &[&str]) {
-    let o = Command::new(BIN).args(args).output().unwrap();
+    let o = Command::new(crease_e2e::bin()).args(args).output().unwrap();
     assert!(
         o.status.success(),
         "crease {args:?}: {}",

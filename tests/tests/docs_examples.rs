@@ -6,8 +6,6 @@ use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-const BIN: &str = env!("CARGO_BIN_EXE_crease");
-
 /// Files whose runnable blocks have a test below; a file with runnable blocks missing here fails
 /// `every_block_is_marked_and_specs_validate`.
 const RUN_TESTED: &[&str] = &[
@@ -138,7 +136,10 @@ fn every_block_is_marked_and_specs_validate() {
     assert!(specs >= 3, "the job spec examples were not found ({specs})");
     assert!(verbs.len() >= 8, "synopsis verbs: {verbs:?}");
     for verb in &verbs {
-        let o = Command::new(BIN).args([verb, "--help"]).output().unwrap();
+        let o = Command::new(crease_e2e::bin())
+            .args([verb, "--help"])
+            .output()
+            .unwrap();
         assert!(
             o.status.success(),
             "a synopsis names `crease {verb}`, which is not a verb"
@@ -155,7 +156,7 @@ fn run_blocks(file: &str) {
         .collect();
     assert!(!runnable.is_empty(), "{file}: no runnable blocks");
     let dir = tempfile::tempdir().unwrap();
-    let bin_dir = Path::new(BIN).parent().unwrap();
+    let bin_dir = crease_e2e::bin().parent().unwrap();
     let path = format!(
         "{}:{}",
         bin_dir.display(),

@@ -5,13 +5,11 @@
 
 use std::process::Command;
 
-const BIN: &str = env!("CARGO_BIN_EXE_crease");
-
 #[test]
 fn bench_deep_reports_rasterisation_forward_and_training_times() {
     let tmp = tempfile::tempdir().unwrap();
     let json = tmp.path().join("deep.json");
-    let o = Command::new(BIN)
+    let o = Command::new(crease_e2e::bin())
         .args([
             "bench",
             "--deep",
@@ -79,7 +77,7 @@ fn bench_deep_reports_rasterisation_forward_and_training_times() {
     assert!((d["per_frame_ms"].as_f64().unwrap() - sum).abs() < 1e-9);
 
     // A resolution the generator cannot take is a clear error, not a panic.
-    let o = Command::new(BIN)
+    let o = Command::new(crease_e2e::bin())
         .args([
             "bench",
             "--deep",

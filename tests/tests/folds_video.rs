@@ -4,7 +4,7 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn crease(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_crease"))
+    Command::new(crease_e2e::bin())
         .args(args)
         .args(["--threads", "2"])
         .output()

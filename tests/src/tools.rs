@@ -1,6 +1,5 @@
 //! The non-Rust tools the farm and export tests drive, installed by `scripts/setup-tools` under `.tools/`
 //! (PATH is searched first); a clear failure when missing, never a skip.
-#![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 

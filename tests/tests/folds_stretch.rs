@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn crease(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_crease"))
+    Command::new(crease_e2e::bin())
         .args(args)
         .args(["--threads", "2", "--quiet", "--preview-size", "64"])
         .output()
@@ -34,7 +34,7 @@ fn frames_in(dir: &Path) -> Vec<PathBuf> {
 
 #[test]
 fn stretch_folds_on_the_captured_sleeve_fixture() {
-    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/sleeve");
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/sleeve");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     let o = crease(&[
@@ -165,7 +165,7 @@ fn subdivided_output_keeps_the_original_vertices_first() {
 
 #[test]
 fn bad_stretch_parameters_name_their_key() {
-    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/sleeve");
+    let input = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/sleeve");
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out");
     let base = [

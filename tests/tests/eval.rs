@@ -5,7 +5,7 @@ use std::process::Command;
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/fixtures")
+        .join("fixtures")
         .join(name)
 }
 
@@ -17,7 +17,7 @@ fn eval(
     dir: &Path,
 ) -> (bool, String, String, serde_json::Value) {
     let json = dir.join("eval.json");
-    let o = Command::new(env!("CARGO_BIN_EXE_crease"))
+    let o = Command::new(crease_e2e::bin())
         .args(["eval", "--quiet", "--output"])
         .arg(output)
         .arg("--gt")

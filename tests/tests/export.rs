@@ -4,17 +4,15 @@
 //! coordinates travel end to end: a UV'd tube with a seam, through `crease run` (subdivided) and `crease
 //! export`, into GLB's `TEXCOORD_0` and USD's `primvars:st`.
 
-mod tools;
+use crease_e2e::tools;
 
 use crease_core::mesh::io::{open_sequence, read_pc2_header, read_pc2_sample_from};
 use crease_e2e::{fixture, stderr};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-const BIN: &str = env!("CARGO_BIN_EXE_crease");
-
 fn export(input: &Path, format: &str, out: &Path) -> std::process::Output {
-    Command::new(BIN)
+    Command::new(crease_e2e::bin())
         .args([
             "export",
             "--input",
@@ -44,7 +42,7 @@ fn frames_f32(input: &Path) -> Vec<Vec<[f32; 3]>> {
 
 /// Khronos' validator report for a .glb.
 pub fn validate_gltf(glb: &Path) -> serde_json::Value {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools/validate_gltf.js");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/validate_gltf.js");
     let o = Command::new(tools::tool("node"))
         .arg(script)
         .arg(glb)
@@ -57,7 +55,7 @@ pub fn validate_gltf(glb: &Path) -> serde_json::Value {
 
 /// USD's view of a .usda at the given time codes.
 pub fn read_usd(usda: &Path, times: &[&str]) -> serde_json::Value {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/tools/read_usd.py");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/read_usd.py");
     let o = Command::new(tools::python())
         .arg(script)
         .arg(usda)
@@ -180,7 +178,7 @@ fn bad_export_requests_are_named_and_write_nothing() {
     let o = export(&dir.join("missing"), "glb", &dir.join("a.glb"));
     assert!(!o.status.success());
     assert!(stderr(&o).contains("missing"), "{}", stderr(&o));
-    let o = Command::new(BIN)
+    let o = Command::new(crease_e2e::bin())
         .args([
             "export",
             "--input",
@@ -222,7 +220,7 @@ fn uvs_run_through_a_subdivided_run_into_glb_and_usd() {
     let (input, seq) = uv_tube_input(&dir);
     // `crease run --folds stretch --subdivide 1`: the output OBJ frames carry the subdivided UVs.
     let out = dir.join("out");
-    let o = Command::new(BIN)
+    let o = Command::new(crease_e2e::bin())
         .args([
             "run",
             "--input",

@@ -7,8 +7,6 @@ use crease_core::mesh::Topology;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-const BIN: &str = env!("CARGO_BIN_EXE_crease");
-
 fn tube_tris(na: usize, nr: usize) -> Vec<[u32; 3]> {
     let mut tris = Vec::new();
     for j in 0..nr - 1 {
@@ -73,7 +71,7 @@ fn training_dir(root: &Path, name: &str, frames: usize, phase: f64) -> PathBuf {
 }
 
 fn run(args: &[&str]) -> Output {
-    Command::new(BIN)
+    Command::new(crease_e2e::bin())
         .args(args)
         .arg("--quiet")
         .output()

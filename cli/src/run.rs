@@ -16,7 +16,7 @@ use crease_core::fsutil;
 use crease_core::mesh::io::{open_sequence, write_obj_sequence};
 use crease_core::mesh::FrameSource;
 use crease_core::spacetime::position::stretch::StretchRotation;
-use crease_core::spacetime::{deform, DeformParams, WeightMode};
+use crease_core::spacetime::{deform, DeformParams};
 use crease_core::synth::{self, DemoSpec};
 use crease_jobs::report::{FoldDetection, JobReport};
 use std::path::{Path, PathBuf};

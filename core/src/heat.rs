@@ -122,7 +122,7 @@ impl SurfaceOperator {
                 }
             }
         }
-        pairs.sort_unstable_by(|a, b| (a.0, a.1).cmp(&(b.0, b.1)));
+        pairs.sort_unstable_by_key(|a| (a.0, a.1));
         let mut offsets = Vec::with_capacity(nv + 1);
         let mut neighbors = Vec::with_capacity(pairs.len() / 2);
         let mut weights = Vec::with_capacity(pairs.len() / 2);

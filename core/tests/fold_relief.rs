@@ -106,6 +106,19 @@ impl Lcg {
 
 const FRAMES: usize = 7;
 
+/// Every seventh triangle of the rippled band's interior (by its flat position): where the anchors go.
+fn anchored_triangles<'a>(topo: &'a Topology, flat: &'a [V3]) -> impl Iterator<Item = usize> + 'a {
+    (0..topo.n_triangles()).filter(move |&t| {
+        let x = topo.triangles()[t]
+            .iter()
+            .map(|&v| flat[v as usize][0])
+            .sum::<f64>()
+            / 3.0;
+        let y = flat[topo.triangles()[t][0] as usize][1];
+        (16.0..26.0).contains(&x) && (4.0..16.0).contains(&y) && t % 7 == 0
+    })
+}
+
 /// Seven frames of the captured sheet (the ripple after a low-pass of another family, plus `noise` edges of
 /// uniform noise, new in every frame) with anchors that tilt the rippled band a little (a detector that knows
 /// where the cloth folded, not where its ridges are).
@@ -123,16 +136,7 @@ fn captured_case(noise: f64) -> (Sequence, AnchorSet, Vec<V3>) {
         })
         .collect();
     let topo = Arc::new(topo);
-    let anchors: Vec<Anchor> = (0..topo.n_triangles())
-        .filter(|&t| {
-            let x = topo.triangles()[t]
-                .iter()
-                .map(|&v| flat[v as usize][0])
-                .sum::<f64>()
-                / 3.0;
-            let y = flat[topo.triangles()[t][0] as usize][1];
-            (16.0..26.0).contains(&x) && (4.0..16.0).contains(&y) && t % 7 == 0
-        })
+    let anchors: Vec<Anchor> = anchored_triangles(&topo, &flat)
         .map(|t| Anchor {
             triangle: t as u32,
             axis: [0.0, 1.0, 0.0],
@@ -205,16 +209,7 @@ fn faithful_anchors(seq: &Sequence, truth: &[V3]) -> AnchorSet {
         geometry::triangle_normals(topo, &smooth),
         geometry::triangle_normals(topo, truth),
     );
-    let anchors: Vec<Anchor> = (0..topo.n_triangles())
-        .filter(|&t| {
-            let x = topo.triangles()[t]
-                .iter()
-                .map(|&v| flat[v as usize][0])
-                .sum::<f64>()
-                / 3.0;
-            let y = flat[topo.triangles()[t][0] as usize][1];
-            (16.0..26.0).contains(&x) && (4.0..16.0).contains(&y) && t % 7 == 0
-        })
+    let anchors: Vec<Anchor> = anchored_triangles(topo, &flat)
         .map(|t| {
             let (a, b) = (ns[t], nt[t]);
             Anchor {

@@ -42,6 +42,7 @@ const STAGES: &[(&str, &[&str])] = &[
             "fold-plot",
         ],
     ),
+    ("relief", &["relief"]),
     ("weights", &["weight-window", "weight-block", "reduce"]),
     ("positioning", &["position"]),
     ("finalize", &["finalize"]),

@@ -250,8 +250,10 @@ impl DetailModel {
             return Err(format!("the signature has {SIGNATURE_LEN} numbers"));
         }
         let g = &s.guard;
-        if !(g.edge_length[0] > 0.0 && g.edge_length[1] >= g.edge_length[0])
-            || !(g.max_signature_distance > 0.0 && g.max_detail > 0.0)
+        if !(g.edge_length[0] > 0.0
+            && g.edge_length[1] >= g.edge_length[0]
+            && g.max_signature_distance > 0.0
+            && g.max_detail > 0.0)
         {
             return Err("guard limits must be positive".into());
         }
@@ -586,14 +588,14 @@ pub fn fit(data: &DetailData, params: &DetailParams) -> Result<DetailModel> {
     let count = pairs.len() as f64;
     let mut mean = vec![0.0; SIGNATURE_LEN];
     for (p, _, _) in &pairs {
-        for i in 0..SIGNATURE_LEN {
-            mean[i] += p.signature[i] / count;
+        for (m, x) in mean.iter_mut().zip(&p.signature) {
+            *m += x / count;
         }
     }
     let mut std = vec![0.0; SIGNATURE_LEN];
     for (p, _, _) in &pairs {
-        for i in 0..SIGNATURE_LEN {
-            std[i] += (p.signature[i] - mean[i]).powi(2) / count;
+        for ((s, x), m) in std.iter_mut().zip(&p.signature).zip(&mean) {
+            *s += (x - m).powi(2) / count;
         }
     }
     for s in &mut std {

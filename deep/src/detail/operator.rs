@@ -73,11 +73,11 @@ impl Walk {
         let mut degree = Vec::with_capacity(n);
         let mut boundary = vec![false; n];
         offsets.push(0u32);
-        for v in 0..n {
+        for (v, on_boundary) in boundary.iter_mut().enumerate() {
             let nb = topo.vertex_neighbors(v);
             // A vertex is on an open boundary when some edge from it has only one triangle: then it has as many
             // neighbours as triangles (a closed fan has as many of each).
-            boundary[v] = nb.len() != topo.vertex_triangles(v).len();
+            *on_boundary = nb.len() != topo.vertex_triangles(v).len();
             let raw: Vec<f64> = nb
                 .iter()
                 .enumerate()

@@ -110,6 +110,9 @@ fn first_half(s: &TrainingSequence) -> TrainingSequence {
     }
 }
 
+/// A held-out sequence's pose-path score (when it has poses) and its coarse-path score per capture folder.
+type SequenceScores = (Option<Score>, Vec<(String, Score)>);
+
 /// Scores `model` on `seq` (frames `frames`): its pose path when the directory has a pose file, and its
 /// coarse path on each capture folder present.
 fn score_sequence(
@@ -118,7 +121,7 @@ fn score_sequence(
     captures: &[String],
     frames: &[usize],
     with_pose: bool,
-) -> Result<(Option<Score>, Vec<(String, Score)>)> {
+) -> Result<SequenceScores> {
     let pose_path = seq.dir.join("pose.json");
     let pose = if with_pose && pose_path.exists() {
         let shapes = crate::apply::pose_shapes(model, &pose_path, model.manifest.regressor, None)?;

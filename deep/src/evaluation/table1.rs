@@ -123,9 +123,9 @@ fn terms(
         let (mut l1, mut diff, mut count) = (0.0, [0.0; 3], 0.0);
         for k in 0..y.n.len() {
             if y.covered[k] {
-                for c in 0..3 {
+                for (c, d) in diff.iter_mut().enumerate() {
                     l1 += (out.n[k][c] - y.n[k][c]).abs() as f64;
-                    diff[c] += (out.n[k][c] - prev.n[k][c]) as f64;
+                    *d += (out.n[k][c] - prev.n[k][c]) as f64;
                 }
                 count += 3.0;
             }

@@ -187,7 +187,7 @@ impl Storage {
     pub async fn put_file(&self, key: &str, file: &Path) -> Result<(), JobError> {
         let path = self.path(key)?;
         let read_err = |e: std::io::Error| {
-            JobError::storage_failure(&format!("{} (upload source)", file.display()), &e)
+            JobError::storage_failure(format!("{} (upload source)", file.display()), &e)
         };
         let len = std::fs::metadata(file).map_err(read_err)?.len();
         let part = multipart_part_bytes();
@@ -351,7 +351,7 @@ fn input_err(uri: &str, e: &(dyn std::error::Error + 'static)) -> JobError {
 fn cache_err(uri: &str, path: &Path, e: &(dyn std::error::Error + 'static)) -> JobError {
     match super::errors::kind(e) {
         super::errors::Kind::Full => {
-            JobError::storage_failure(&format!("{} (worker cache)", path.display()), e)
+            JobError::storage_failure(format!("{} (worker cache)", path.display()), e)
         }
         _ => JobError::input(uri, format!("cache {}: {e}", path.display())),
     }

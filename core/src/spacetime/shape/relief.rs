@@ -55,7 +55,7 @@ fn default_steps() -> u32 {
 }
 
 fn default_temporal_sigma() -> f64 {
-    1.5
+    2.5
 }
 
 /// The noise power is subtracted this many times over (spectral subtraction's over-subtraction): the local

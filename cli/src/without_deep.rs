@@ -11,6 +11,7 @@ build it with `cargo build --release --features deep` or install it with `cargo 
 /// Whatever follows `crease deep` or `crease bake`, taken as it is: this build cannot run it.
 #[derive(Args, Debug)]
 pub struct Unavailable {
+    /// The command's arguments, which this build cannot run (see above for how to get a build that can).
     #[arg(trailing_var_arg = true, allow_hyphen_values = true, hide = true)]
     _args: Vec<String>,
 }

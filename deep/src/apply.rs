@@ -272,13 +272,17 @@ pub fn apply(
     };
     // Frames are independent (the cGAN sees one frame's map, never another's output), so their files are the
     // same bytes in any order. Without a cGAN they run in parallel (each thread with its own buffers); the
-    // cGAN's own loops use every core, so with one the frames run one after another.
+    // cGAN's own loops use every core, so with one the frames run one after another. The parallel run keeps
+    // every frame's outcome so that the error reported is the first failing frame's, whichever thread met
+    // an error first.
     let fallbacks: Vec<Option<String>> = if enhancer.is_none() && rayon::current_num_threads() > 1 {
         use rayon::prelude::*;
         range
             .clone()
             .into_par_iter()
             .map_init(contract::FrameScratch::default, |s, t| one_frame(t, s))
+            .collect::<Vec<Result<_>>>()
+            .into_iter()
             .collect::<Result<_>>()?
     } else {
         let mut scratch = contract::FrameScratch::default();

@@ -356,6 +356,9 @@ impl ReliefFrames {
         let computed: Vec<(usize, Vec<f64>)> = missing
             .into_par_iter()
             .map(|k| Ok((k, frame_relief(&topo, &source.read_frame(k)?, scale, steps))))
+            // Every outcome is kept so that a bad input names its first bad frame, not the one a thread met.
+            .collect::<Vec<Result<_>>>()
+            .into_iter()
             .collect::<Result<_>>()?;
         self.reliefs.extend(computed);
         Ok(())

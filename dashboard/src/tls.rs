@@ -30,7 +30,7 @@ pub fn server_config(tls: &ServerTls) -> std::io::Result<Arc<rustls::ServerConfi
         .collect::<Result<Vec<_>, _>>()
         .map_err(|e| bad("certificate", &e))?;
     let key = PrivateKeyDer::from_pem_slice(key_pem).map_err(|e| bad("private key", &e))?;
-    let provider = Arc::new(rustls::crypto::aws_lc_rs::default_provider());
+    let provider = Arc::new(rustls::crypto::ring::default_provider());
     let mut config = rustls::ServerConfig::builder_with_provider(provider)
         .with_safe_default_protocol_versions()
         .map_err(|e| bad("protocol versions", &e))?

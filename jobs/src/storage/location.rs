@@ -79,6 +79,7 @@ pub fn remote_store(
         stores.push((root, store.clone()));
         return Ok((store, ObjectPath::from_url_path(url.path())?));
     }
+    super::s3::install_crypto_provider();
     let (store, prefix) = object_store::parse_url(url)?;
     Ok((Arc::from(store), prefix))
 }

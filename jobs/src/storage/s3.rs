@@ -13,6 +13,10 @@
 //! operation fails with "storage unreachable at <uri> (endpoint …)". Output files of
 //! `CREASE_STORAGE_MULTIPART_MIB` (default 64) or more are uploaded in parts of that size (see
 //! [`crate::Storage::put_file`]).
+//!
+//! TLS is rustls with ring, the crypto provider the rest of crease (gRPC, the dashboard, `crease certs`) uses:
+//! the HTTP client is built without a provider of its own, so this module makes ring the process default
+//! before the first client exists.
 
 use object_store::aws::AmazonS3Builder;
 use object_store::{BackoffConfig, ClientOptions, ObjectStore, RetryConfig};
@@ -87,6 +91,7 @@ impl Settings {
 
 /// An S3 client for the bucket of `url`, configured from the environment (see the module documentation).
 pub fn store(url: &url::Url) -> Result<Arc<dyn ObjectStore>, object_store::Error> {
+    install_crypto_provider();
     let settings = Settings::from_env().map_err(|msg| object_store::Error::Generic {
         store: "S3",
         source: msg.into(),
@@ -118,6 +123,15 @@ pub fn store(url: &url::Url) -> Result<Arc<dyn ObjectStore>, object_store::Error
         }
     }
     Ok(Arc::new(builder.with_url(url.as_str()).build()?))
+}
+
+/// Makes ring rustls' process-wide provider, once; a provider some other part of the process installed first
+/// (the same ring, as the build has no other) is kept.
+pub(crate) fn install_crypto_provider() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let _ = rustls::crypto::ring::default_provider().install_default();
+    });
 }
 
 #[cfg(test)]

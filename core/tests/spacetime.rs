@@ -181,8 +181,10 @@ fn single_anchor_rotates_its_triangle_and_decays() {
         shift: n,
         stretch_passes: 0,
         // The positioning of one rotated triangle as such: the shape projection (on by default) takes
-        // away the wide part of a lone anchor's turn, which a capture would have seen.
+        // away the wide part of a lone anchor's turn, which a capture would have seen, and the lost-area bound
+        // takes all of it on a still sheet that lost no surface.
         shape_projection: 0.0,
+        lost_area_bound: false,
         ..Default::default()
     };
     // The blended rotation field itself: the anchor's own triangle gets close to the full rotation.
@@ -474,9 +476,10 @@ fn stretch_passes_lower_max_stretch() {
     let params = DeformParams {
         stretch_passes: 2,
         stretch_rotation: StretchRotation::Polar,
-        // The passes as such: the shape projection and the relief (on by default) end the last pass and
-        // change its figure (docs/fidelity.md).
+        // The passes as such: the shape projection, the relief and the lost-area bound (on by default) end
+        // the last pass and change its figure (docs/fidelity.md).
         shape_projection: 0.0,
+        lost_area_bound: false,
         relief: ReliefParams {
             steps: 0,
             ..Default::default()

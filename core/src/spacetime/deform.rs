@@ -10,6 +10,7 @@
 use super::blend::CrossFade;
 use super::params::DeformParams;
 use super::position::PositionSystem;
+use super::shape::lost_area::RestAreas;
 use super::shape::relief::ReliefFrames;
 use super::stages::{position_frame, PositionedFrame};
 use super::weights::{solve_window, WindowProblem, WindowStats};
@@ -105,6 +106,13 @@ pub fn deform(
     // was, bit for bit).
     let mut relief = (anchors.total() > 0 && params.relief.is_active())
         .then(|| ReliefFrames::new(params.relief, scales.detail, n));
+    // The bound of what the deformation adds, the surface each neighbourhood shows at its largest over the
+    // sequence: one reading pass, only when anything can move.
+    let lost_area = if anchors.total() > 0 && params.lost_area_bound {
+        Some(RestAreas::of_sequence(source)?)
+    } else {
+        None
+    };
     timings.symbolic = t0.elapsed().as_secs_f64();
     // The strain limit's reference lengths need every captured frame: read once (a few frames at a time) before
     // any frame is positioned. Without anchors no frame moves and the limit never applies: no reading pass.
@@ -155,6 +163,7 @@ pub fn deform(
                     params.stretch_rotation,
                     &scales.ending,
                     heights.as_deref(),
+                    lost_area.as_ref(),
                     limiter.as_ref(),
                 );
                 progress.advance("position", 1);

@@ -93,6 +93,11 @@ pub struct DeformParams {
     /// turns it off; it acts only with the shape screen on (`shape_cutoff` > 0: `off` is the paper's
     /// unconstrained system).
     pub shape_projection: f64,
+    /// Bound what the deformation adds by the surface the capture lost ([`super::shape::lost_area`]): a
+    /// neighbourhood whose captured area is as large as it ever is in the sequence gets no folds added. Off, the
+    /// relief and the anchors act wherever they reach (a capture whose folds never open in any frame, anchors
+    /// an artist placed on purpose).
+    pub lost_area_bound: bool,
 
     /// Strain limit (see [`super::position::strain_limit`]): the last step of the positioning shortens every edge
     /// longer than (1 + this) times its reference length back to it; a fraction, 0 turns it off.
@@ -120,6 +125,7 @@ impl Default for DeformParams {
             pinning: Pinning::Centroid,
             relief: ReliefParams::default(),
             shape_projection: super::shape::projection::DEFAULT_SHAPE_PROJECTION,
+            lost_area_bound: true,
 
             strain_limit: super::position::strain_limit::DEFAULT_STRAIN_LIMIT,
             strain_limit_sweeps: super::position::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS,
@@ -153,6 +159,7 @@ struct DeformFields {
     pinning: Option<Pinning>,
     relief: Option<ReliefParams>,
     shape_projection: Option<f64>,
+    lost_area_bound: Option<bool>,
 
     strain_limit: Option<f64>,
     strain_limit_sweeps: Option<usize>,
@@ -200,6 +207,7 @@ impl TryFrom<DeformFields> for DeformParams {
             pinning: f.pinning.unwrap_or(d.pinning),
             relief: f.relief.unwrap_or(d.relief),
             shape_projection: f.shape_projection.unwrap_or(d.shape_projection),
+            lost_area_bound: f.lost_area_bound.unwrap_or(d.lost_area_bound),
 
             strain_limit: f.strain_limit.unwrap_or(d.strain_limit),
             strain_limit_sweeps: f.strain_limit_sweeps.unwrap_or(d.strain_limit_sweeps),

@@ -15,6 +15,7 @@ use super::blend::{self, fade_into};
 use super::position::strain_limit::StrainLimiter;
 use super::position::stretch::StretchRotation;
 use super::position::PositionSystem;
+use super::shape::lost_area::RestAreas;
 use super::shape::ShapeEnding;
 use super::windows::{crossfade_weight, Window};
 use crate::error::{Error, Result};
@@ -80,7 +81,8 @@ pub struct PositionedFrame {
 /// Positions frame `t` of `source` from its cross-faded rotation-vector field `phi` (Alexa blend, gradient-
 /// domain solve), then runs `passes` stretch-reduction passes reusing the frame's factorisation, measuring
 /// stretch after each step, and ends with `ending`: the shape projection and the fold relief `heights`
-/// ([`super::shape`]), then the strain limit (`limit`, [`super::position::strain_limit`]); the last stretch
+/// ([`super::shape`]), the bound of what all that adds to the surface the capture lost (`lost_area`,
+/// [`super::shape::lost_area`]), then the strain limit (`limit`, [`super::position::strain_limit`]); the last stretch
 /// figures are those of the finished frame.
 #[allow(clippy::too_many_arguments)]
 pub fn position_frame(
@@ -92,6 +94,7 @@ pub fn position_frame(
     rotation: StretchRotation,
     ending: &ShapeEnding,
     heights: Option<&[f64]>,
+    lost_area: Option<&RestAreas>,
     limit: Option<&StrainLimiter>,
 ) -> Result<PositionedFrame> {
     let clock = Instant::now();
@@ -150,6 +153,9 @@ pub fn position_frame(
             return out;
         }
         let mut done = ending.finish(system.topology(), &rest, &out, heights);
+        if let Some(areas) = lost_area {
+            areas.limit(system.topology(), &rest, &mut done);
+        }
         if let Some(l) = limit {
             l.apply(&rest, &mut done);
         }

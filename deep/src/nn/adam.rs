@@ -48,8 +48,11 @@ impl Adam {
         let c2 = 1.0 / (1.0 - b2.powi(self.step_t as i32));
         for i in 0..self.vars.len() {
             if let Some(g) = grads.get(&self.vars[i]) {
-                self.m[i] = ((&self.m[i] * b1)? + (g * (1.0 - b1))?)?;
-                self.v[i] = ((&self.v[i] * b2)? + (g.sqr()? * (1.0 - b2))?)?;
+                // Gradients are computed from the step's graph and would keep it (every activation of the
+                // forward pass) alive through the moments, step after step: the moments hold values only.
+                let g = g.detach();
+                self.m[i] = ((&self.m[i] * b1)? + (&g * (1.0 - b1))?)?.detach();
+                self.v[i] = ((&self.v[i] * b2)? + (g.sqr()? * (1.0 - b2))?)?.detach();
                 let upd = ((&self.m[i] * c1)? / (((&self.v[i] * c2)?.sqrt()? + self.eps)?))?;
                 let next = (self.vars[i].as_tensor() - (upd * self.lr)?)?;
                 self.vars[i].set(&next)?;

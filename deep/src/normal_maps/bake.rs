@@ -90,33 +90,38 @@ pub fn bake_sequence(
     contract::prepare(out)?;
     let writer = contract::FrameWriter::new(&topo, layout);
     progress.begin("bake", n as u64);
-    // Frames in parallel, each one whole: memory stays at a few frames.
-    (0..n).into_par_iter().try_for_each_init(
-        contract::FrameScratch::default,
-        |scratch, t| -> Result<()> {
-            if progress.cancelled() {
-                return Err(Error::Cancelled);
-            }
-            let c = coarse.read_frame(t)?;
-            let d = detailed.read_frame(t)?;
-            let fine = FineSurface::new(detailed.topology(), &d)?;
-            let max_dist = params.max_dist_edges * mean_edge_length(&topo, &c);
-            let mut map = bake_fine(&texels, &topo, &c, &fine, max_dist);
-            if params.space == Space::Tangent {
-                map = convert_space(&map, &texels, &topo, &c, layout, true);
-            }
-            writer.write(
-                out,
-                t,
-                &c,
-                &map,
-                "baked from the detailed sequence",
-                scratch,
-            )?;
-            progress.advance("bake", 1);
-            Ok(())
-        },
-    )?;
+    // Frames in parallel, each one whole: memory stays at a few frames. Every frame's outcome is kept, so that
+    // a bad input names its first bad frame rather than the one some thread met first.
+    let outcomes: Vec<Result<()>> = (0..n)
+        .into_par_iter()
+        .map_init(
+            contract::FrameScratch::default,
+            |scratch, t| -> Result<()> {
+                if progress.cancelled() {
+                    return Err(Error::Cancelled);
+                }
+                let c = coarse.read_frame(t)?;
+                let d = detailed.read_frame(t)?;
+                let fine = FineSurface::new(detailed.topology(), &d)?;
+                let max_dist = params.max_dist_edges * mean_edge_length(&topo, &c);
+                let mut map = bake_fine(&texels, &topo, &c, &fine, max_dist);
+                if params.space == Space::Tangent {
+                    map = convert_space(&map, &texels, &topo, &c, layout, true);
+                }
+                writer.write(
+                    out,
+                    t,
+                    &c,
+                    &map,
+                    "baked from the detailed sequence",
+                    scratch,
+                )?;
+                progress.advance("bake", 1);
+                Ok(())
+            },
+        )
+        .collect();
+    outcomes.into_iter().collect::<Result<()>>()?;
     contract::sync_frames(out, 0..n)?;
     progress.end("bake");
     contract::finish(out, n, params.space, params.resolution, "crease bake")

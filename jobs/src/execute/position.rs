@@ -15,6 +15,7 @@ use crease_core::shape::ShapeAccumulator;
 use crease_core::spacetime::params::Scales;
 use crease_core::spacetime::position::strain_limit::{StrainLimiter, StrainReference};
 use crease_core::spacetime::position::{Pinning, PositionSystem};
+use crease_core::spacetime::shape::lost_area::RestAreas;
 use crease_core::spacetime::shape::relief;
 use crease_core::spacetime::stages::{self, PositionedFrame};
 use crease_core::spacetime::windows::Window;
@@ -68,6 +69,11 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     let windows = env.windows(n);
     let passes = env.params.stretch_passes;
     let reliefs = load_reliefs(env, &frames, n)?;
+    let lost_area = if env.params.lost_area_bound {
+        Some(rest_areas(&opened, &label)?)
+    } else {
+        None
+    };
     lap.lap("position: input, system, strain limiter, reliefs");
     env.progress().begin("position", frames.len() as u64);
     let mut written = Vec::new();
@@ -127,6 +133,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                     env.params.stretch_rotation,
                     &scales.ending,
                     heights.as_deref(),
+                    lost_area.as_deref(),
                     limiter,
                 )
                 .map_err(|e| TaskError::from_core(&label, e))?;
@@ -367,6 +374,32 @@ fn strain_limiter(
         built.truncate(2);
     }
     Ok(Some(limiter))
+}
+
+/// The bound of what the deformation adds for `opened` (the surface each neighbourhood shows at its largest over the sequence),
+/// built once per process and input like the strain limiter: it reads every frame.
+fn rest_areas(opened: &Arc<OpenedSequence>, label: &str) -> Result<Arc<RestAreas>, TaskError> {
+    type Built = (Arc<OpenedSequence>, Arc<RestAreas>);
+    static BUILT: Mutex<Vec<Built>> = Mutex::new(Vec::new());
+    let found = |built: &[Built]| {
+        built
+            .iter()
+            .find(|(o, _)| Arc::ptr_eq(o, opened))
+            .map(|(_, a)| Arc::clone(a))
+    };
+    if let Some(a) = found(&BUILT.lock().unwrap_or_else(|p| p.into_inner())) {
+        return Ok(a);
+    }
+    let areas = Arc::new(
+        RestAreas::of_sequence(opened.source.as_ref())
+            .map_err(|e| TaskError::from_core(&format!("{label}: rest areas"), e))?,
+    );
+    let mut built = BUILT.lock().unwrap_or_else(|p| p.into_inner());
+    if found(&built).is_none() {
+        built.insert(0, (Arc::clone(opened), Arc::clone(&areas)));
+        built.truncate(2);
+    }
+    Ok(areas)
 }
 
 /// The cross-faded rotation-vector field of frame `t`, from the stored fields of the windows covering it.

@@ -196,6 +196,8 @@ pub static KNOBS: &[Knob] = &[
         "fraction of the long-wavelength part (twice the detail scale) of the displacement removed after the stretch passes, so the garment keeps the captured shape; 0 = off (acts with the shape screen only)"),
     knob("deform.strain_limit", FRACTION, at!(deform.strain_limit),
         "the positioning's last step shortens every edge longer than (1 + this) times its reference length; 0 = off (`crease run --strain-limit`; the built-in demo uses 0.02)"),
+    knob("deform.lost_area_bound", Kind::Switch, at!(deform.lost_area_bound),
+        "bound what the deformation adds (relief and anchors) by the surface the capture lost: a region whose captured area is as large as it ever is in the sequence gets no folds added; false: they act wherever they reach (folds that never open in any frame, anchors placed on purpose)"),
     knob("deform.strain_limit_sweeps", count(1, 1000), at!(deform.strain_limit_sweeps), "Gauss–Seidel sweeps of the strain limit (it stops once a sweep moves nothing)"),
     knob("deform.strain_reference", Kind::Choice(&["sequence", "frame"]), at!(deform.strain_reference),
         "the strain limit's reference length per edge: its longest captured length (sequence) or its length in the same frame (frame: an input that is its own rest state, as the built-in demo)"),

@@ -3,12 +3,15 @@
 //!
 //! - [`projection`] — the shape projection: the displacement loses its long wavelengths;
 //! - [`relief`] — the fold relief: what a generic deconvolution adds to the captured surface along its normal,
-//!   coherent over time and above the capture's noise (estimated from the sequence).
+//!   coherent over time and above the capture's noise (estimated from the sequence);
+//! - [`lost_area`] — the bound on the relief: no more surface than the capture lost against the sequence's
+//!   own rest areas.
 //!
 //! Both work at one length the sequence is measured by, the **detail scale** ℓ ([`relief::ReliefParams`]): by
 //! default five mean edge lengths of the input's first frame, or a length the user gives in the input's units.
 //! The shape projection and the positioning's shape screen work at a multiple of it ([`SHAPE_SCALES`]).
 
+pub mod lost_area;
 pub mod projection;
 pub mod relief;
 

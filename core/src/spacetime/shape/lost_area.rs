@@ -35,6 +35,7 @@ const AREA_ROUNDS: usize = 16;
 /// capture's noise.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RestAreas {
+    rings: Rings,
     rest: Vec<f64>,
     /// Lost fractions up to this are not counted: [`NOISE_MARGIN`] times the spread, measured over time, of
     /// the smoothed areas' part that is new in each frame.
@@ -57,6 +58,7 @@ impl RestAreas {
         let topo = source.topology();
         let n = topo.n_vertices();
         let chunk = (2 * rayon::current_num_threads()).max(1);
+        let rings = Rings::new(topo);
         let mut rest = vec![0.0f64; n];
         let mut previous: Vec<Vec<f64>> = Vec::new();
         let mut spreads = Vec::new();
@@ -65,7 +67,7 @@ impl RestAreas {
             let parts: Vec<Option<Vec<f64>>> = (start..end)
                 .into_par_iter()
                 .map(|t| match source.read_frame(t) {
-                    Ok(p) => Ok(Some(smoothed_areas(topo, &p))),
+                    Ok(p) => Ok(Some(rings.smoothed_areas(topo, &p))),
                     Err(Error::Mesh { .. } | Error::Format { .. }) => Ok(None),
                     Err(e) => Err(e),
                 })
@@ -95,12 +97,16 @@ impl RestAreas {
             Some(m) => NOISE_MARGIN * m / 0.6745 / 1.5f64.sqrt(),
             None => 0.0,
         };
-        Ok(RestAreas { rest, floor })
+        Ok(RestAreas { rings, rest, floor })
     }
 
     /// From per-vertex rest areas measured elsewhere (tests, or a caller that has them).
-    pub fn from_areas(rest: Vec<f64>, floor: f64) -> Self {
-        RestAreas { rest, floor }
+    pub fn from_areas(topo: &Topology, rest: Vec<f64>, floor: f64) -> Self {
+        RestAreas {
+            rings: Rings::new(topo),
+            rest,
+            floor,
+        }
     }
 
     /// The lost fraction below which nothing counts as lost (the capture's noise), for reports and tests.
@@ -114,8 +120,8 @@ impl RestAreas {
         if self.rest.len() != captured.len() || out.len() != captured.len() {
             return;
         }
-        let before = smoothed_areas(topo, captured);
-        let after = smoothed_areas(topo, out);
+        let before = self.rings.smoothed_areas(topo, captured);
+        let after = self.rings.smoothed_areas(topo, out);
         for (v, o) in out.iter_mut().enumerate() {
             let (rest, a0, a1) = (self.rest[v], before[v], after[v]);
             let scale = if !(rest > 0.0 && a0 > 0.0 && a1.is_finite()) {
@@ -148,32 +154,53 @@ fn median_new_fraction(a: &[f64], b: &[f64], c: &[f64]) -> Option<f64> {
     Some(*m)
 }
 
-/// Each vertex's third of its triangles' areas, averaged over [`AREA_ROUNDS`] rounds of its one ring.
-fn smoothed_areas(topo: &Topology, p: &[vec3::V3]) -> Vec<f64> {
-    let mut area = vec![0.0; p.len()];
-    for (tri, a) in topo
-        .triangles()
-        .iter()
-        .zip(geometry::triangle_areas(topo, p))
-    {
-        for &v in tri {
-            area[v as usize] += a / 3.0;
+/// Every vertex's one ring, once (compressed rows): the areas are smoothed over it many times a frame.
+#[derive(Debug, Clone, PartialEq)]
+struct Rings {
+    start: Vec<usize>,
+    neighbours: Vec<u32>,
+}
+
+impl Rings {
+    fn new(topo: &Topology) -> Self {
+        let mut start = Vec::with_capacity(topo.n_vertices() + 1);
+        let mut neighbours = Vec::new();
+        start.push(0);
+        for v in 0..topo.n_vertices() {
+            neighbours.extend(topo.vertex_neighbors(v));
+            start.push(neighbours.len());
         }
+        Rings { start, neighbours }
     }
-    let mut next = vec![0.0; p.len()];
-    for _ in 0..AREA_ROUNDS {
-        for (v, x) in next.iter_mut().enumerate() {
-            let nb = topo.vertex_neighbors(v);
-            *x = if nb.is_empty() {
-                area[v]
-            } else {
-                0.5 * area[v]
-                    + 0.5 * nb.iter().map(|&u| area[u as usize]).sum::<f64>() / nb.len() as f64
-            };
+
+    /// Each vertex's third of its triangles' areas, averaged over [`AREA_ROUNDS`] rounds of half itself, half
+    /// its one-ring mean.
+    fn smoothed_areas(&self, topo: &Topology, p: &[vec3::V3]) -> Vec<f64> {
+        let mut area = vec![0.0; p.len()];
+        for (tri, a) in topo
+            .triangles()
+            .iter()
+            .zip(geometry::triangle_areas(topo, p))
+        {
+            for &v in tri {
+                area[v as usize] += a / 3.0;
+            }
         }
-        std::mem::swap(&mut area, &mut next);
+        let mut next = vec![0.0; p.len()];
+        for _ in 0..AREA_ROUNDS {
+            for (v, x) in next.iter_mut().enumerate() {
+                let ring = &self.neighbours[self.start[v]..self.start[v + 1]];
+                *x = if ring.is_empty() {
+                    area[v]
+                } else {
+                    let sum: f64 = ring.iter().map(|&u| area[u as usize]).sum();
+                    0.5 * area[v] + 0.5 * sum / ring.len() as f64
+                };
+            }
+            std::mem::swap(&mut area, &mut next);
+        }
+        area
     }
-    area
 }
 
 #[cfg(test)]
@@ -181,6 +208,10 @@ mod tests {
     use super::*;
     use crate::heat::tests::waved_grid;
     use crate::spacetime::shape::relief::add_heights;
+
+    fn smoothed_areas(topo: &Topology, p: &[vec3::V3]) -> Vec<f64> {
+        Rings::new(topo).smoothed_areas(topo, p)
+    }
 
     fn ripple(topo: &Topology, flat: &[vec3::V3], amp: f64) -> Vec<vec3::V3> {
         let h: Vec<f64> = flat.iter().map(|p| amp * (p[0] * 1.1).sin()).collect();
@@ -193,7 +224,8 @@ mod tests {
         let folded = ripple(&topo, &flat, 0.2);
         // Rest = the flat frame's own areas: nothing lost, so nothing may be added.
         let mut out = folded.clone();
-        RestAreas::from_areas(smoothed_areas(&topo, &flat), 0.0).limit(&topo, &flat, &mut out);
+        RestAreas::from_areas(&topo, smoothed_areas(&topo, &flat), 0.0)
+            .limit(&topo, &flat, &mut out);
         assert_eq!(out, flat);
         // Rest = 1.5 × the frame's areas: a third was lost, more than the ripple adds, so it stays whole.
         let mut out = folded.clone();
@@ -201,7 +233,7 @@ mod tests {
             .iter()
             .map(|a| 1.5 * a)
             .collect();
-        RestAreas::from_areas(larger, 0.0).limit(&topo, &flat, &mut out);
+        RestAreas::from_areas(&topo, larger, 0.0).limit(&topo, &flat, &mut out);
         assert_eq!(out, folded);
     }
 
@@ -218,7 +250,7 @@ mod tests {
             .map(|(a, b)| a / (1.0 - 0.25 * (b / a - 1.0)))
             .collect();
         let mut out = folded.clone();
-        RestAreas::from_areas(rest, 0.0).limit(&topo, &flat, &mut out);
+        RestAreas::from_areas(&topo, rest, 0.0).limit(&topo, &flat, &mut out);
         for ((o, f), p) in out.iter().zip(&folded).zip(&flat) {
             let want = vec3::add(*p, vec3::scale(vec3::sub(*f, *p), 0.25));
             assert!(vec3::norm(vec3::sub(*o, want)) < 1e-9, "{o:?} vs {want:?}");

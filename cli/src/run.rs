@@ -105,8 +105,9 @@ fn write_demo_video(a: &DemoArgs) -> Result<()> {
             steps: 0,
             ..Default::default()
         },
-        // Nor the strain limit, a step of the reconstruction.
+        // Nor the strain limit or the lost-area bound, steps of the reconstruction.
         strain_limit: 0.0,
+        lost_area_bound: false,
         ..DeformParams::default()
     };
     deform(

@@ -140,6 +140,9 @@ fn build(a: &RunArgs, folds: Folds, files: Files) -> Result<JobSpec> {
         // frame's triangles, and so is its strain limit (a tuning key or --strain-limit still wins).
         spec.deform.strain_reference = StrainReference::Frame;
         spec.deform.strain_limit = REST_STATE_STRAIN_LIMIT;
+        // Its anchors are placed on purpose on a garment that never lost the surface of its folds (they were
+        // never there): the lost-area bound would give the input back.
+        spec.deform.lost_area_bound = false;
     }
     spec.preview = PreviewOptions {
         frames: a.preview_frames.clone(),
@@ -334,19 +337,23 @@ mod tests {
         }
     }
 
-    /// The demo's strain defaults (its input is its own rest state) give way to an explicit setting.
+    /// The demo's strain and bound defaults (its input is its own rest state) give way to an explicit setting.
     #[test]
     fn the_demo_defaults_give_way_to_explicit_settings() {
         let demo = spec_of(&[]).unwrap();
         assert_eq!(demo.deform.strain_limit, REST_STATE_STRAIN_LIMIT);
         assert_eq!(demo.deform.strain_reference, StrainReference::Frame);
+        assert!(!demo.deform.lost_area_bound);
         let set = spec_of(&[
             "--strain-limit",
             "0.04",
             "--set",
             "deform.strain_reference=sequence",
+            "--set",
+            "deform.lost_area_bound=true",
         ])
         .unwrap();
+        assert!(set.deform.lost_area_bound);
         assert_eq!(set.deform.strain_limit, 0.04);
         assert_eq!(set.deform.strain_reference, StrainReference::Sequence);
     }

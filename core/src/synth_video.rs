@@ -129,8 +129,9 @@ pub fn folded_demo_image(triangles: usize, width: u32, height: u32) -> Result<Rg
             steps: 0,
             ..Default::default()
         },
-        // Nor its strain limit.
+        // Nor its strain limit, nor the bound by the surface a capture lost (the truth is the anchors' effect).
         strain_limit: 0.0,
+        lost_area_bound: false,
         ..DeformParams::default()
     };
     let mut sink = crate::mesh::MemorySink::default();

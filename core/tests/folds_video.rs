@@ -50,11 +50,12 @@ fn synthetic_capture(
     // The truth is the anchors' full effect, made without crease's shape screen.
     let truth = DeformParams {
         shape_cutoff: 0.0,
-        // Nor crease's fold relief (it reads the captured surface).
+        // Nor crease's fold relief (it reads the captured surface), nor its bound by the surface a capture lost.
         relief: crease_core::spacetime::shape::relief::ReliefParams {
             steps: 0,
             ..Default::default()
         },
+        lost_area_bound: false,
         ..DeformParams::default()
     };
     deform(&seq, &anchors, &truth, &mut sink, &NoProgress, &[]).unwrap();

@@ -204,6 +204,15 @@ pub struct TrainArgs {
     /// Weight of the temporal term (paper: 50; 0 trains without it).
     #[arg(long, default_value_t = CganConfig::default().w_temporal)]
     pub cgan_w_temporal: f64,
+    /// Weight of the data (L1) term (paper: 100).
+    #[arg(long, default_value_t = CganConfig::default().w_l1)]
+    pub cgan_w_l1: f64,
+    /// Weight of the adversarial term (paper: 1; 0 trains the generator on the data and temporal terms alone).
+    #[arg(long, default_value_t = CganConfig::default().w_gan)]
+    pub cgan_w_gan: f64,
+    /// Adam's learning rate for both networks (paper: 0.0002).
+    #[arg(long, default_value_t = CganConfig::default().lr)]
+    pub cgan_lr: f64,
     /// U-Net levels per side (the map resolution must be a multiple of 2^depth).
     #[arg(long, default_value_t = CganConfig::default().depth)]
     pub cgan_depth: usize,
@@ -464,6 +473,9 @@ fn train_params(a: &TrainArgs) -> TrainParams {
             filters: a.cgan_filters,
             disc_filters: a.cgan_disc_filters,
             w_temporal: a.cgan_w_temporal,
+            w_l1: a.cgan_w_l1,
+            w_gan: a.cgan_w_gan,
+            lr: a.cgan_lr,
             depth: a.cgan_depth,
             crop: a.cgan_crop,
             steps: a.cgan_steps,
@@ -488,6 +500,9 @@ fn eval_cmd(a: EvalArgs) -> Result<()> {
             filters: a.train.cgan_filters,
             disc_filters: a.train.cgan_disc_filters,
             w_temporal: a.train.cgan_w_temporal,
+            w_l1: a.train.cgan_w_l1,
+            w_gan: a.train.cgan_w_gan,
+            lr: a.train.cgan_lr,
             depth: a.train.cgan_depth,
             crop: a.train.cgan_crop,
             steps: a.train.cgan_steps.max(1),

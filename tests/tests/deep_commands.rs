@@ -505,6 +505,33 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
         "no model from a failed training"
     );
 
+    // Eq. 4's weights and the learning rate are checked before anything is trained.
+    for (flag, field) in [
+        ("--cgan-w-gan=-1", "cgan.w_gan"),
+        ("--cgan-w-l1=NaN", "cgan.w_l1"),
+        ("--cgan-lr=0", "cgan.lr"),
+    ] {
+        let out = tmp.path().join(format!("m-{field}"));
+        fails(
+            &[
+                "deep",
+                "train",
+                "--data",
+                s(&a),
+                s(&b),
+                "--out",
+                s(&out),
+                "--resolution",
+                "32",
+                "--cgan-steps",
+                "1",
+                flag,
+            ],
+            &[field],
+        );
+        assert!(!out.exists(), "no model from a refused {flag}");
+    }
+
     // NaN in a pose (as Python's json writes it).
     let text = std::fs::read_to_string(a.join("pose.json")).unwrap();
     let nan_pose = tmp.path().join("nan.json");

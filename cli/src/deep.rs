@@ -6,7 +6,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, Subcommand};
 use crease_core::mesh::io::{open_sequence, sort_numbered, write_obj};
 use crease_core::mesh::FrameSource;
-use crease_deep::apply::{apply, ApplyInput, ApplyParams};
+use crease_deep::apply::{apply, ApplyInput, ApplyParams, CoarseDetail};
 use crease_deep::cgan::CganConfig;
 use crease_deep::detail::DetailParams;
 use crease_deep::evaluation::loso::{evaluate, markdown, EvalParams, ExtraCase};
@@ -298,6 +298,11 @@ pub struct ApplyArgs {
     /// Write the coarse maps without the cGAN.
     #[arg(long)]
     pub no_cgan: bool,
+    /// --coarse: where the capture's detail comes from: `relief` (crease's fold relief over the whole sequence)
+    /// or `model` (the model's learned detail filter, frame by frame) [default: whichever won on the model's
+    /// held-out training sequence, see its manifest's detail.coarse]
+    #[arg(long)]
+    pub coarse_detail: Option<CoarseDetail>,
     /// No progress bar or summary lines (errors are still printed).
     #[arg(long)]
     pub quiet: bool,
@@ -535,6 +540,7 @@ fn apply_cmd(a: ApplyArgs) -> Result<()> {
         regressor: a.regressor,
         frames: None,
         no_cgan: a.no_cgan,
+        coarse_detail: a.coarse_detail,
     };
     let progress = CliProgress::new(a.quiet);
     let t0 = Instant::now();

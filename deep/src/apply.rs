@@ -4,6 +4,7 @@
 //! that is what lets the job system split apply into frame chunks.
 
 use crate::contract;
+use crate::detail::relief::CoarseRelief;
 use crate::model::{Model, RegressorKind};
 use crate::normal_maps::raster::TexelMap;
 use crate::normal_maps::{convert_space, world_from_vertex_normals, NormalMap, Space};
@@ -15,6 +16,9 @@ use crease_core::vec3::V3;
 use crease_core::{Error, Result};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+
+/// Frames whose relief is computed together (their maps then run in parallel).
+const RELIEF_CHUNK: usize = 32;
 
 #[derive(Debug, Clone)]
 pub enum ApplyInput {
@@ -33,6 +37,41 @@ pub struct ApplyParams {
     pub frames: Option<Range<usize>>,
     /// Skip the cGAN and write the coarse maps (for comparisons).
     pub no_cgan: bool,
+    /// Where a capture's detail comes from (`--coarse` only); `None`: where the model's training decided
+    /// ([`Model::coarse_detail`]).
+    pub coarse_detail: Option<CoarseDetail>,
+}
+
+/// Where `apply --coarse` takes a capture's detail from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CoarseDetail {
+    /// crease's fold relief, run on the whole coarse sequence ([`crate::detail::relief`]).
+    Relief,
+    /// The model's learned detail filter, frame by frame, with its guard ([`crate::detail`]).
+    Model,
+}
+
+impl CoarseDetail {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            CoarseDetail::Relief => "relief",
+            CoarseDetail::Model => "model",
+        }
+    }
+}
+
+impl std::str::FromStr for CoarseDetail {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "relief" => Ok(CoarseDetail::Relief),
+            "model" => Ok(CoarseDetail::Model),
+            other => Err(Error::param(
+                "coarse-detail",
+                format!("`{other}` is neither `relief` nor `model`"),
+            )),
+        }
+    }
 }
 
 impl Default for ApplyParams {
@@ -42,6 +81,7 @@ impl Default for ApplyParams {
             regressor: None,
             frames: None,
             no_cgan: false,
+            coarse_detail: None,
         }
     }
 }
@@ -245,18 +285,36 @@ pub fn apply(
             ApplyInput::Pose(_) => e.spec.use_pose,
         })
     };
-    let source = match input {
-        ApplyInput::Coarse(d) => Source::Capture(d.as_path()),
-        ApplyInput::Pose(_) => Source::Pose,
+    let capture = match input {
+        ApplyInput::Coarse(d) => Some(d.as_path()),
+        ApplyInput::Pose(_) => None,
+    };
+    let detail = params
+        .coarse_detail
+        .unwrap_or_else(|| model.coarse_detail());
+    let mut relief = match (&shapes, capture, detail) {
+        (CoarseShapes::Source(s), Some(_), CoarseDetail::Relief) => {
+            Some(CoarseRelief::new(s.as_ref())?)
+        }
+        _ => None,
     };
     contract::prepare(out)?;
     let writer = contract::FrameWriter::new(&model.topology, &model.layout);
     progress.begin("apply", range.len() as u64);
-    let one_frame = |t: usize, scratch: &mut contract::FrameScratch| -> Result<Option<String>> {
+    let one_frame = |t: usize,
+                     heights: Option<(&[f64], &CoarseRelief)>,
+                     scratch: &mut contract::FrameScratch|
+     -> Result<Option<String>> {
         if progress.cancelled() {
             return Err(Error::Cancelled);
         }
         let c = shapes.frame(t)?;
+        let relieved = heights.map(|(h, r)| r.relieved(&model.topology, &c, h));
+        let source = match (capture, relieved.as_deref()) {
+            (Some(path), Some(r)) => Source::Relieved(path, r),
+            (Some(path), None) => Source::Capture(path),
+            (None, _) => Source::Pose,
+        };
         let f = frame_map(
             model,
             &texels,
@@ -270,27 +328,41 @@ pub fn apply(
         progress.advance("apply", 1);
         Ok(f.fallback)
     };
-    // Frames are independent (the cGAN sees one frame's map, never another's output), so their files are the
-    // same bytes in any order. Without a cGAN they run in parallel (each thread with its own buffers); the
-    // cGAN's own loops use every core, so with one the frames run one after another. The parallel run keeps
-    // every frame's outcome so that the error reported is the first failing frame's, whichever thread met
-    // an error first.
-    let fallbacks: Vec<Option<String>> = if enhancer.is_none() && rayon::current_num_threads() > 1 {
-        use rayon::prelude::*;
-        range
-            .clone()
-            .into_par_iter()
-            .map_init(contract::FrameScratch::default, |s, t| one_frame(t, s))
-            .collect::<Vec<Result<_>>>()
-            .into_iter()
-            .collect::<Result<_>>()?
-    } else {
-        let mut scratch = contract::FrameScratch::default();
-        range
-            .clone()
-            .map(|t| one_frame(t, &mut scratch))
-            .collect::<Result<_>>()?
-    };
+    // Frames are independent (the cGAN sees one frame's map, never another's output, and the relief of a
+    // frame reads only the captured frames around it), so their files are the same bytes in any order and in
+    // any frame range. The relief is computed a chunk of frames at a time, so that its memory stays bounded on
+    // long sequences. Without a cGAN the chunk's frames run in parallel (each thread with its own buffers);
+    // the cGAN's own loops use every core, so with one the frames run one after another. The parallel run
+    // keeps every frame's outcome so that the error reported is the first failing frame's, whichever thread
+    // met an error first.
+    let all: Vec<usize> = range.clone().collect();
+    let mut fallbacks: Vec<Option<String>> = Vec::with_capacity(all.len());
+    let mut scratch = contract::FrameScratch::default();
+    for chunk in all.chunks(RELIEF_CHUNK) {
+        let heights = match (&mut relief, &shapes) {
+            (Some(r), CoarseShapes::Source(s)) => Some(r.heights(s.as_ref(), chunk)?),
+            _ => None,
+        };
+        let bound = relief.as_ref();
+        let h = |k: usize| heights.as_ref().map(|h| h[k].as_slice()).zip(bound);
+        if enhancer.is_none() && rayon::current_num_threads() > 1 {
+            use rayon::prelude::*;
+            let done: Vec<Result<Option<String>>> = chunk
+                .par_iter()
+                .enumerate()
+                .map_init(contract::FrameScratch::default, |s, (k, &t)| {
+                    one_frame(t, h(k), s)
+                })
+                .collect();
+            for d in done {
+                fallbacks.push(d?);
+            }
+        } else {
+            for (k, &t) in chunk.iter().enumerate() {
+                fallbacks.push(one_frame(t, h(k), &mut scratch)?);
+            }
+        }
+    }
     contract::sync_frames(out, range.clone())?;
     progress.end("apply");
     if params.frames.is_none() {
@@ -312,6 +384,8 @@ pub enum Source<'a> {
     Pose,
     /// A capture read from this path (`apply --coarse`): the detail model runs on it.
     Capture(&'a Path),
+    /// A capture read from this path, and the frame with its fold relief ([`crate::detail::relief`]).
+    Relieved(&'a Path, &'a [V3]),
 }
 
 /// One frame's map, the note its OBJ carries, and the guard's reason when it fell back.
@@ -321,8 +395,8 @@ pub struct FrameMap {
     pub fallback: Option<String>,
 }
 
-/// One frame's map: from a capture, the detail model's normals (or, past its guard, the capture's own); from
-/// the regression, the shape's own normals; then `enhancer` (the cGAN, where the caller decided to use it; not
+/// One frame's map: from a capture, the detail model's normals (or, past its guard, the capture's own) or those
+/// of the capture with its fold relief; from the regression, the shape's own normals; then `enhancer` (the cGAN, where the caller decided to use it; not
 /// on a frame that fell back), in the asked space.
 pub fn frame_map(
     model: &Model,
@@ -346,6 +420,26 @@ pub fn frame_map(
                     Some(why.to_string()),
                 ),
             }
+        }
+        Source::Relieved(path, relieved) => {
+            let what = format!("{} frame {}", path.display(), t + 1);
+            // The unit check stands: the maps and the cGAN were made for the training garment's scale.
+            model.detail.check_scale(topo, coarse, &what)?;
+            if relieved.len() != coarse.len() {
+                return Err(Error::param(
+                    "relief",
+                    format!(
+                        "{what}: {} relieved vertices for {}",
+                        relieved.len(),
+                        coarse.len()
+                    ),
+                ));
+            }
+            (
+                geometry::vertex_normals(topo, relieved),
+                "crease's fold relief".to_string(),
+                None,
+            )
         }
         Source::Pose => (
             geometry::vertex_normals(topo, coarse),

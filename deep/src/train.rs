@@ -603,6 +603,16 @@ fn fit_autoregressive(
     Ok((ar, report.losses))
 }
 
+/// The detailed frames held out of the detail model's fit: the last sequence, or with one sequence its last
+/// quarter.
+fn held_out_frames(seqs: &[TrainingSequence]) -> &[Frame] {
+    match seqs {
+        [only] => &only.fine[only.fine.len() - only.fine.len() / 4..],
+        [.., last] => &last.fine,
+        [] => &[],
+    }
+}
+
 /// Trains on `seqs` and publishes the model at `out`.
 pub fn train(
     seqs: &[TrainingSequence],
@@ -615,7 +625,7 @@ pub fn train(
     let mean_shape = crate::subspace::unflatten(&fitted.subspace.mean);
     let layout = layout_for(params.uv.as_deref(), &topo, &mean_shape)?;
     let t_detail = Instant::now();
-    let detail = fit_detail(seqs, &topo, &params.detail)?;
+    let mut detail = fit_detail(seqs, &topo, &params.detail)?;
     progress.note(&format!(
         "detail model: degree {}, ridge {:.0e}; held-out sequence's random captures {:.2}° → {:.2}° in {:.1} s",
         detail.spec.degree,
@@ -624,6 +634,18 @@ pub fn train(
         detail.spec.held_out_model_deg,
         t_detail.elapsed().as_secs_f64()
     ));
+    let t_choice = Instant::now();
+    let choice =
+        crate::detail::relief::choose(&topo, &detail, held_out_frames(seqs), params.detail.seed)?;
+    progress.note(&format!(
+        "coarse detail: {} (held-out sequence's sequence captures {:.2}°: relief {:.2}°, learned filter {:.2}°) in {:.1} s",
+        if choice.use_relief { "the relief" } else { "the learned filter" },
+        choice.capture_deg,
+        choice.relief_deg,
+        choice.model_deg,
+        t_choice.elapsed().as_secs_f64()
+    ));
+    detail.spec.coarse = Some(choice);
     let mut w = ModelWriter::new(out)?;
     write_core_parts(&mut w, &topo, &layout, &fitted.subspace, &fitted.linear)?;
     write_autoregressive(&mut w, &fitted.autoregressive)?;

@@ -4,7 +4,7 @@
 mod support;
 
 use crease_core::progress::NoProgress;
-use crease_deep::apply::{apply, ApplyInput, ApplyParams};
+use crease_deep::apply::{apply, ApplyInput, ApplyParams, CoarseDetail};
 use crease_deep::cgan::CganConfig;
 use crease_deep::model::{Model, RegressorKind};
 use crease_deep::train::{train, TrainParams, TrainingSequence};
@@ -126,21 +126,31 @@ fn chunked_apply_equals_the_single_run_byte_for_byte() {
     )
     .unwrap();
     assert_eq!(read_tree(&plain)[12..] != a[12..], use_pose);
-    // The coarse path too, detail model and guard included.
+    // The coarse path too, with the detail model (guard included) and with the relief, whose heights read the
+    // frames around each one: a chunk's frames are the whole run's.
     let capture = tmp.path().join("capture");
     support::write_sequence(&capture, &seqs[1].topology, &seqs[1].fine);
     let input = ApplyInput::Coarse(capture);
-    let full = tmp.path().join("full-coarse");
-    apply(&model, &input, &ApplyParams::default(), &full, &NoProgress).unwrap();
-    let chunked = tmp.path().join("chunked-coarse");
-    for r in [0..7, 7..12] {
-        let p = ApplyParams {
-            frames: Some(r),
+    let mut trees = Vec::new();
+    for detail in [CoarseDetail::Model, CoarseDetail::Relief] {
+        let with = |frames| ApplyParams {
+            frames,
+            coarse_detail: Some(detail),
             ..Default::default()
         };
-        apply(&model, &input, &p, &chunked, &NoProgress).unwrap();
+        let full = tmp.path().join(format!("full-coarse-{}", detail.as_str()));
+        apply(&model, &input, &with(None), &full, &NoProgress).unwrap();
+        let chunked = tmp
+            .path()
+            .join(format!("chunked-coarse-{}", detail.as_str()));
+        for r in [0..7, 7..12] {
+            apply(&model, &input, &with(Some(r)), &chunked, &NoProgress).unwrap();
+        }
+        assert_eq!(read_tree(&full), read_tree(&chunked), "{}", detail.as_str());
+        trees.push(read_tree(&full));
     }
-    assert_eq!(read_tree(&full), read_tree(&chunked));
+    // The two paths draw different maps (the relief adds to the capture what the filter does not).
+    assert_ne!(trees[0], trees[1]);
     // A frame range outside the input is refused.
     let bad = ApplyParams {
         frames: Some(10..13),

@@ -108,6 +108,20 @@ fn bad_deep_specs_name_the_field() {
         ),
         (
             spec(
+                "task = \"apply\"\nmodel = \"/m\"\nfrom = \"pose\"\ncoarse_detail = \"relief\"\n",
+                "",
+            ),
+            "deep.coarse_detail",
+        ),
+        (
+            spec(
+                "task = \"apply\"\nmodel = \"/m\"\nfrom = \"coarse\"\ncoarse_detail = \"blur\"\n",
+                "",
+            ),
+            "unknown variant `blur`",
+        ),
+        (
+            spec(
                 "task = \"train\"\n",
                 "[folds]\nkind = \"anchors\"\nuri = \"/a.json\"\n",
             ),

@@ -370,6 +370,7 @@ fn bench_detail_model() -> crease_deep::detail::DetailModel {
             },
             held_out_capture_deg: 0.0,
             held_out_model_deg: 0.0,
+            coarse: None,
         },
         interior: (0..n).map(|j| 0.1 / (1.0 + j as f64)).collect(),
         boundary: (0..n).map(|j| 0.05 / (1.0 + j as f64)).collect(),

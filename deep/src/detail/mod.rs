@@ -24,6 +24,7 @@
 
 pub mod captures;
 pub mod operator;
+pub mod relief;
 
 use crate::nn::seed::Rng;
 use captures::CaptureDraw;
@@ -181,6 +182,10 @@ pub struct DetailSpec {
     /// and of the model's prediction (guard included).
     pub held_out_capture_deg: f64,
     pub held_out_model_deg: f64,
+    /// Whether `apply --coarse` takes a capture's detail from the relief or from this filter by default
+    /// ([`relief::choose`]); absent in models trained before the relief was an option, which use the filter.
+    #[serde(default)]
+    pub coarse: Option<relief::CoarseChoice>,
 }
 
 /// The fitted model: weights per class (interior, boundary vertices), (degree + 1) × (signature + 1).
@@ -636,6 +641,7 @@ pub fn fit(data: &DetailData, params: &DetailParams) -> Result<DetailModel> {
                 },
                 held_out_capture_deg: f64::NAN,
                 held_out_model_deg: f64::NAN,
+                coarse: None,
             },
             interior,
             boundary,

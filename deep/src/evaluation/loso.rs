@@ -4,6 +4,7 @@
 //! path's error against the number of sequences trained on).
 
 use super::{frames_to_score, score_capture, score_shapes, Score};
+use crate::apply::CoarseDetail;
 use crate::model::Model;
 use crate::train::{fit, layout_for, load_training_dir, train, TrainParams, TrainingSequence};
 use crease_core::mesh::io::open_sequence;
@@ -139,10 +140,17 @@ fn score_sequence(
     let mut out = Vec::new();
     for name in captures {
         if let Some(c) = load_capture(&seq.dir, name, seq)? {
-            out.push((
-                name.clone(),
-                score_capture(model, &c, &seq.dir.join(name), &seq.fine, frames)?,
-            ));
+            let path = seq.dir.join(name);
+            // Both paths `apply --coarse` can take (the model's default is one of them).
+            for (label, detail) in [
+                (format!("{name}, learned filter"), CoarseDetail::Model),
+                (format!("{name}, relief"), CoarseDetail::Relief),
+            ] {
+                out.push((
+                    label,
+                    score_capture(model, &c, &path, &seq.fine, frames, detail)?,
+                ));
+            }
         }
     }
     Ok((pose, out))
@@ -227,7 +235,7 @@ pub fn evaluate(dirs: &[PathBuf], p: &EvalParams, progress: &dyn Progress) -> Re
             crease_core::fsutil::create_dir_all(&p.strips)?;
             super::strip::write_strip(
                 &model,
-                &frames[t],
+                frames,
                 &held.dir.join(cname),
                 &held.fine[t],
                 t,

@@ -11,14 +11,15 @@ pub mod loso;
 pub mod strip;
 pub mod table1;
 
-use crate::apply::{frame_map, Source};
+use crate::apply::{frame_map, CoarseDetail, Source};
+use crate::detail::relief::CoarseRelief;
 use crate::model::Model;
 use crate::normal_maps::bake::map_normal_error;
 use crate::normal_maps::raster::TexelMap;
 use crate::normal_maps::uv::UvLayout;
 use crate::normal_maps::{sample_vertex_normals, world_from_vertex_normals, Space};
 use crate::subspace::vertex_error;
-use crease_core::mesh::{geometry, Frame, Topology};
+use crease_core::mesh::{geometry, Frame, Sequence, Topology};
 use crease_core::vec3::V3;
 use crease_core::Result;
 use rayon::prelude::*;
@@ -71,30 +72,44 @@ pub fn frames_to_score(range: std::ops::Range<usize>, step: usize) -> Vec<usize>
     range.step_by(step.max(1)).collect()
 }
 
-/// The model's coarse path on a capture of `gt` (same frames), scored on `frames`.
+/// The model's coarse path on a capture of `gt` (same frames), with its detail from `detail`, scored on
+/// `frames` (increasing).
 pub fn score_capture(
     model: &Model,
     capture: &[Frame],
     capture_path: &Path,
     gt: &[Frame],
     frames: &[usize],
+    detail: CoarseDetail,
 ) -> Result<Score> {
     let res = model.manifest.resolution;
     let texels = TexelMap::new(&model.layout, res, res);
     let topo = &model.topology;
+    let relieved: Option<Vec<Frame>> = match detail {
+        CoarseDetail::Relief => {
+            let seq = Sequence::new(topo.clone(), capture.to_vec())?;
+            let mut relief = CoarseRelief::new(&seq)?;
+            let heights = relief.heights(&seq, frames)?;
+            Some(
+                frames
+                    .iter()
+                    .zip(&heights)
+                    .map(|(&t, h)| relief.relieved(topo, &capture[t], h))
+                    .collect(),
+            )
+        }
+        CoarseDetail::Model => None,
+    };
     let scores: Vec<FrameScore> = frames
         .par_iter()
-        .map(|&t| {
+        .enumerate()
+        .map(|(k, &t)| {
             let c = &capture[t];
-            let f = frame_map(
-                model,
-                &texels,
-                c,
-                Source::Capture(capture_path),
-                t,
-                None,
-                Space::World,
-            )?;
+            let source = match &relieved {
+                Some(r) => Source::Relieved(capture_path, &r[k]),
+                None => Source::Capture(capture_path),
+            };
+            let f = frame_map(model, &texels, c, source, t, None, Space::World)?;
             let sampled = sample_vertex_normals(&f.map, topo, &model.layout);
             Ok(FrameScore {
                 map_deg: map_normal_error(&sampled, topo, &gt[t]).0,

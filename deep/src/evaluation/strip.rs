@@ -1,13 +1,14 @@
 //! The paper's Fig. 11 as a strip of one held-out frame's normal maps side by side: the capture's own, the
-//! model's (what `apply --coarse` writes), the ground truth's; world-space normals as colours
+//! model's (what `apply --coarse` writes by default), the ground truth's; world-space normals as colours
 //! ((n + 1) / 2 per channel), uncovered texels black.
 
-use crate::apply::{frame_map, Source};
+use crate::apply::{frame_map, CoarseDetail, Source};
 use crate::cgan::enhance::Enhancer;
+use crate::detail::relief::CoarseRelief;
 use crate::model::Model;
 use crate::normal_maps::raster::TexelMap;
 use crate::normal_maps::{world_from_vertex_normals, NormalMap, Space};
-use crease_core::mesh::geometry;
+use crease_core::mesh::{geometry, Frame, Sequence};
 use crease_core::vec3::V3;
 use crease_core::{Error, Result};
 use std::path::Path;
@@ -27,11 +28,12 @@ fn paint(img: &mut image::RgbImage, m: &NormalMap, x0: u32) {
     }
 }
 
-/// Writes the strip of frame `t` (0-based) of a capture (`capture`, read from `capture_path`) and its ground
-/// truth `gt` to `out` (PNG).
+/// Writes the strip of frame `t` (0-based) of a capture sequence (`captures`, read from `capture_path`) and its
+/// ground truth `gt` to `out` (PNG). The middle map is `apply --coarse`'s default for this model: the learned
+/// filter's, or the capture with its relief (which reads the frames around `t`).
 pub fn write_strip(
     model: &Model,
-    capture: &[V3],
+    captures: &[Frame],
     capture_path: &Path,
     gt: &[V3],
     t: usize,
@@ -41,13 +43,26 @@ pub fn write_strip(
     let texels = TexelMap::new(&model.layout, res, res);
     let topo = &model.topology;
     let enhancer = Enhancer::for_model(model)?.filter(|e| e.spec.use_coarse);
+    let capture = &captures[t];
+    let relieved = match model.coarse_detail() {
+        CoarseDetail::Relief => {
+            let seq = Sequence::new(topo.clone(), captures.to_vec())?;
+            let mut relief = CoarseRelief::new(&seq)?;
+            let heights = relief.heights(&seq, &[t])?;
+            Some(relief.relieved(topo, capture, &heights[0]))
+        }
+        CoarseDetail::Model => None,
+    };
     let maps = [
         world_from_vertex_normals(&texels, topo, &geometry::vertex_normals(topo, capture)),
         frame_map(
             model,
             &texels,
             capture,
-            Source::Capture(capture_path),
+            match &relieved {
+                Some(r) => Source::Relieved(capture_path, r),
+                None => Source::Capture(capture_path),
+            },
             t,
             enhancer.as_ref(),
             Space::World,

@@ -1,7 +1,9 @@
 //! The bridge to the learning library (`deep` feature): a spec's types and parameters as crease-deep's,
 //! and the checks of the training parameters only the library knows.
 
-use super::spec::{DeepSpec, DeepTrainParams, MapSpace, Mirror, PoseFeatures, Regressor};
+use super::spec::{
+    CoarseDetail, DeepSpec, DeepTrainParams, MapSpace, Mirror, PoseFeatures, Regressor,
+};
 use crate::error::JobError;
 use crease_deep::cgan::CganConfig;
 use crease_deep::detail::DetailParams;
@@ -43,6 +45,15 @@ impl From<Mirror> for MirrorMode {
             Mirror::X => MirrorMode::X,
             Mirror::Y => MirrorMode::Y,
             Mirror::Z => MirrorMode::Z,
+        }
+    }
+}
+
+impl From<CoarseDetail> for crease_deep::apply::CoarseDetail {
+    fn from(c: CoarseDetail) -> Self {
+        match c {
+            CoarseDetail::Relief => crease_deep::apply::CoarseDetail::Relief,
+            CoarseDetail::Model => crease_deep::apply::CoarseDetail::Model,
         }
     }
 }

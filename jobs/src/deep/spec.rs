@@ -39,7 +39,21 @@ pub enum DeepSpec {
         /// Write the coarse maps without the cGAN.
         #[serde(default)]
         no_cgan: bool,
+        /// Where a coarse input's detail comes from (`from = "coarse"` only): `relief` or `model`; default:
+        /// whichever won on the model's held-out training sequence.
+        #[serde(default)]
+        coarse_detail: Option<CoarseDetail>,
     },
+}
+
+/// Where `apply --coarse` takes a capture's detail from (`--coarse-detail`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CoarseDetail {
+    /// crease's fold relief over the whole coarse sequence.
+    Relief,
+    /// The model's learned detail filter, frame by frame.
+    Model,
 }
 
 fn world() -> MapSpace {
@@ -205,12 +219,21 @@ impl DeepSpec {
         match self {
             DeepSpec::Train { .. } => {}
             DeepSpec::Apply {
-                from, regressor, ..
+                from,
+                regressor,
+                coarse_detail,
+                ..
             } => {
                 if regressor.is_some() && *from != ApplyFrom::Pose {
                     return Err(JobError::spec(
                         "deep.regressor",
                         "applies to `from = \"pose\"` only (coarse meshes need no regression)",
+                    ));
+                }
+                if coarse_detail.is_some() && *from != ApplyFrom::Coarse {
+                    return Err(JobError::spec(
+                        "deep.coarse_detail",
+                        "applies to `from = \"coarse\"` only (a pose's shape has no capture detail)",
                     ));
                 }
             }

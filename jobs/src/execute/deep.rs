@@ -136,6 +136,7 @@ fn open_apply(env: &TaskEnv) -> Result<(Model, ApplyInput, ApplyParams), TaskErr
         space,
         regressor,
         no_cgan,
+        coarse_detail,
     } = spec_of(env)?
     else {
         return Err(TaskError::fatal("deep-apply task of a training job"));
@@ -152,6 +153,7 @@ fn open_apply(env: &TaskEnv) -> Result<(Model, ApplyInput, ApplyParams), TaskErr
         regressor: regressor.map(Into::into),
         frames: None,
         no_cgan: *no_cgan,
+        coarse_detail: coarse_detail.map(Into::into),
     };
     Ok((model, input, params))
 }

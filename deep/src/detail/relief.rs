@@ -1,0 +1,170 @@
+//! The capture's detail from crease's fold relief instead of the learned filter: the generic deconvolution of
+//! `crease run` ([`crease_core::spacetime::shape::relief`]), run on the whole coarse sequence.
+//!
+//! The learned filter ([`super::DetailModel`]) predicts the fine surface from one frame, fitted on random
+//! captures of the training sequences; the relief undoes the smoothest generic low-pass at the input's own
+//! detail scale (five mean edge lengths of its first frame), keeps only what is coherent over a few frames
+//! and above the noise it measures on the sequence itself, and never amplifies that noise. On sleeve captures
+//! made other ways than the learned filter's training captures (the public capture filter, a spectral cut,
+//! implicit low-passes with and without noise) its maps are 0.1–0.4° closer to the cloth; on captures of the
+//! learned filter's own families, and on folds that change faster than its temporal average follows, the
+//! learned filter is better (docs/deepwrinkles.md has the figures).
+//!
+//! Which of the two a model uses by default is decided when it is trained ([`choose`]): on captures of the
+//! held-out training sequence made the way the learned filter's training captures are, but one family and
+//! strength for the whole sequence (a capture system does not change from frame to frame) with noise new in
+//! every frame. A sequence whose folds change faster than the relief's temporal average follows is better
+//! served by the per-frame filter, and the choice says so.
+//!
+//! A frame's heights read only the frames around it (the relief's temporal span) and the first frame (the
+//! detail scale), so any frame range of an apply gives the same bytes as the whole run.
+
+use super::captures;
+use super::DetailModel;
+use crate::nn::seed::Rng;
+use crease_core::mesh::{geometry, Frame, FrameSource, Sequence, Topology};
+use crease_core::shape::mean_edge_length;
+use crease_core::spacetime::position::strain_limit::{
+    StrainLimiter, StrainReference, DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_LIMIT_SWEEPS,
+};
+use crease_core::spacetime::shape::relief::{add_heights, ReliefFrames, ReliefParams};
+use crease_core::vec3::V3;
+use crease_core::Result;
+use serde::{Deserialize, Serialize};
+
+/// The relief of one coarse sequence, computed a few frames at a time in increasing order (it keeps only the
+/// captured frames' reliefs the next frames' spans need), and the strain limit `crease run` ends with: no edge
+/// stretched past 5 % of its longest captured length (read from every frame once). It takes back part of
+/// what the relief adds to a sharp capture with reconstruction noise (on the sleeve's ground truth with noise,
+/// maps 5.1° → 4.3° from the cloth; the capture's own, 2.0°). `crease run`'s lost-area bound is left out: it
+/// scales the displacement vertex by vertex, and the maps, which hold a few texels per vertex, blur the
+/// texture that leaves (a capture low-passed at four edges: 3.2° → 4.0° with it).
+pub struct CoarseRelief {
+    reliefs: ReliefFrames,
+    limiter: Option<StrainLimiter>,
+}
+
+impl CoarseRelief {
+    /// For `source`, at the detail scale of its first frame.
+    pub fn new(source: &dyn FrameSource) -> Result<Self> {
+        let params = ReliefParams::default();
+        let first = source.read_frame(0)?;
+        let scale = params.scale_for(mean_edge_length(source.topology(), &first));
+        Ok(CoarseRelief {
+            reliefs: ReliefFrames::new(params, scale, source.n_frames()),
+            limiter: StrainLimiter::for_source(
+                source,
+                DEFAULT_STRAIN_LIMIT,
+                DEFAULT_STRAIN_LIMIT_SWEEPS,
+                StrainReference::Sequence,
+            )?,
+        })
+    }
+
+    /// The heights of `frames` (increasing, after any asked for before), per frame along its captured normals.
+    pub fn heights(&mut self, source: &dyn FrameSource, frames: &[usize]) -> Result<Vec<Vec<f64>>> {
+        self.reliefs.prepare(source, frames)?;
+        frames
+            .iter()
+            .map(|&t| self.reliefs.heights(source.topology(), t))
+            .collect()
+    }
+
+    /// Captured frame `c` with its relief `heights` added along its normals, then strain-limited.
+    pub fn relieved(&self, topo: &Topology, c: &[V3], heights: &[f64]) -> Vec<V3> {
+        let mut out = add_heights(topo, c, c, heights);
+        if let Some(l) = &self.limiter {
+            l.apply(c, &mut out);
+        }
+        out
+    }
+}
+
+/// Sequence captures of the held-out training sequence the choice is made on.
+const CHOICE_CAPTURES: usize = 3;
+/// Offset of their draws from the learned filter's training and validation draws.
+const CHOICE_DRAW: u64 = 0x5EC0_0000;
+
+/// Which detail `apply --coarse` uses by default, and the figures it was decided on (mean normal error in
+/// degrees on the held-out training sequence's sequence captures).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CoarseChoice {
+    pub capture_deg: f64,
+    pub relief_deg: f64,
+    pub model_deg: f64,
+    /// The relief was closer to the held-out sequence than the learned filter.
+    pub use_relief: bool,
+}
+
+/// Decides between the relief and `model` on [`CHOICE_CAPTURES`] sequence captures of `held` (detailed
+/// frames), drawn with `seed`.
+pub fn choose(
+    topo: &Topology,
+    model: &DetailModel,
+    held: &[Frame],
+    seed: u64,
+) -> Result<CoarseChoice> {
+    use rayon::prelude::*;
+    let (mut capture_deg, mut relief_deg, mut model_deg) = (0.0, 0.0, 0.0);
+    let truth: Vec<Vec<V3>> = held
+        .par_iter()
+        .map(|f| geometry::vertex_normals(topo, f))
+        .collect();
+    let error = |n: &[V3], t: usize| -> f64 {
+        let sum: f64 = n
+            .iter()
+            .zip(&truth[t])
+            .map(|(a, b)| {
+                crease_core::vec3::dot(*a, *b)
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees()
+            })
+            .sum();
+        sum / n.len().max(1) as f64
+    };
+    for k in 0..CHOICE_CAPTURES {
+        let mut rng = Rng::new(seed ^ (CHOICE_DRAW + k as u64));
+        let draw = captures::draw(&mut rng);
+        let frames: Vec<Frame> = held
+            .par_iter()
+            .enumerate()
+            .map(|(t, fine)| {
+                let mut noise = Rng::new(seed ^ (CHOICE_DRAW + ((k as u64) << 20) + t as u64 + 1));
+                captures::capture(topo, fine, mean_edge_length(topo, fine), &draw, &mut noise)
+            })
+            .collect();
+        let seq = Sequence::new(std::sync::Arc::new(topo.clone()), frames)?;
+        let mut relief = CoarseRelief::new(&seq)?;
+        let all: Vec<usize> = (0..seq.n_frames()).collect();
+        let n = all.len().max(1) as f64;
+        for chunk in all.chunks(32) {
+            let heights = relief.heights(&seq, chunk)?;
+            let scores: Vec<[f64; 3]> = chunk
+                .par_iter()
+                .zip(&heights)
+                .map(|(&t, h)| {
+                    let c = &seq.frames[t];
+                    let relieved = relief.relieved(topo, c, h);
+                    let (learned, _) = model.normals(topo, c, mean_edge_length(topo, c));
+                    [
+                        error(&geometry::vertex_normals(topo, c), t),
+                        error(&geometry::vertex_normals(topo, &relieved), t),
+                        error(&learned, t),
+                    ]
+                })
+                .collect();
+            for [c, r, m] in scores {
+                capture_deg += c / (n * CHOICE_CAPTURES as f64);
+                relief_deg += r / (n * CHOICE_CAPTURES as f64);
+                model_deg += m / (n * CHOICE_CAPTURES as f64);
+            }
+        }
+    }
+    Ok(CoarseChoice {
+        capture_deg,
+        relief_deg,
+        model_deg,
+        use_relief: relief_deg < model_deg,
+    })
+}

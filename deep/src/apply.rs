@@ -4,6 +4,7 @@
 //! that is what lets the job system split apply into frame chunks.
 
 use crate::contract;
+pub use crate::detail::relief::CoarseDetail;
 use crate::detail::relief::CoarseRelief;
 use crate::model::{Model, RegressorKind};
 use crate::normal_maps::raster::TexelMap;
@@ -40,38 +41,6 @@ pub struct ApplyParams {
     /// Where a capture's detail comes from (`--coarse` only); `None`: where the model's training decided
     /// ([`Model::coarse_detail`]).
     pub coarse_detail: Option<CoarseDetail>,
-}
-
-/// Where `apply --coarse` takes a capture's detail from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum CoarseDetail {
-    /// crease's fold relief, run on the whole coarse sequence ([`crate::detail::relief`]).
-    Relief,
-    /// The model's learned detail filter, frame by frame, with its guard ([`crate::detail`]).
-    Model,
-}
-
-impl CoarseDetail {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            CoarseDetail::Relief => "relief",
-            CoarseDetail::Model => "model",
-        }
-    }
-}
-
-impl std::str::FromStr for CoarseDetail {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Self> {
-        match s {
-            "relief" => Ok(CoarseDetail::Relief),
-            "model" => Ok(CoarseDetail::Model),
-            other => Err(Error::param(
-                "coarse-detail",
-                format!("`{other}` is neither `relief` nor `model`"),
-            )),
-        }
-    }
 }
 
 impl Default for ApplyParams {

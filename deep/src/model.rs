@@ -517,10 +517,11 @@ impl Model {
     /// Refuses a regressor the model does not hold, naming the model and why.
     /// Where `apply --coarse` takes a capture's detail from by default: what training decided on the held-out
     /// sequence, or the learned filter for a model trained before the relief was an option.
-    pub fn coarse_detail(&self) -> crate::apply::CoarseDetail {
+    pub fn coarse_detail(&self) -> crate::detail::relief::CoarseDetail {
+        use crate::detail::relief::CoarseDetail;
         match &self.detail.spec.coarse {
-            Some(c) if c.use_relief => crate::apply::CoarseDetail::Relief,
-            _ => crate::apply::CoarseDetail::Model,
+            Some(c) if c.use_relief => CoarseDetail::Relief,
+            _ => CoarseDetail::Model,
         }
     }
 

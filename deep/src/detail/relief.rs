@@ -29,8 +29,40 @@ use crease_core::spacetime::position::strain_limit::{
 };
 use crease_core::spacetime::shape::relief::{add_heights, ReliefFrames, ReliefParams};
 use crease_core::vec3::V3;
-use crease_core::Result;
+use crease_core::{Error, Result};
 use serde::{Deserialize, Serialize};
+
+/// Where `apply --coarse` takes a capture's detail from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CoarseDetail {
+    /// crease's fold relief, run on the whole coarse sequence ([`CoarseRelief`]).
+    Relief,
+    /// The model's learned detail filter, frame by frame, with its guard ([`crate::detail`]).
+    Model,
+}
+
+impl CoarseDetail {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            CoarseDetail::Relief => "relief",
+            CoarseDetail::Model => "model",
+        }
+    }
+}
+
+impl std::str::FromStr for CoarseDetail {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "relief" => Ok(CoarseDetail::Relief),
+            "model" => Ok(CoarseDetail::Model),
+            other => Err(Error::param(
+                "coarse-detail",
+                format!("`{other}` is neither `relief` nor `model`"),
+            )),
+        }
+    }
+}
 
 /// The relief of one coarse sequence, computed a few frames at a time in increasing order (it keeps only the
 /// captured frames' reliefs the next frames' spans need), and the strain limit `crease run` ends with: no edge
@@ -96,7 +128,7 @@ pub struct CoarseChoice {
     pub use_relief: bool,
 }
 
-/// Decides between the relief and `model` on [`CHOICE_CAPTURES`] sequence captures of `held` (detailed
+/// Decides between the relief and `model` on a few sequence captures of `held` (detailed
 /// frames), drawn with `seed`.
 pub fn choose(
     topo: &Topology,

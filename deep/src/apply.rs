@@ -365,8 +365,8 @@ pub struct FrameMap {
 }
 
 /// One frame's map: from a capture, the detail model's normals (or, past its guard, the capture's own) or those
-/// of the capture with its fold relief; from the regression, the shape's own normals; then `enhancer` (the cGAN, where the caller decided to use it; not
-/// on a frame that fell back), in the asked space.
+/// of the capture with its fold relief; from the regression, the shape's own normals; then `enhancer` (the
+/// cGAN, where the caller decided to use it; not on a frame that fell back), in the asked space.
 pub fn frame_map(
     model: &Model,
     texels: &TexelMap,

@@ -244,5 +244,14 @@ mod tests {
         use Mirror as M;
         same_names::<_, MirrorMode>(&[M::Auto, M::None, M::X, M::Y, M::Z]);
         same_names::<_, Space>(&[MapSpace::World, MapSpace::Tangent]);
+        use CoarseDetail as C;
+        for (a, b) in [
+            (C::Relief, crease_deep::apply::CoarseDetail::Relief),
+            (C::Model, crease_deep::apply::CoarseDetail::Model),
+        ] {
+            let text = serde_json::to_string(&a).unwrap();
+            assert_eq!(text.trim_matches('"'), b.as_str());
+            assert_eq!(crease_deep::apply::CoarseDetail::from(a), b);
+        }
     }
 }

@@ -5,7 +5,8 @@
 
 use crate::contract;
 pub use crate::detail::relief::CoarseDetail;
-use crate::detail::relief::CoarseRelief;
+use crate::detail::relief::{in_part, CoarseRelief};
+use crate::detail::{Prediction, SurfaceGate};
 use crate::model::{Model, RegressorKind};
 use crate::normal_maps::raster::TexelMap;
 use crate::normal_maps::{convert_space, world_from_vertex_normals, NormalMap, Space};
@@ -267,6 +268,20 @@ pub fn apply(
         }
         _ => None,
     };
+    // Whether the capture lost surface is asked of all its frames, whatever the range written, so that any
+    // frame range gives the whole run's bytes.
+    let gate = match &shapes {
+        CoarseShapes::Source(s) if capture.is_some() => {
+            let mut frames = Vec::with_capacity(s.n_frames());
+            for t in 0..s.n_frames() {
+                frames.push(s.read_frame(t)?);
+            }
+            model
+                .detail
+                .surface_gate(&model.topology, frames.iter().map(|f| f.as_slice()))
+        }
+        _ => SurfaceGate::OPEN,
+    };
     contract::prepare(out)?;
     let writer = contract::FrameWriter::new(&model.topology, &model.layout);
     progress.begin("apply", range.len() as u64);
@@ -280,8 +295,8 @@ pub fn apply(
         let c = shapes.frame(t)?;
         let relieved = heights.map(|(h, r)| r.relieved(&model.topology, &c, h));
         let source = match (capture, relieved.as_deref()) {
-            (Some(path), Some(r)) => Source::Relieved(path, r),
-            (Some(path), None) => Source::Capture(path),
+            (Some(path), Some(r)) => Source::Relieved(path, r, gate),
+            (Some(path), None) => Source::Capture(path, gate),
             (None, _) => Source::Pose,
         };
         let f = frame_map(
@@ -351,10 +366,12 @@ pub fn apply(
 pub enum Source<'a> {
     /// The regression (`apply --pose`).
     Pose,
-    /// A capture read from this path (`apply --coarse`): the detail model runs on it.
-    Capture(&'a Path),
-    /// A capture read from this path, and the frame with its fold relief ([`crate::detail::relief`]).
-    Relieved(&'a Path, &'a [V3]),
+    /// A capture read from this path (`apply --coarse`): the detail model runs on it, with what the capture's
+    /// lost surface lets it add.
+    Capture(&'a Path, SurfaceGate),
+    /// A capture read from this path, the frame with its fold relief ([`crate::detail::relief`]), and what the
+    /// capture's lost surface lets the relief add.
+    Relieved(&'a Path, &'a [V3], SurfaceGate),
 }
 
 /// One frame's map, the note its OBJ carries, and the guard's reason when it fell back.
@@ -378,19 +395,30 @@ pub fn frame_map(
 ) -> Result<FrameMap> {
     let topo = &model.topology;
     let (normals, mut note, fallback) = match source {
-        Source::Capture(path) => {
+        Source::Capture(path, gate) => {
             let what = format!("{} frame {}", path.display(), t + 1);
             let h = model.detail.check_scale(topo, coarse, &what)?;
-            match model.detail.normals(topo, coarse, h) {
-                (n, None) => (n, "the detail model's".to_string(), None),
-                (n, Some(why)) => (
-                    n,
+            match model.detail.predict(topo, coarse, h, gate) {
+                Prediction::Fine { shape, share } => (
+                    geometry::vertex_normals(topo, &shape),
+                    if share < 1.0 {
+                        format!(
+                            "the detail model's at {:.0} % (the capture lost little of the garment's surface)",
+                            share * 100.0
+                        )
+                    } else {
+                        "the detail model's".to_string()
+                    },
+                    None,
+                ),
+                Prediction::Fallback(why) => (
+                    geometry::vertex_normals(topo, coarse),
                     format!("the input's own (the detail model fell back: {why})"),
                     Some(why.to_string()),
                 ),
             }
         }
-        Source::Relieved(path, relieved) => {
+        Source::Relieved(path, relieved, gate) => {
             let what = format!("{} frame {}", path.display(), t + 1);
             // The unit check stands: the maps and the cGAN were made for the training garment's scale.
             model.detail.check_scale(topo, coarse, &what)?;
@@ -404,11 +432,26 @@ pub fn frame_map(
                     ),
                 ));
             }
-            (
-                geometry::vertex_normals(topo, relieved),
-                "crease's fold relief".to_string(),
-                None,
-            )
+            match (gate.share, gate.fallback()) {
+                (_, Some(why)) => (
+                    geometry::vertex_normals(topo, coarse),
+                    format!("the input's own (no relief: {why})"),
+                    Some(why.to_string()),
+                ),
+                (share, None) if share < 1.0 => (
+                    geometry::vertex_normals(topo, &in_part(coarse, relieved, share)),
+                    format!(
+                        "crease's fold relief at {:.0} % (the capture lost little of the garment's surface)",
+                        share * 100.0
+                    ),
+                    None,
+                ),
+                _ => (
+                    geometry::vertex_normals(topo, relieved),
+                    "crease's fold relief".to_string(),
+                    None,
+                ),
+            }
         }
         Source::Pose => (
             geometry::vertex_normals(topo, coarse),

@@ -163,11 +163,22 @@ pub fn bench_deep(a: &BenchArgs) -> Result<()> {
     // drawn into the map, with the scale check apply makes.
     let detail = bench_detail_model();
     let h = detail.check_scale(&topo, &coarse[0], "bench")?;
-    let mut dmap =
-        world_from_vertex_normals(&texels, &topo, &detail.normals(&topo, &coarse[0], h).0);
+    let mut dmap = world_from_vertex_normals(
+        &texels,
+        &topo,
+        &detail
+            .normals(&topo, &coarse[0], h, crease_deep::detail::SurfaceGate::OPEN)
+            .0,
+    );
     let detail_ms = time_ms(a.repeats, || {
         let h = detail.check_scale(&topo, &coarse[0], "bench")?;
-        dmap = world_from_vertex_normals(&texels, &topo, &detail.normals(&topo, &coarse[0], h).0);
+        dmap = world_from_vertex_normals(
+            &texels,
+            &topo,
+            &detail
+                .normals(&topo, &coarse[0], h, crease_deep::detail::SurfaceGate::OPEN)
+                .0,
+        );
         Ok(())
     })?;
     // `apply --pose`'s map: the coarse mesh's own normals (no detail model).
@@ -367,6 +378,7 @@ fn bench_detail_model() -> crease_deep::detail::DetailModel {
                 edge_length: [1e-9, 1e9],
                 max_signature_distance: f64::INFINITY,
                 max_detail: f64::INFINITY,
+                lost_surface: None,
             },
             held_out_capture_deg: 0.0,
             held_out_model_deg: 0.0,

@@ -187,7 +187,7 @@ pub fn capture_normals(
         .map(|(t, f)| {
             let h = mean_edge_length(topo, f);
             let (c, _) = training_capture(topo, f, h, seed, seq, t, DRAW_OFFSET);
-            let (n, _) = detail.normals(topo, &c, h);
+            let (n, _) = detail.normals(topo, &c, h, detail.surface_gate(topo, [c.as_slice()]));
             (n, geometry::vertex_normals(topo, f))
         })
         .collect()

@@ -151,7 +151,15 @@ pub fn train_cgan(
             let f = &held[t];
             let h = mean_edge_length(topo, f);
             let (c, _) = training_capture(topo, f, h, cfg.seed, usize::MAX, t, VALIDATION_DRAW);
-            inputs.detail.normals(topo, &c, h).0
+            inputs
+                .detail
+                .normals(
+                    topo,
+                    &c,
+                    h,
+                    inputs.detail.surface_gate(topo, [c.as_slice()]),
+                )
+                .0
         })
         .collect();
     let coarse_deg = with_and_without(&gan, topo, inputs.layout, &texels, &coarse_normals, &truth)?;

@@ -21,6 +21,18 @@
 //! (another unit or garment is refused with an error), its signature (a frame unlike every training capture
 //! falls back) and the size of the detail the filter would add (more than any training capture needed falls
 //! back). A fallback frame gets the capture's own normals and says so.
+//!
+//! Before any of that, the guard asks whether the capture lost any surface at all ([`LostSurface`]). Cloth
+//! hardly stretches or compresses in its plane, so a capture that smoothed folds away has less area than the
+//! garment (Chen's integrated shrinkage, over the whole garment); a capture that kept its folds has the
+//! garment's area, whatever its noise. The garment's area is the median of the detailed training frames', and
+//! the cloth's own compression is the most any of them lost against it. The question is asked of the whole
+//! capture ([`SurfaceGate`]), by the mean over its frames: a capture system smooths every frame alike, while
+//! one frame's loss also depends on how much the cloth is folded then (a smoothed capture's nearly flat
+//! frames lose as little as the cloth itself, and the filter still helps them). A capture that lost no more
+//! than the cloth's own compression keeps its own normals; between that and twice that the detail is added in
+//! part. This is what keeps a sharp capture with reconstruction noise, which any filter trained on smoothed
+//! captures would sharpen, as good as it came in.
 
 pub mod captures;
 pub mod operator;
@@ -49,6 +61,9 @@ pub const SIGNATURE_LEN: usize = 7;
 pub const GUARD_MARGIN: f64 = 1.25;
 /// Mean edge lengths the guard accepts, as a factor either side of the training range.
 pub const SCALE_TOLERANCE: f64 = 1.5;
+/// The lost surface at which a frame gets the whole detail, as a multiple of the cloth's own compression
+/// ([`LostSurface::limit`]); from that limit up to this multiple the detail is added in part.
+pub const LOST_SURFACE_RAMP: f64 = 2.0;
 
 /// Chebyshev degree of the band-pass filters the signature measures with.
 const SIGNATURE_DEGREE: usize = 16;
@@ -166,6 +181,68 @@ pub struct Guard {
     pub max_signature_distance: f64,
     /// Largest RMS of the predicted detail of a training capture in its mean edge lengths, times the margin.
     pub max_detail: f64,
+    /// The garment's surface and how much of it the cloth itself gives up; absent in models trained before
+    /// the guard looked at it, which add the whole detail to every frame they accept.
+    #[serde(default)]
+    pub lost_surface: Option<LostSurface>,
+}
+
+/// The garment's own surface, from the detailed training frames: what a capture's frame is measured against
+/// to tell whether it lost folds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LostSurface {
+    /// Median total area of the detailed training frames (m²).
+    pub rest_area: f64,
+    /// The largest share of `rest_area` a detailed training frame lost (the cloth's own compression): a frame
+    /// that lost no more keeps its own normals.
+    pub limit: f64,
+}
+
+impl LostSurface {
+    /// From detailed frames: the median of their total areas, and the largest share of it any of them lost.
+    pub fn measure<'a>(topo: &Topology, frames: impl Iterator<Item = &'a [V3]>) -> Option<Self> {
+        let mut areas: Vec<f64> = frames.map(|f| total_area(topo, f)).collect();
+        if areas.is_empty() || !areas.iter().all(|a| a.is_finite() && *a > 0.0) {
+            return None;
+        }
+        areas.sort_by(f64::total_cmp);
+        let rest_area = areas[areas.len() / 2];
+        // A share, never below a hair: a model trained on frames of one area still ramps over a finite span.
+        let limit = (1.0 - areas[0] / rest_area).max(1e-3);
+        Some(LostSurface { rest_area, limit })
+    }
+
+    /// The share of the garment's surface `p` lost.
+    pub fn lost(&self, topo: &Topology, p: &[V3]) -> f64 {
+        1.0 - total_area(topo, p) / self.rest_area
+    }
+
+    /// How much of the model's detail a frame that lost `lost` gets: none up to the limit, all from
+    /// [`LOST_SURFACE_RAMP`] times it, a smooth step between.
+    pub fn share(&self, lost: f64) -> f64 {
+        let x = ((lost - self.limit) / ((LOST_SURFACE_RAMP - 1.0) * self.limit)).clamp(0.0, 1.0);
+        x * x * (3.0 - 2.0 * x)
+    }
+
+    fn check(&self) -> std::result::Result<(), String> {
+        if !(self.rest_area.is_finite() && self.rest_area > 0.0) {
+            return Err(format!(
+                "lost_surface.rest_area {} is not a positive area",
+                self.rest_area
+            ));
+        }
+        if !(self.limit > 0.0 && self.limit < 1.0) {
+            return Err(format!(
+                "lost_surface.limit {} is not a share in (0, 1)",
+                self.limit
+            ));
+        }
+        Ok(())
+    }
+}
+
+fn total_area(topo: &Topology, p: &[V3]) -> f64 {
+    geometry::triangle_areas(topo, p).iter().sum()
 }
 
 /// The scalar part of the detail model (the manifest's `detail`); the weights are `detail.npy`.
@@ -197,12 +274,14 @@ pub struct DetailModel {
 }
 
 /// Why a frame got the capture's own normals.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Fallback {
     /// The frame's signature is further from the training captures' than any of them.
     Signature { distance: f64, limit: f64 },
     /// The filter would add more detail than any training capture needed.
     Detail { rms_edges: f64, limit: f64 },
+    /// The capture lost no more of the garment's surface than the cloth itself does: no fold was smoothed away.
+    NothingLost { lost: f64, limit: f64 },
 }
 
 impl std::fmt::Display for Fallback {
@@ -216,13 +295,47 @@ impl std::fmt::Display for Fallback {
                 f,
                 "the model would add {rms_edges:.3} edge lengths of detail (RMS; limit {limit:.3})"
             ),
+            Fallback::NothingLost { lost, limit } => write!(
+                f,
+                "the capture lost {:.1} % of the garment's surface over its frames, no more than the cloth \
+                 itself does ({:.1} %): no fold was smoothed away",
+                lost * 100.0,
+                limit * 100.0
+            ),
         }
     }
 }
 
-/// The result of one frame: the fine shape, or the capture itself with the reason.
+/// How much of its detail the model adds to a capture's frames, for the surface the capture lost
+/// ([`DetailModel::surface_gate`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfaceGate {
+    /// 0 to 1.
+    pub share: f64,
+    /// The capture's mean lost share of the garment's surface and the cloth's own limit, where measured.
+    pub lost: Option<(f64, f64)>,
+}
+
+impl SurfaceGate {
+    /// Everything through (a model without the measure).
+    pub const OPEN: SurfaceGate = SurfaceGate {
+        share: 1.0,
+        lost: None,
+    };
+
+    /// Why the capture keeps its own normals, if it does.
+    pub fn fallback(&self) -> Option<Fallback> {
+        match self.lost {
+            Some((lost, limit)) if self.share == 0.0 => Some(Fallback::NothingLost { lost, limit }),
+            _ => None,
+        }
+    }
+}
+
+/// The result of one frame: the fine shape (with the share of the detail it got, below 1 where the capture
+/// lost little surface), or the capture itself with the reason.
 pub enum Prediction {
-    Fine(Vec<V3>),
+    Fine { shape: Vec<V3>, share: f64 },
     Fallback(Fallback),
 }
 
@@ -262,7 +375,30 @@ impl DetailModel {
         {
             return Err("guard limits must be positive".into());
         }
+        if let Some(l) = &g.lost_surface {
+            l.check()?;
+        }
         Ok(())
+    }
+
+    /// What the surface `frames` (a capture's, all of them) lost lets the model add: see [`LostSurface`]. A
+    /// model trained before the guard measured it lets everything through.
+    pub fn surface_gate<'a>(
+        &self,
+        topo: &Topology,
+        frames: impl IntoIterator<Item = &'a [V3]>,
+    ) -> SurfaceGate {
+        let Some(l) = &self.spec.guard.lost_surface else {
+            return SurfaceGate::OPEN;
+        };
+        let (sum, n) = frames
+            .into_iter()
+            .fold((0.0, 0usize), |(s, n), f| (s + l.lost(topo, f), n + 1));
+        let lost = sum / n.max(1) as f64;
+        SurfaceGate {
+            share: l.share(lost),
+            lost: Some((lost, l.limit)),
+        }
     }
 
     /// Refuses a frame whose mean edge length is outside what the model was trained on (another unit or
@@ -318,8 +454,13 @@ impl DetailModel {
         (d, s)
     }
 
-    /// The fine shape predicted for `coarse` (mean edge length `h`), or why the guard refused it.
-    pub fn predict(&self, topo: &Topology, coarse: &[V3], h: f64) -> Prediction {
+    /// The fine shape predicted for `coarse` (mean edge length `h`), a frame of a capture that `gate` was
+    /// measured on, or why the guard refused it.
+    pub fn predict(&self, topo: &Topology, coarse: &[V3], h: f64, gate: SurfaceGate) -> Prediction {
+        if let Some(why) = gate.fallback() {
+            return Prediction::Fallback(why);
+        }
+        let share = gate.share;
         let (d, s) = self.detail(topo, coarse, h);
         let g = &self.spec.guard;
         let distance = signature_distance(&s, &self.spec.signature_mean, &self.spec.signature_std);
@@ -336,20 +477,27 @@ impl DetailModel {
                 limit: g.max_detail,
             });
         }
-        Prediction::Fine(
-            coarse
+        Prediction::Fine {
+            shape: coarse
                 .iter()
                 .zip(&d)
-                .map(|(c, e)| vec3::add(*c, *e))
+                .map(|(c, e)| vec3::add(*c, vec3::scale(*e, share)))
                 .collect(),
-        )
+            share,
+        }
     }
 
     /// The vertex normals the model stands for on `coarse`: the predicted fine shape's, or on a fallback the
     /// capture's own.
-    pub fn normals(&self, topo: &Topology, coarse: &[V3], h: f64) -> (Vec<V3>, Option<Fallback>) {
-        match self.predict(topo, coarse, h) {
-            Prediction::Fine(fine) => (geometry::vertex_normals(topo, &fine), None),
+    pub fn normals(
+        &self,
+        topo: &Topology,
+        coarse: &[V3],
+        h: f64,
+        gate: SurfaceGate,
+    ) -> (Vec<V3>, Option<Fallback>) {
+        match self.predict(topo, coarse, h, gate) {
+            Prediction::Fine { shape, .. } => (geometry::vertex_normals(topo, &shape), None),
             Prediction::Fallback(f) => (geometry::vertex_normals(topo, coarse), Some(f)),
         }
     }
@@ -624,6 +772,12 @@ pub fn fit(data: &DetailData, params: &DetailParams) -> Result<DetailModel> {
     let edge_length = pairs.iter().fold([f64::INFINITY, 0.0f64], |a, (_, _, h)| {
         [a[0].min(*h), a[1].max(*h)]
     });
+    let lost_surface = LostSurface::measure(
+        topo,
+        data.sequences
+            .iter()
+            .flat_map(|s| s.iter().map(|f| f.as_slice())),
+    );
     let provisional = |w: [Vec<f64>; 2], ridge: f64| {
         let [interior, boundary] = w;
         DetailModel {
@@ -638,6 +792,7 @@ pub fn fit(data: &DetailData, params: &DetailParams) -> Result<DetailModel> {
                     edge_length,
                     max_signature_distance: f64::INFINITY,
                     max_detail: f64::INFINITY,
+                    lost_surface,
                 },
                 held_out_capture_deg: f64::NAN,
                 held_out_model_deg: f64::NAN,
@@ -665,7 +820,9 @@ pub fn fit(data: &DetailData, params: &DetailParams) -> Result<DetailModel> {
                 let h = pairs[i].0.h;
                 let own = geometry::vertex_normals(topo, c);
                 let pred = if guarded {
-                    m.normals(topo, c, h).0
+                    // Every held-out frame has a capture of its own: each is its own capture sequence.
+                    m.normals(topo, c, h, m.surface_gate(topo, [c.as_slice()]))
+                        .0
                 } else {
                     let (d, _) = m.detail(topo, c, h);
                     let f: Vec<V3> = c.iter().zip(&d).map(|(a, b)| vec3::add(*a, *b)).collect();
@@ -734,6 +891,43 @@ mod tests {
                 + 2.0 * (x * 0.05).sin();
         }
         (topo, p)
+    }
+
+    #[test]
+    fn lost_surface_keeps_captures_that_lost_no_more_than_the_cloth_itself() {
+        let (topo, p) = folded(0.0);
+        let scaled = |f: f64| -> Vec<V3> { p.iter().map(|q| vec3::scale(*q, f.sqrt())).collect() };
+        // Detailed frames of area 1, 0.97 and 1.01 times the first: the garment's area is the median, the
+        // cloth's own compression 3 %.
+        let frames = [scaled(1.0), scaled(0.97), scaled(1.01)];
+        let l = LostSurface::measure(&topo, frames.iter().map(|f| f.as_slice())).unwrap();
+        let a0 = total_area(&topo, &p);
+        assert!((l.rest_area - a0).abs() < 1e-9 * a0);
+        assert!((l.limit - 0.03).abs() < 1e-9);
+        assert!((l.lost(&topo, &scaled(0.9)) - 0.1).abs() < 1e-9);
+        // Nothing up to the limit (a stretched capture included), all from twice it, half way between.
+        for (lost, share) in [
+            (-0.05, 0.0),
+            (0.0, 0.0),
+            (0.03, 0.0),
+            (0.045, 0.5),
+            (0.06, 1.0),
+            (0.3, 1.0),
+        ] {
+            assert!(
+                (l.share(lost) - share).abs() < 1e-12,
+                "{lost}: {}",
+                l.share(lost)
+            );
+        }
+        assert!(l.check().is_ok());
+        assert!(LostSurface { limit: 1.5, ..l }.check().is_err());
+        assert!(LostSurface {
+            rest_area: f64::NAN,
+            ..l
+        }
+        .check()
+        .is_err());
     }
 
     #[test]

@@ -28,7 +28,7 @@ use crease_core::spacetime::position::strain_limit::{
     StrainLimiter, StrainReference, DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_LIMIT_SWEEPS,
 };
 use crease_core::spacetime::shape::relief::{add_heights, ReliefFrames, ReliefParams};
-use crease_core::vec3::V3;
+use crease_core::vec3::{self, V3};
 use crease_core::{Error, Result};
 use serde::{Deserialize, Serialize};
 
@@ -112,6 +112,16 @@ impl CoarseRelief {
     }
 }
 
+/// `coarse` moved `share` of the way to `relieved`: the relief given in part to a capture that lost little of
+/// the garment's surface ([`DetailModel::surface_gate`]).
+pub fn in_part(coarse: &[V3], relieved: &[V3], share: f64) -> Vec<V3> {
+    coarse
+        .iter()
+        .zip(relieved)
+        .map(|(c, r)| vec3::add(*c, vec3::scale(vec3::sub(*r, *c), share)))
+        .collect()
+}
+
 /// Sequence captures of the held-out training sequence the choice is made on.
 const CHOICE_CAPTURES: usize = 3;
 /// Offset of their draws from the learned filter's training and validation draws.
@@ -168,6 +178,7 @@ pub fn choose(
             .collect();
         let seq = Sequence::new(std::sync::Arc::new(topo.clone()), frames)?;
         let mut relief = CoarseRelief::new(&seq)?;
+        let gate = model.surface_gate(topo, seq.frames.iter().map(|f| f.as_slice()));
         let all: Vec<usize> = (0..seq.n_frames()).collect();
         let n = all.len().max(1) as f64;
         for chunk in all.chunks(32) {
@@ -177,8 +188,8 @@ pub fn choose(
                 .zip(&heights)
                 .map(|(&t, h)| {
                     let c = &seq.frames[t];
-                    let relieved = relief.relieved(topo, c, h);
-                    let (learned, _) = model.normals(topo, c, mean_edge_length(topo, c));
+                    let relieved = in_part(c, &relief.relieved(topo, c, h), gate.share);
+                    let (learned, _) = model.normals(topo, c, mean_edge_length(topo, c), gate);
                     [
                         error(&geometry::vertex_normals(topo, c), t),
                         error(&geometry::vertex_normals(topo, &relieved), t),

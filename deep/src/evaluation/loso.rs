@@ -358,7 +358,7 @@ pub fn markdown(r: &Report) -> String {
             "| held out | train (s) | pose: map (°) | pose: shape (mm) |{} detail validation (°, capture → model) |",
             kinds
                 .iter()
-                .map(|k| format!(" {k}: map (°) | {k}: own (°) | {k}: fallbacks |"))
+                .map(|k| format!(" {k}: map (°) | {k}: own, mesh / map (°) | {k}: fallbacks |"))
                 .collect::<String>()
         );
         let _ = writeln!(
@@ -370,8 +370,8 @@ pub fn markdown(r: &Report) -> String {
     let cell = |row: &Row, k: &str| -> String {
         match row.captures.iter().find(|(n, _)| n == k) {
             Some((_, c)) => format!(
-                " {:.2} | {:.2} | {}/{} |",
-                c.map_deg, c.input_deg, c.fallback_frames, c.frames
+                " {:.2} | {:.2} / {:.2} | {}/{} |",
+                c.map_deg, c.input_deg, c.input_map_deg, c.fallback_frames, c.frames
             ),
             None => " | | |".into(),
         }
@@ -418,7 +418,13 @@ pub fn markdown(r: &Report) -> String {
                             .find(|(n, _)| n == k)
                             .map(|c| c.1.input_deg)
                     };
-                    format!(" {} | {} | |", mean(&f), mean(&g))
+                    let gm = |r: &Row| {
+                        r.captures
+                            .iter()
+                            .find(|(n, _)| n == k)
+                            .map(|c| c.1.input_map_deg)
+                    };
+                    format!(" {} | {} / {} | |", mean(&f), mean(&g), mean(&gm))
                 })
                 .collect::<String>()
         );

@@ -36,6 +36,10 @@ pub struct Score {
     pub mesh_deg: f64,
     /// Input mesh's own normal error (°): the captured mesh's for a capture, 0 when there is none.
     pub input_deg: f64,
+    /// The map of the input mesh's own normals, scored as the maps are (°; 0 when there is no input): what a
+    /// frame the guard sends back gets, and so what the maps must never be worse than. Above `input_deg` where
+    /// the input's normals vary faster than the map's texels follow.
+    pub input_map_deg: f64,
     /// Shape error (mm).
     pub shape_mm: f64,
     /// Frames the detail model's guard sent back to the input's normals.
@@ -47,6 +51,7 @@ struct FrameScore {
     map_deg: f64,
     mesh_deg: f64,
     input_deg: f64,
+    input_map_deg: f64,
     shape_mm: f64,
     fallback: bool,
 }
@@ -58,6 +63,7 @@ fn mean_of(frames: &[FrameScore]) -> Score {
         map_deg: frames.iter().map(|f| f.map_deg).sum::<f64>() / n,
         mesh_deg: frames.iter().map(|f| f.mesh_deg).sum::<f64>() / n,
         input_deg: frames.iter().map(|f| f.input_deg).sum::<f64>() / n,
+        input_map_deg: frames.iter().map(|f| f.input_map_deg).sum::<f64>() / n,
         shape_mm: frames.iter().map(|f| f.shape_mm).sum::<f64>() / n,
         fallback_frames: frames.iter().filter(|f| f.fallback).count(),
     }
@@ -100,21 +106,27 @@ pub fn score_capture(
         }
         CoarseDetail::Model => None,
     };
+    let gate = model
+        .detail
+        .surface_gate(topo, capture.iter().map(|f| f.as_slice()));
     let scores: Vec<FrameScore> = frames
         .par_iter()
         .enumerate()
         .map(|(k, &t)| {
             let c = &capture[t];
             let source = match &relieved {
-                Some(r) => Source::Relieved(capture_path, &r[k]),
-                None => Source::Capture(capture_path),
+                Some(r) => Source::Relieved(capture_path, &r[k], gate),
+                None => Source::Capture(capture_path, gate),
             };
             let f = frame_map(model, &texels, c, source, t, None, Space::World)?;
             let sampled = sample_vertex_normals(&f.map, topo, &model.layout);
+            let own = world_from_vertex_normals(&texels, topo, &geometry::vertex_normals(topo, c));
+            let own = sample_vertex_normals(&own, topo, &model.layout);
             Ok(FrameScore {
                 map_deg: map_normal_error(&sampled, topo, &gt[t]).0,
                 mesh_deg: angle_deg(topo, c, &gt[t]),
                 input_deg: angle_deg(topo, c, &gt[t]),
+                input_map_deg: map_normal_error(&own, topo, &gt[t]).0,
                 shape_mm: 1e3 * vertex_error(c, &gt[t]).0,
                 fallback: f.fallback.is_some(),
             })
@@ -144,6 +156,7 @@ pub fn score_shapes(
                 map_deg: map_normal_error(&sampled, topo, &gt[t]).0,
                 mesh_deg: angle_deg(topo, s, &gt[t]),
                 input_deg: 0.0,
+                input_map_deg: 0.0,
                 shape_mm: 1e3 * vertex_error(s, &gt[t]).0,
                 fallback: false,
             }

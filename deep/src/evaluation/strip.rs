@@ -44,6 +44,9 @@ pub fn write_strip(
     let topo = &model.topology;
     let enhancer = Enhancer::for_model(model)?.filter(|e| e.spec.use_coarse);
     let capture = &captures[t];
+    let gate = model
+        .detail
+        .surface_gate(topo, captures.iter().map(|f| f.as_slice()));
     let relieved = match model.coarse_detail() {
         CoarseDetail::Relief => {
             let seq = Sequence::new(topo.clone(), captures.to_vec())?;
@@ -60,8 +63,8 @@ pub fn write_strip(
             &texels,
             capture,
             match &relieved {
-                Some(r) => Source::Relieved(capture_path, r),
-                None => Source::Capture(capture_path),
+                Some(r) => Source::Relieved(capture_path, r, gate),
+                None => Source::Capture(capture_path, gate),
             },
             t,
             enhancer.as_ref(),

@@ -56,13 +56,18 @@ fn capture_inputs(
             .enumerate()
             .map(|(i, s)| crate::cgan::data::capture_normals(topo, &s.fine, &model.detail, seed, i))
             .collect(),
-        held: held_capture
-            .iter()
-            .map(|c| {
-                let h = crease_core::shape::mean_edge_length(topo, c);
-                model.detail.normals(topo, c, h).0
-            })
-            .collect(),
+        held: {
+            let gate = model
+                .detail
+                .surface_gate(topo, held_capture.iter().map(|f| f.as_slice()));
+            held_capture
+                .iter()
+                .map(|c| {
+                    let h = crease_core::shape::mean_edge_length(topo, c);
+                    model.detail.normals(topo, c, h, gate).0
+                })
+                .collect()
+        },
     }
 }
 

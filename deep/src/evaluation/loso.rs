@@ -424,7 +424,13 @@ pub fn markdown(r: &Report) -> String {
                             .find(|(n, _)| n == k)
                             .map(|c| c.1.input_map_deg)
                     };
-                    format!(" {} | {} / {} | |", mean(&f), mean(&g), mean(&gm))
+                    let (g, gm) = (mean(&g), mean(&gm));
+                    let own = if g.is_empty() {
+                        String::new()
+                    } else {
+                        format!("{g} / {gm}")
+                    };
+                    format!(" {} | {own} | |", mean(&f))
                 })
                 .collect::<String>()
         );

@@ -6,7 +6,7 @@
 //! capture's way of losing detail is learned. The meshes already share the template's topology; raw scans
 //! go through `crease deep register` first.
 
-use crate::detail::{DetailData, DetailModel, DetailParams};
+use crate::detail::{DetailData, DetailFit, DetailParams};
 use crate::model::{
     write_autoregressive, write_core_parts, write_detail, ArSpec, Manifest, ModelWriter,
     RegressorKind, MODEL_FORMAT, MODEL_VERSION,
@@ -625,7 +625,10 @@ pub fn train(
     let mean_shape = crate::subspace::unflatten(&fitted.subspace.mean);
     let layout = layout_for(params.uv.as_deref(), &topo, &mean_shape)?;
     let t_detail = Instant::now();
-    let mut detail = fit_detail(seqs, &topo, &params.detail)?;
+    let DetailFit {
+        model: mut detail,
+        held_out,
+    } = fit_detail(seqs, &topo, &params.detail)?;
     progress.note(&format!(
         "detail model: degree {}, ridge {:.0e}; held-out sequence's random captures {:.2}° → {:.2}° in {:.1} s",
         detail.spec.degree,
@@ -636,7 +639,7 @@ pub fn train(
     ));
     let t_choice = Instant::now();
     let choice =
-        crate::detail::relief::choose(&topo, &detail, held_out_frames(seqs), params.detail.seed)?;
+        crate::detail::relief::choose(&topo, &held_out, held_out_frames(seqs), params.detail.seed)?;
     progress.note(&format!(
         "coarse detail: {} (held-out sequence's sequence captures {:.2}°: relief {:.2}°, learned filter {:.2}°) in {:.1} s",
         if choice.use_relief { "the relief" } else { "the learned filter" },
@@ -731,10 +734,10 @@ pub fn fit_detail(
     seqs: &[TrainingSequence],
     topo: &Topology,
     params: &DetailParams,
-) -> Result<DetailModel> {
+) -> Result<DetailFit> {
     let data = DetailData {
         topo,
         sequences: seqs.iter().map(|s| s.fine.as_slice()).collect(),
     };
-    crate::detail::fit(&data, params)
+    crate::detail::fit_with_held_out(&data, params)
 }

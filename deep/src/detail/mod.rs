@@ -710,6 +710,19 @@ impl System {
 /// held out (by the mean normal error of its captures' predictions), then the weights refitted on all
 /// sequences and the guard calibrated on every training capture. Deterministic for a seed.
 pub fn fit(data: &DetailData, params: &DetailParams) -> Result<DetailModel> {
+    Ok(fit_with_held_out(data, params)?.model)
+}
+
+/// The fitted model, and the same fitted without the held-out frames (same ridge and guard): what a decision
+/// taken on the held-out sequence ([`relief::choose`]) must use, or it would score the filter on frames it
+/// was fitted to.
+pub struct DetailFit {
+    pub model: DetailModel,
+    pub held_out: DetailModel,
+}
+
+/// [`fit`], with [`DetailFit::held_out`].
+pub fn fit_with_held_out(data: &DetailData, params: &DetailParams) -> Result<DetailFit> {
     let topo = data.topo;
     let n_seq = data.sequences.len();
     if n_seq == 0 || data.sequences.iter().all(|s| s.is_empty()) {
@@ -865,15 +878,15 @@ pub fn fit(data: &DetailData, params: &DetailParams) -> Result<DetailModel> {
         .reduce(|| (0.0f64, 0.0f64), |a, b| (a.0.max(b.0), a.1.max(b.1)));
     model.spec.guard.max_signature_distance = GUARD_MARGIN * max_dist;
     model.spec.guard.max_detail = GUARD_MARGIN * max_detail;
-    {
-        // Held-out figures of the final ridge, from the fit without the held-out frames.
-        let mut m = provisional(train_sys.solve(ridge)?, ridge);
-        m.spec.guard = model.spec.guard.clone();
-        let (own, pred) = score(&m, true);
-        model.spec.held_out_capture_deg = own;
-        model.spec.held_out_model_deg = pred;
-    }
-    Ok(model)
+    // Held-out figures of the final ridge, from the fit without the held-out frames.
+    let mut held_out = provisional(train_sys.solve(ridge)?, ridge);
+    held_out.spec.guard = model.spec.guard.clone();
+    let (own, pred) = score(&held_out, true);
+    model.spec.held_out_capture_deg = own;
+    model.spec.held_out_model_deg = pred;
+    held_out.spec.held_out_capture_deg = own;
+    held_out.spec.held_out_model_deg = pred;
+    Ok(DetailFit { model, held_out })
 }
 
 #[cfg(test)]

@@ -138,8 +138,8 @@ pub struct CoarseChoice {
     pub use_relief: bool,
 }
 
-/// Decides between the relief and `model` on a few sequence captures of `held` (detailed
-/// frames), drawn with `seed`.
+/// Decides between the relief and `model` (the filter fitted without `held`) on a few sequence captures of
+/// `held` (detailed frames), drawn with `seed`.
 pub fn choose(
     topo: &Topology,
     model: &DetailModel,

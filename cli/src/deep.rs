@@ -298,9 +298,9 @@ pub struct ApplyArgs {
     /// Write the coarse maps without the cGAN.
     #[arg(long)]
     pub no_cgan: bool,
-    /// --coarse: where the capture's detail comes from: `relief` (crease's fold relief over the whole sequence)
-    /// or `model` (the model's learned detail filter, frame by frame) [default: whichever won on the model's
-    /// held-out training sequence, see its manifest's detail.coarse]
+    /// --coarse: where the capture's detail comes from: `relief` (crease's fold relief over the whole sequence),
+    /// `model` (the model's learned detail filter, frame by frame) or `blend` (the midpoint of the two)
+    /// [default: whichever won on the model's held-out training sequence, see its manifest's detail.coarse]
     #[arg(long)]
     pub coarse_detail: Option<CoarseDetail>,
     /// No progress bar or summary lines (errors are still printed).

@@ -5,7 +5,7 @@
 
 use crate::contract;
 pub use crate::detail::relief::CoarseDetail;
-use crate::detail::relief::{in_part, CoarseRelief};
+use crate::detail::relief::{blend, in_part, CoarseRelief};
 use crate::detail::{Prediction, SurfaceGate};
 use crate::model::{Model, RegressorKind};
 use crate::normal_maps::raster::TexelMap;
@@ -263,7 +263,7 @@ pub fn apply(
         .coarse_detail
         .unwrap_or_else(|| model.coarse_detail());
     let mut relief = match (&shapes, capture, detail) {
-        (CoarseShapes::Source(s), Some(_), CoarseDetail::Relief) => {
+        (CoarseShapes::Source(s), Some(_), CoarseDetail::Relief | CoarseDetail::Blend) => {
             Some(CoarseRelief::new(s.as_ref())?)
         }
         _ => None,
@@ -295,6 +295,9 @@ pub fn apply(
         let c = shapes.frame(t)?;
         let relieved = heights.map(|(h, r)| r.relieved(&model.topology, &c, h));
         let source = match (capture, relieved.as_deref()) {
+            (Some(path), Some(r)) if detail == CoarseDetail::Blend => {
+                Source::Blended(path, r, gate)
+            }
             (Some(path), Some(r)) => Source::Relieved(path, r, gate),
             (Some(path), None) => Source::Capture(path, gate),
             (None, _) => Source::Pose,
@@ -372,6 +375,9 @@ pub enum Source<'a> {
     /// A capture read from this path, the frame with its fold relief ([`crate::detail::relief`]), and what the
     /// capture's lost surface lets the relief add.
     Relieved(&'a Path, &'a [V3], SurfaceGate),
+    /// As `Relieved`, drawn as the midpoint of the relieved frame and the detail model's fine shape
+    /// ([`crate::detail::relief::blend`]).
+    Blended(&'a Path, &'a [V3], SurfaceGate),
 }
 
 /// One frame's map, the note its OBJ carries, and the guard's reason when it fell back.
@@ -418,10 +424,11 @@ pub fn frame_map(
                 ),
             }
         }
-        Source::Relieved(path, relieved, gate) => {
+        Source::Relieved(path, relieved, gate) | Source::Blended(path, relieved, gate) => {
+            let blended = matches!(source, Source::Blended(..));
             let what = format!("{} frame {}", path.display(), t + 1);
             // The unit check stands: the maps and the cGAN were made for the training garment's scale.
-            model.detail.check_scale(topo, coarse, &what)?;
+            let h = model.detail.check_scale(topo, coarse, &what)?;
             if relieved.len() != coarse.len() {
                 return Err(Error::param(
                     "relief",
@@ -432,25 +439,36 @@ pub fn frame_map(
                     ),
                 ));
             }
+            let what = if blended {
+                "the midpoint of crease's fold relief and the detail model's shape"
+            } else {
+                "crease's fold relief"
+            };
             match (gate.share, gate.fallback()) {
                 (_, Some(why)) => (
                     geometry::vertex_normals(topo, coarse),
                     format!("the input's own (no relief: {why})"),
                     Some(why.to_string()),
                 ),
-                (share, None) if share < 1.0 => (
-                    geometry::vertex_normals(topo, &in_part(coarse, relieved, share)),
-                    format!(
-                        "crease's fold relief at {:.0} % (the capture lost little of the garment's surface)",
-                        share * 100.0
-                    ),
-                    None,
-                ),
-                _ => (
-                    geometry::vertex_normals(topo, relieved),
-                    "crease's fold relief".to_string(),
-                    None,
-                ),
+                (share, None) => {
+                    let mut shape = if share < 1.0 {
+                        in_part(coarse, relieved, share)
+                    } else {
+                        relieved.to_vec()
+                    };
+                    if blended {
+                        shape = blend(&shape, &model.detail.fine_or_coarse(topo, coarse, h, gate));
+                    }
+                    let note = if share < 1.0 {
+                        format!(
+                            "{what} at {:.0} % (the capture lost little of the garment's surface)",
+                            share * 100.0
+                        )
+                    } else {
+                        what.to_string()
+                    };
+                    (geometry::vertex_normals(topo, &shape), note, None)
+                }
             }
         }
         Source::Pose => (

@@ -520,8 +520,8 @@ impl Model {
     pub fn coarse_detail(&self) -> crate::detail::relief::CoarseDetail {
         use crate::detail::relief::CoarseDetail;
         match &self.detail.spec.coarse {
-            Some(c) if c.use_relief => CoarseDetail::Relief,
-            _ => CoarseDetail::Model,
+            Some(c) => c.detail(),
+            None => CoarseDetail::Model,
         }
     }
 

@@ -641,11 +641,12 @@ pub fn train(
     let choice =
         crate::detail::relief::choose(&topo, &held_out, held_out_frames(seqs), params.detail.seed)?;
     progress.note(&format!(
-        "coarse detail: {} (held-out sequence's sequence captures {:.2}°: relief {:.2}°, learned filter {:.2}°) in {:.1} s",
-        if choice.use_relief { "the relief" } else { "the learned filter" },
+        "coarse detail: {} (held-out sequence's sequence captures {:.2}°: relief {:.2}°, learned filter {:.2}°, blend {:.2}°) in {:.1} s",
+        choice.detail().as_str(),
         choice.capture_deg,
         choice.relief_deg,
         choice.model_deg,
+        choice.blend_deg.unwrap_or(f64::NAN),
         t_choice.elapsed().as_secs_f64()
     ));
     detail.spec.coarse = Some(choice);

@@ -6,7 +6,9 @@ mod support;
 use crease_core::progress::NoProgress;
 use crease_deep::apply::{apply, ApplyInput, ApplyParams, CoarseDetail};
 use crease_deep::cgan::CganConfig;
+use crease_deep::detail::captures::{self, CaptureDraw, Family};
 use crease_deep::model::{Model, RegressorKind};
+use crease_deep::nn::seed::Rng;
 use crease_deep::train::{train, TrainParams, TrainingSequence};
 use std::path::Path;
 
@@ -128,18 +130,39 @@ fn chunked_apply_equals_the_single_run_byte_for_byte() {
     assert_eq!(read_tree(&plain)[12..] != a[12..], use_pose);
     // The coarse path too, with the detail model (guard included) and with the relief, whose heights read the
     // frames around each one: a chunk's frames are the whole run's.
+    // A smoothed capture (one that lost surface), so that every path adds detail rather than falling back.
     let capture = tmp.path().join("capture");
-    support::write_sequence(&capture, &seqs[1].topology, &seqs[1].fine);
+    let topo = &seqs[1].topology;
+    let draw = CaptureDraw {
+        family: Family::Heat {
+            half_wavelength: 8.0,
+        },
+        noise_sigma: 0.0,
+        noise_rings: 0,
+    };
+    let smoothed: Vec<_> = seqs[1]
+        .fine
+        .iter()
+        .map(|f| {
+            let h = crease_core::shape::mean_edge_length(topo, f);
+            captures::capture(topo, f, h, &draw, &mut Rng::new(1))
+        })
+        .collect();
+    support::write_sequence(&capture, topo, &smoothed);
     let input = ApplyInput::Coarse(capture);
     let mut trees = Vec::new();
-    for detail in [CoarseDetail::Model, CoarseDetail::Relief] {
+    for detail in [
+        CoarseDetail::Model,
+        CoarseDetail::Relief,
+        CoarseDetail::Blend,
+    ] {
         let with = |frames| ApplyParams {
             frames,
             coarse_detail: Some(detail),
             ..Default::default()
         };
         let full = tmp.path().join(format!("full-coarse-{}", detail.as_str()));
-        apply(&model, &input, &with(None), &full, &NoProgress).unwrap();
+        let summary = apply(&model, &input, &with(None), &full, &NoProgress).unwrap();
         let chunked = tmp
             .path()
             .join(format!("chunked-coarse-{}", detail.as_str()));
@@ -147,10 +170,20 @@ fn chunked_apply_equals_the_single_run_byte_for_byte() {
             apply(&model, &input, &with(Some(r)), &chunked, &NoProgress).unwrap();
         }
         assert_eq!(read_tree(&full), read_tree(&chunked), "{}", detail.as_str());
+        assert!(summary.fallback.is_empty(), "{summary:?}");
         trees.push(read_tree(&full));
     }
-    // The two paths draw different maps (the relief adds to the capture what the filter does not).
-    assert_ne!(trees[0], trees[1]);
+    // The paths draw different maps (the relief adds to the capture what the filter does not), not only
+    // different notes: compare the PNGs.
+    let pngs = |t: &Vec<(String, Vec<u8>)>| -> Vec<Vec<u8>> {
+        t.iter()
+            .filter(|(n, _)| n.ends_with(".png"))
+            .map(|(_, b)| b.clone())
+            .collect()
+    };
+    assert_ne!(pngs(&trees[0]), pngs(&trees[1]));
+    assert_ne!(pngs(&trees[1]), pngs(&trees[2]));
+    assert_ne!(pngs(&trees[0]), pngs(&trees[2]));
     // A frame range outside the input is refused.
     let bad = ApplyParams {
         frames: Some(10..13),

@@ -217,7 +217,11 @@ fn apply_to(
     .unwrap()
 }
 
-const BOTH: [Option<CoarseDetail>; 2] = [Some(CoarseDetail::Relief), Some(CoarseDetail::Model)];
+const ALL: [Option<CoarseDetail>; 3] = [
+    Some(CoarseDetail::Relief),
+    Some(CoarseDetail::Model),
+    Some(CoarseDetail::Blend),
+];
 
 fn name(detail: Option<CoarseDetail>) -> &'static str {
     detail.map_or("default", CoarseDetail::as_str)
@@ -238,14 +242,18 @@ fn captures_with_and_without_reconstruction_noise_get_normals_no_worse_than_thei
     assert!(
         choice.relief_deg.is_finite() && choice.model_deg.is_finite() && choice.capture_deg > 0.0
     );
-    assert_eq!(
-        model.coarse_detail(),
-        if choice.relief_deg < choice.model_deg {
-            CoarseDetail::Relief
-        } else {
-            CoarseDetail::Model
-        }
-    );
+    // The default is the path closest to the held-out sequence's captures.
+    let blend_deg = choice.blend_deg.expect("the blend is scored");
+    let best = [
+        (CoarseDetail::Model, choice.model_deg),
+        (CoarseDetail::Blend, blend_deg),
+        (CoarseDetail::Relief, choice.relief_deg),
+    ]
+    .into_iter()
+    .min_by(|a, b| a.1.total_cmp(&b.1))
+    .unwrap()
+    .0;
+    assert_eq!(model.coarse_detail(), best, "{choice:?}");
     for (name, sweeps, sigma) in [
         ("clean", 6, 0.0),
         ("noisy", 6, 0.03),
@@ -268,7 +276,7 @@ fn captures_with_and_without_reconstruction_noise_get_normals_no_worse_than_thei
         // A capture that lost nothing (only noise on the real surface) keeps its own normals on every path,
         // the relief forced on it included: it lost no surface, so there is nothing to give back.
         if sweeps == 0 {
-            for detail in BOTH {
+            for detail in ALL {
                 let out = tmp
                     .path()
                     .join(format!("out-{name}-{}", self::name(detail)));
@@ -290,9 +298,10 @@ fn captures_with_and_without_reconstruction_noise_get_normals_no_worse_than_thei
             }
             continue;
         }
-        // The default (what training chose) and the learned filter with its guard keep that promise; the
-        // relief forced on a sequence training found it unsuited to need not (it is exercised below).
-        for detail in [None, Some(CoarseDetail::Model)] {
+        // The default (what training chose), the learned filter with its guard and the blend keep that
+        // promise; the relief forced on a sequence training found it unsuited to need not (it is exercised
+        // below).
+        for detail in [None, Some(CoarseDetail::Model), Some(CoarseDetail::Blend)] {
             let out = tmp
                 .path()
                 .join(format!("out-{name}-{}", self::name(detail)));
@@ -423,7 +432,7 @@ fn frames_are_the_same_bytes_on_any_number_of_threads() {
         .collect();
     let dir = tmp.path().join("held/capture");
     support::write_sequence(&dir, &model.topology, &frames);
-    for detail in BOTH {
+    for detail in ALL {
         let trees: Vec<Vec<(String, Vec<u8>)>> = [1usize, 3]
             .iter()
             .map(|&threads| {

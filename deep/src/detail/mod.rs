@@ -487,6 +487,20 @@ impl DetailModel {
         }
     }
 
+    /// The predicted fine shape of `coarse`, or on a fallback `coarse` itself.
+    pub fn fine_or_coarse(
+        &self,
+        topo: &Topology,
+        coarse: &[V3],
+        h: f64,
+        gate: SurfaceGate,
+    ) -> Vec<V3> {
+        match self.predict(topo, coarse, h, gate) {
+            Prediction::Fine { shape, .. } => shape,
+            Prediction::Fallback(_) => coarse.to_vec(),
+        }
+    }
+
     /// The vertex normals the model stands for on `coarse`: the predicted fine shape's, or on a fallback the
     /// capture's own.
     pub fn normals(

@@ -33,12 +33,15 @@ use crease_core::{Error, Result};
 use serde::{Deserialize, Serialize};
 
 /// Where `apply --coarse` takes a capture's detail from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum CoarseDetail {
     /// crease's fold relief, run on the whole coarse sequence ([`CoarseRelief`]).
     Relief,
     /// The model's learned detail filter, frame by frame, with its guard ([`crate::detail`]).
     Model,
+    /// The midpoint of the two fine shapes ([`blend`]).
+    Blend,
 }
 
 impl CoarseDetail {
@@ -46,6 +49,7 @@ impl CoarseDetail {
         match self {
             CoarseDetail::Relief => "relief",
             CoarseDetail::Model => "model",
+            CoarseDetail::Blend => "blend",
         }
     }
 }
@@ -56,9 +60,10 @@ impl std::str::FromStr for CoarseDetail {
         match s {
             "relief" => Ok(CoarseDetail::Relief),
             "model" => Ok(CoarseDetail::Model),
+            "blend" => Ok(CoarseDetail::Blend),
             other => Err(Error::param(
                 "coarse-detail",
-                format!("`{other}` is neither `relief` nor `model`"),
+                format!("`{other}` is not `relief`, `model` or `blend`"),
             )),
         }
     }
@@ -122,6 +127,18 @@ pub fn in_part(coarse: &[V3], relieved: &[V3], share: f64) -> Vec<V3> {
         .collect()
 }
 
+/// The midpoint of the relieved frame and the learned filter's fine shape of it. The two err differently: the
+/// relief reads the frames around one and knows no garment, the filter reads one frame and knows the garment's
+/// folds, and their midpoint is closer to the cloth than either on most captures measured (sleeve-train's
+/// held-out captures and five other captures of the public sleeve: docs/deepwrinkles.md).
+pub fn blend(relieved: &[V3], fine: &[V3]) -> Vec<V3> {
+    relieved
+        .iter()
+        .zip(fine)
+        .map(|(r, f)| vec3::scale(vec3::add(*r, *f), 0.5))
+        .collect()
+}
+
 /// Sequence captures of the held-out training sequence the choice is made on.
 const CHOICE_CAPTURES: usize = 3;
 /// Offset of their draws from the learned filter's training and validation draws.
@@ -134,12 +151,30 @@ pub struct CoarseChoice {
     pub capture_deg: f64,
     pub relief_deg: f64,
     pub model_deg: f64,
-    /// The relief was closer to the held-out sequence than the learned filter.
+    /// The blend's error; absent in models trained before it was a candidate.
+    #[serde(default)]
+    pub blend_deg: Option<f64>,
+    /// The relief was closer to the held-out sequence than the learned filter (what models trained before
+    /// `chosen` existed decide by).
     pub use_relief: bool,
+    /// The path closest to the held-out sequence.
+    #[serde(default)]
+    pub chosen: Option<CoarseDetail>,
 }
 
-/// Decides between the relief and `model` (the filter fitted without `held`) on a few sequence captures of
-/// `held` (detailed frames), drawn with `seed`.
+impl CoarseChoice {
+    /// The path `apply --coarse` uses by default.
+    pub fn detail(&self) -> CoarseDetail {
+        self.chosen.unwrap_or(if self.use_relief {
+            CoarseDetail::Relief
+        } else {
+            CoarseDetail::Model
+        })
+    }
+}
+
+/// Decides between the relief, `model` (the filter fitted without `held`) and their blend on a few sequence
+/// captures of `held` (detailed frames), drawn with `seed`.
 pub fn choose(
     topo: &Topology,
     model: &DetailModel,
@@ -147,7 +182,7 @@ pub fn choose(
     seed: u64,
 ) -> Result<CoarseChoice> {
     use rayon::prelude::*;
-    let (mut capture_deg, mut relief_deg, mut model_deg) = (0.0, 0.0, 0.0);
+    let (mut capture_deg, mut relief_deg, mut model_deg, mut blend_deg) = (0.0, 0.0, 0.0, 0.0);
     let truth: Vec<Vec<V3>> = held
         .par_iter()
         .map(|f| geometry::vertex_normals(topo, f))
@@ -183,31 +218,50 @@ pub fn choose(
         let n = all.len().max(1) as f64;
         for chunk in all.chunks(32) {
             let heights = relief.heights(&seq, chunk)?;
-            let scores: Vec<[f64; 3]> = chunk
+            let scores: Vec<[f64; 4]> = chunk
                 .par_iter()
                 .zip(&heights)
                 .map(|(&t, h)| {
                     let c = &seq.frames[t];
                     let relieved = in_part(c, &relief.relieved(topo, c, h), gate.share);
-                    let (learned, _) = model.normals(topo, c, mean_edge_length(topo, c), gate);
+                    let fine = model.fine_or_coarse(topo, c, mean_edge_length(topo, c), gate);
                     [
                         error(&geometry::vertex_normals(topo, c), t),
                         error(&geometry::vertex_normals(topo, &relieved), t),
-                        error(&learned, t),
+                        error(&geometry::vertex_normals(topo, &fine), t),
+                        error(&geometry::vertex_normals(topo, &blend(&relieved, &fine)), t),
                     ]
                 })
                 .collect();
-            for [c, r, m] in scores {
+            for [c, r, m, b] in scores {
                 capture_deg += c / (n * CHOICE_CAPTURES as f64);
                 relief_deg += r / (n * CHOICE_CAPTURES as f64);
                 model_deg += m / (n * CHOICE_CAPTURES as f64);
+                blend_deg += b / (n * CHOICE_CAPTURES as f64);
             }
         }
     }
+    // Ties go to the filter, then the blend: the paths that need no other frame.
+    let chosen = [
+        (CoarseDetail::Model, model_deg),
+        (CoarseDetail::Blend, blend_deg),
+        (CoarseDetail::Relief, relief_deg),
+    ]
+    .into_iter()
+    .fold((CoarseDetail::Model, f64::INFINITY), |best, (d, e)| {
+        if e < best.1 {
+            (d, e)
+        } else {
+            best
+        }
+    })
+    .0;
     Ok(CoarseChoice {
         capture_deg,
         relief_deg,
         model_deg,
+        blend_deg: Some(blend_deg),
         use_relief: relief_deg < model_deg,
+        chosen: Some(chosen),
     })
 }

@@ -145,6 +145,7 @@ fn score_sequence(
             for (label, detail) in [
                 (format!("{name}, learned filter"), CoarseDetail::Model),
                 (format!("{name}, relief"), CoarseDetail::Relief),
+                (format!("{name}, blend"), CoarseDetail::Blend),
             ] {
                 out.push((
                     label,

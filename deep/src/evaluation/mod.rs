@@ -92,7 +92,7 @@ pub fn score_capture(
     let texels = TexelMap::new(&model.layout, res, res);
     let topo = &model.topology;
     let relieved: Option<Vec<Frame>> = match detail {
-        CoarseDetail::Relief => {
+        CoarseDetail::Relief | CoarseDetail::Blend => {
             let seq = Sequence::new(topo.clone(), capture.to_vec())?;
             let mut relief = CoarseRelief::new(&seq)?;
             let heights = relief.heights(&seq, frames)?;
@@ -115,6 +115,9 @@ pub fn score_capture(
         .map(|(k, &t)| {
             let c = &capture[t];
             let source = match &relieved {
+                Some(r) if detail == CoarseDetail::Blend => {
+                    Source::Blended(capture_path, &r[k], gate)
+                }
                 Some(r) => Source::Relieved(capture_path, &r[k], gate),
                 None => Source::Capture(capture_path, gate),
             };

@@ -48,7 +48,7 @@ pub fn write_strip(
         .detail
         .surface_gate(topo, captures.iter().map(|f| f.as_slice()));
     let relieved = match model.coarse_detail() {
-        CoarseDetail::Relief => {
+        CoarseDetail::Relief | CoarseDetail::Blend => {
             let seq = Sequence::new(topo.clone(), captures.to_vec())?;
             let mut relief = CoarseRelief::new(&seq)?;
             let heights = relief.heights(&seq, &[t])?;
@@ -63,6 +63,9 @@ pub fn write_strip(
             &texels,
             capture,
             match &relieved {
+                Some(r) if model.coarse_detail() == CoarseDetail::Blend => {
+                    Source::Blended(capture_path, r, gate)
+                }
                 Some(r) => Source::Relieved(capture_path, r, gate),
                 None => Source::Capture(capture_path, gate),
             },

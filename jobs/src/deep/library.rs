@@ -54,6 +54,7 @@ impl From<CoarseDetail> for crease_deep::apply::CoarseDetail {
         match c {
             CoarseDetail::Relief => crease_deep::apply::CoarseDetail::Relief,
             CoarseDetail::Model => crease_deep::apply::CoarseDetail::Model,
+            CoarseDetail::Blend => crease_deep::apply::CoarseDetail::Blend,
         }
     }
 }
@@ -248,6 +249,7 @@ mod tests {
         for (a, b) in [
             (C::Relief, crease_deep::apply::CoarseDetail::Relief),
             (C::Model, crease_deep::apply::CoarseDetail::Model),
+            (C::Blend, crease_deep::apply::CoarseDetail::Blend),
         ] {
             let text = serde_json::to_string(&a).unwrap();
             assert_eq!(text.trim_matches('"'), b.as_str());

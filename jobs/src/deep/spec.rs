@@ -54,6 +54,8 @@ pub enum CoarseDetail {
     Relief,
     /// The model's learned detail filter, frame by frame.
     Model,
+    /// The midpoint of the two.
+    Blend,
 }
 
 fn world() -> MapSpace {

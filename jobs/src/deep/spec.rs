@@ -39,7 +39,7 @@ pub enum DeepSpec {
         /// Write the coarse maps without the cGAN.
         #[serde(default)]
         no_cgan: bool,
-        /// Where a coarse input's detail comes from (`from = "coarse"` only): `relief` or `model`; default:
+        /// Where a coarse input's detail comes from (`from = "coarse"` only): `relief`, `model` or `blend`; default:
         /// whichever won on the model's held-out training sequence.
         #[serde(default)]
         coarse_detail: Option<CoarseDetail>,

@@ -269,16 +269,22 @@ pub fn apply(
         _ => None,
     };
     // Whether the capture lost surface is asked of all its frames, whatever the range written, so that any
-    // frame range gives the whole run's bytes.
+    // frame range gives the whole run's bytes; they are streamed through, one at a time.
     let gate = match &shapes {
         CoarseShapes::Source(s) if capture.is_some() => {
-            let mut frames = Vec::with_capacity(s.n_frames());
-            for t in 0..s.n_frames() {
-                frames.push(s.read_frame(t)?);
+            let mut failed = None;
+            let frames = (0..s.n_frames()).map_while(|t| match s.read_frame(t) {
+                Ok(f) => Some(f),
+                Err(e) => {
+                    failed = Some(e);
+                    None
+                }
+            });
+            let gate = model.detail.surface_gate(&model.topology, frames);
+            if let Some(e) = failed {
+                return Err(e);
             }
-            model
-                .detail
-                .surface_gate(&model.topology, frames.iter().map(|f| f.as_slice()))
+            gate
         }
         _ => SurfaceGate::OPEN,
     };

@@ -383,17 +383,19 @@ impl DetailModel {
 
     /// What the surface `frames` (a capture's, all of them) lost lets the model add: see [`LostSurface`]. A
     /// model trained before the guard measured it lets everything through.
-    pub fn surface_gate<'a>(
+    /// The frames are read one at a time and only while needed (not at all by such a model), so a long capture
+    /// can be streamed through.
+    pub fn surface_gate<F: AsRef<[V3]>>(
         &self,
         topo: &Topology,
-        frames: impl IntoIterator<Item = &'a [V3]>,
+        frames: impl IntoIterator<Item = F>,
     ) -> SurfaceGate {
         let Some(l) = &self.spec.guard.lost_surface else {
             return SurfaceGate::OPEN;
         };
-        let (sum, n) = frames
-            .into_iter()
-            .fold((0.0, 0usize), |(s, n), f| (s + l.lost(topo, f), n + 1));
+        let (sum, n) = frames.into_iter().fold((0.0, 0usize), |(s, n), f| {
+            (s + l.lost(topo, f.as_ref()), n + 1)
+        });
         let lost = sum / n.max(1) as f64;
         SurfaceGate {
             share: l.share(lost),

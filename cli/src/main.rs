@@ -18,6 +18,7 @@ mod local;
 mod logging;
 mod logs;
 mod progress;
+mod refine;
 mod run;
 mod run_args;
 mod run_spec;
@@ -88,6 +89,8 @@ enum Command {
     Deep(deep::DeepArgs),
     /// Bake a detailed sequence into normal maps on its coarse input (the layout `crease deep apply` writes).
     Bake(deep::BakeArgs),
+    /// Refine a sequence by the shading of its calibrated images (after `run`, or on a capture).
+    Refine(refine::RefineArgs),
     /// Show an output folder (or any sequence) in the browser: the dashboard's 3D viewer and report.
     View(view::ViewArgs),
 }
@@ -156,5 +159,6 @@ fn run_command(command: Command) -> anyhow::Result<()> {
         Command::Deep(a) => deep::deep(a),
         Command::Bake(a) => deep::bake(a),
         Command::View(a) => view::view(a),
+        Command::Refine(a) => refine::refine(a),
     }
 }

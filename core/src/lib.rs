@@ -20,6 +20,7 @@ pub mod preview;
 pub mod progress;
 pub mod render;
 pub mod rest_stretch;
+pub mod shading_refine;
 pub mod shape;
 pub mod spacetime;
 pub mod synth;

@@ -165,6 +165,7 @@ pub fn deform(
                     heights.as_deref(),
                     lost_area.as_ref(),
                     limiter.as_ref(),
+                    None,
                 );
                 progress.advance("position", 1);
                 r

@@ -60,6 +60,13 @@ pub fn windows_covering(windows: &[Window], t: usize) -> Vec<usize> {
         .collect()
 }
 
+/// A last step of a finished frame from evidence beyond the mesh (the shading refinement reads the frame's
+/// images, [`crate::shading_refine::ImageRefiner`]). It sees frame `t`'s finished shape and returns the shape to
+/// keep; it must be a pure function of its inputs so that wherever a frame is positioned it comes out the same.
+pub trait FrameRefiner: Sync {
+    fn refine(&self, topo: &crate::mesh::Topology, t: usize, positions: &[V3]) -> Result<Vec<V3>>;
+}
+
 /// One frame positioned and stretch-reduced, with its stretch after each step and the seconds each step took.
 pub struct PositionedFrame {
     pub t: usize,
@@ -81,7 +88,8 @@ pub struct PositionedFrame {
 /// Positions frame `t` of `source` from its cross-faded rotation-vector field `phi` (Alexa blend, gradient-
 /// domain solve), then runs `passes` stretch-reduction passes reusing the frame's factorisation, measuring
 /// stretch after each step, and ends with `ending`: the shape projection and the fold relief `heights`
-/// ([`super::shape`]), the bound of what all that adds to the surface the capture lost (`lost_area`,
+/// ([`super::shape`]), the `refiner` (the shading refinement of video jobs), the bound of what all that adds to
+/// the surface the capture lost (`lost_area`,
 /// [`super::shape::lost_area`]), then the strain limit (`limit`, [`super::position::strain_limit`]); the last stretch
 /// figures are those of the finished frame.
 #[allow(clippy::too_many_arguments)]
@@ -96,6 +104,7 @@ pub fn position_frame(
     heights: Option<&[f64]>,
     lost_area: Option<&RestAreas>,
     limit: Option<&StrainLimiter>,
+    refiner: Option<&dyn FrameRefiner>,
 ) -> Result<PositionedFrame> {
     let clock = Instant::now();
     let rest = source.read_frame(t)?;
@@ -145,24 +154,27 @@ pub fn position_frame(
     let moved = !still && out != rest;
     // The relief applies to every frame it has heights for, moved or not; the projection only to a moved one.
     let relief = ending.is_active(heights);
-    let changed = moved || relief;
+    let changed = moved || relief || refiner.is_some();
     // The finished frame's last steps: the shape ending, then edges stretched past the cap are shortened (never
     // in a frame nothing changed).
-    let finish = |out: Frame| -> Frame {
+    let finish = |out: Frame| -> Result<Frame> {
         if !changed {
-            return out;
+            return Ok(out);
         }
         let mut done = ending.finish(system.topology(), &rest, &out, heights);
+        if let Some(r) = refiner {
+            done = r.refine(system.topology(), t, &done)?;
+        }
         if let Some(areas) = lost_area {
             areas.limit(system.topology(), &rest, &mut done);
         }
         if let Some(l) = limit {
             l.apply(&rest, &mut done);
         }
-        done
+        Ok(done)
     };
     if passes == 0 {
-        out = finish(out);
+        out = finish(out)?;
     }
     stretch.push(measure(&out, &mut metrics));
     let mut pass_times = Vec::with_capacity(passes);
@@ -172,7 +184,7 @@ pub fn position_frame(
             out = super::position::stretch::pass(&fp, &out, rotation, &rotations);
         }
         if k + 1 == passes {
-            out = finish(out);
+            out = finish(out)?;
         }
         pass_times.push(clock.elapsed().as_secs_f64());
         stretch.push(measure(&out, &mut metrics));

@@ -6,18 +6,22 @@ use super::env::TaskEnv;
 use super::exact;
 use super::phase_times::Lap;
 use crate::error::TaskError;
+use crate::plan::detect::image_numbers;
 use crate::plan::inspect::{output_files, output_sink, writes_frames};
+use crate::spec::FoldSpec;
 use crate::storage::keys;
+use crease_core::folds::video::CameraRig;
 use crease_core::heat::{self, SurfaceOperator};
 use crease_core::mesh::io::OpenedSequence;
 use crease_core::mesh::{FrameSink, FrameSource};
+use crease_core::shading_refine::ImageRefiner;
 use crease_core::shape::ShapeAccumulator;
 use crease_core::spacetime::params::Scales;
 use crease_core::spacetime::position::strain_limit::{StrainLimiter, StrainReference};
 use crease_core::spacetime::position::{Pinning, PositionSystem};
 use crease_core::spacetime::shape::lost_area::RestAreas;
 use crease_core::spacetime::shape::relief;
-use crease_core::spacetime::stages::{self, PositionedFrame};
+use crease_core::spacetime::stages::{self, FrameRefiner, PositionedFrame};
 use crease_core::spacetime::windows::Window;
 use crease_core::vec3::V3;
 use rayon::prelude::*;
@@ -74,6 +78,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     } else {
         None
     };
+    let refiner = image_refiner(env, &opened, &label)?;
     lap.lap("position: input, system, strain limiter, reliefs");
     env.progress().begin("position", frames.len() as u64);
     let mut written = Vec::new();
@@ -135,6 +140,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
                     heights.as_deref(),
                     lost_area.as_deref(),
                     limiter,
+                    refiner.as_ref().map(|r| r as &dyn FrameRefiner),
                 )
                 .map_err(|e| TaskError::from_core(&label, e))?;
                 drop(phi);
@@ -180,6 +186,40 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
         json!({ "frames": [frames.start, frames.end], "stretch_final": stretch_final }),
         written,
     ))
+}
+
+/// The shading refinement of a video job's frames from their own images (`folds.params.refine_rounds` > 0),
+/// read on whichever machine positions them.
+fn image_refiner(
+    env: &TaskEnv,
+    opened: &OpenedSequence,
+    label: &str,
+) -> Result<Option<ImageRefiner>, TaskError> {
+    let FoldSpec::Video {
+        params,
+        first_image_number,
+        ..
+    } = &env.job.folds
+    else {
+        return Ok(None);
+    };
+    if params.refine_rounds == 0 {
+        return Ok(None);
+    }
+    let inputs = env.fold_inputs()?;
+    let path = inputs.cameras.as_deref().ok_or_else(|| {
+        TaskError::fatal(format!(
+            "{label}: the cameras file was not fetched for the shading refinement"
+        ))
+    })?;
+    let rig = CameraRig::read(path, inputs.images.as_deref())
+        .map_err(|e| TaskError::from_core(label, e))?;
+    let n = opened.source.n_frames();
+    Ok(Some(ImageRefiner {
+        rig,
+        numbers: image_numbers(&opened.layout, n, *first_image_number),
+        params: params.refine_params(),
+    }))
 }
 
 /// Stores frame `p.t`'s positions, its stretch and shape words and its timings (the intermediates finalize

@@ -2,6 +2,7 @@
 //! it gives them and values tuned on the sample sleeve elsewhere (see the README table).
 
 use crate::error::{Error, Result};
+use crate::shading_refine::ShadingRefineParams;
 
 /// Parameters of [`super::VideoFolds`]. Distances are in pixels of the full-resolution camera image unless a
 /// field says otherwise.
@@ -93,6 +94,19 @@ pub struct VideoParams {
     pub temporal_radius: usize,
     /// Rings of the neighbourhood over which the tracked vertices' stable normals are averaged (§4: eight).
     pub stable_normal_rings: usize,
+    /// Gauss–Newton rounds of the shading-based refinement of every finished frame
+    /// ([`crate::shading_refine`]): the surface moved along its normals until its shading under the lighting
+    /// fitted to it matches the images. 0 turns it off.
+    pub refine_rounds: usize,
+    /// The refinement's smoothness weight ([`ShadingRefineParams::smoothness`]).
+    pub refine_smoothness: f64,
+    /// The refinement's weight on staying at the deformed shape ([`ShadingRefineParams::stay`]).
+    pub refine_stay: f64,
+    /// Largest offset the refinement gives a vertex, in mean edge lengths.
+    pub refine_max_offset: f64,
+    /// Wavelength in the input's units above which the refinement's offsets are removed (they move the garment
+    /// rather than fold it); 0: the deformation's shape scale.
+    pub refine_scale: f64,
 }
 
 /// The cameras video fold estimation analyses.
@@ -113,6 +127,7 @@ pub enum Views {
 
 impl Default for VideoParams {
     fn default() -> Self {
+        let refine = ShadingRefineParams::default();
         VideoParams {
             radii: vec![1.0, 1.5, 2.5, 3.5],
             scales: vec![1.0],
@@ -147,6 +162,11 @@ impl Default for VideoParams {
             min_cover_gain: 0.1,
             temporal_radius: 2,
             stable_normal_rings: 8,
+            refine_rounds: refine.rounds,
+            refine_smoothness: refine.smoothness,
+            refine_stay: refine.stay,
+            refine_max_offset: refine.max_offset_edges,
+            refine_scale: refine.shape_scale,
         }
     }
 }
@@ -264,7 +284,23 @@ impl VideoParams {
                 ),
             ));
         }
-        Ok(())
+        self.refine_params().validate().map_err(|e| match e {
+            Error::Param { name, msg } => Error::param(format!("refine_{name}"), msg),
+            e => e,
+        })
+    }
+
+    /// The shading refinement's settings (`refine_*`), with `shape_scale` the given fallback when
+    /// `refine_scale` is 0.
+    pub fn refine_params(&self) -> ShadingRefineParams {
+        ShadingRefineParams {
+            rounds: self.refine_rounds,
+            smoothness: self.refine_smoothness,
+            stay: self.refine_stay,
+            max_offset_edges: self.refine_max_offset,
+            shape_scale: self.refine_scale,
+            ..ShadingRefineParams::default()
+        }
     }
 }
 

@@ -11,6 +11,18 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// A small demo capture in `d`, with a synthetic three-camera video.
+fn demo(d: &Path, frames: usize) {
+    let o = Command::new(bin())
+        .args(["demo", "--out", s(d), "--triangles", "3000"])
+        .args(["--frames", &frames.to_string()])
+        .args(["--with-video", "--video-cameras", "3"])
+        .args(["--video-width", "240", "--video-height", "320"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "crease demo: {}", stderr(&o));
+}
+
 fn run_video(d: &Path, out: &Path, extra: &[&str]) {
     let o = Command::new(bin())
         .args(["run", "--input", s(&d.join("input")), "--folds", "video"])
@@ -31,21 +43,7 @@ fn run_video(d: &Path, out: &Path, extra: &[&str]) {
 fn refined_video_job_on_two_workers_matches_crease_run() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let o = Command::new(bin())
-        .args([
-            "demo",
-            "--out",
-            s(d),
-            "--triangles",
-            "3000",
-            "--frames",
-            "4",
-        ])
-        .args(["--with-video", "--video-cameras", "3"])
-        .args(["--video-width", "240", "--video-height", "320"])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "crease demo: {}", stderr(&o));
+    demo(d, 4);
 
     let reference = d.join("reference");
     run_video(d, &reference, &[]);
@@ -90,21 +88,7 @@ fn refined_video_job_on_two_workers_matches_crease_run() {
 fn crease_refine_alone_and_its_errors() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let o = Command::new(bin())
-        .args([
-            "demo",
-            "--out",
-            s(d),
-            "--triangles",
-            "3000",
-            "--frames",
-            "2",
-        ])
-        .args(["--with-video", "--video-cameras", "3"])
-        .args(["--video-width", "240", "--video-height", "320"])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "crease demo: {}", stderr(&o));
+    demo(d, 2);
     let refine = |out: &str, extra: &[&str]| {
         Command::new(bin())
             .args(["refine", "--input", s(&d.join("input"))])

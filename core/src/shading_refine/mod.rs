@@ -33,7 +33,7 @@ pub use images::ImageRefiner;
 
 use crate::error::{Error, Result};
 use crate::folds::video::cameras::Photo;
-use crate::folds::video::shading::{self, ViewShading};
+use crate::folds::video::shading;
 use crate::heat::{self, SurfaceOperator};
 use crate::mesh::{geometry, Topology};
 use crate::render::CalibratedCamera;
@@ -186,7 +186,8 @@ struct LitView<'a> {
     camera: &'a CalibratedCamera,
     gray: Vec<f32>,
     width: usize,
-    lighting: ViewShading,
+    /// Spherical-harmonic lighting fitted to the input ([`shading::shade`]).
+    lighting: [f64; 9],
     inner: Vec<bool>,
     /// 1 / grain²: how much one pixel of this image counts.
     precision: f64,
@@ -228,16 +229,10 @@ fn lit_view<'a>(
     let coef = shading::fit_lighting(&samples)?;
     let mut abs: Vec<f64> = samples
         .iter()
-        .map(|&(n, g)| (g as f64 - sh_dot(n, &coef)).abs())
+        .map(|&(n, g)| (g as f64 - shading::shade(&coef, n)).abs())
         .collect();
     let mid = abs.len() / 2;
     let noise = 1.4826 * *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
-    let lighting = ViewShading {
-        coef,
-        mean: 0.0,
-        noise,
-        surface: Vec::new(),
-    };
     let inner = photo.eroded_mask(params.margin_px);
     let grain = image_grain(&gray, width, &inner);
     // Pixels the lighting explains worse than the view's own residual scale would suggest are cast shadows,
@@ -250,21 +245,13 @@ fn lit_view<'a>(
             camera,
             gray,
             width,
-            lighting,
+            lighting: coef,
             inner,
             precision: 1.0 / (grain * grain),
             reject,
         },
         surface,
     ))
-}
-
-fn sh_dot(n: V3, coef: &[f64; 9]) -> f64 {
-    shading::sh_basis(n)
-        .iter()
-        .zip(coef)
-        .map(|(a, b)| a * b)
-        .sum()
 }
 
 /// The image's own grain (linear grey levels): the robust spread of each garment pixel against the mean of its
@@ -369,13 +356,13 @@ fn data_term(
             if -vec3::dot(ray, n) < params.min_facing {
                 continue;
             }
-            let r = view.gray[k] as f64 - view.lighting.shade(n);
+            let r = view.gray[k] as f64 - shading::shade(&view.lighting, n);
             let u = r / view.reject;
             if u.abs() >= 1.0 {
                 continue;
             }
             let wt = view.precision * (1.0 - u * u).powi(2);
-            let mut jac = view.lighting.shade_gradient(n);
+            let mut jac = shading::shade_gradient(&view.lighting, n);
             jac = vec3::sub(jac, vec3::scale(n, vec3::dot(jac, n)));
             let side = if vec3::dot(n, face_n) >= 0.0 {
                 1.0

@@ -242,20 +242,30 @@ pub struct ViewShading {
 impl ViewShading {
     /// The shading predicted for unit normal `n`.
     pub fn shade(&self, n: V3) -> f64 {
-        dot(&sh_basis(n), &self.coef)
+        shade(&self.coef, n)
     }
 
-    /// Gradient of [`Self::shade`] with respect to the normal (grey levels per radian of tilt along a unit
-    /// tangent direction, once projected onto it).
+    /// Gradient of [`Self::shade`] with respect to the normal.
     pub fn shade_gradient(&self, n: V3) -> V3 {
-        let [x, y, z] = n;
-        let c = &self.coef;
-        [
-            c[1] + c[4] * y + c[6] * z + 2.0 * c[7] * x,
-            c[2] + c[4] * x + c[5] * z - 2.0 * c[7] * y,
-            c[3] + c[5] * y + c[6] * x + 6.0 * c[8] * z,
-        ]
+        shade_gradient(&self.coef, n)
     }
+}
+
+/// The shading of unit normal `n` under the lighting `coef`: `sh_basis(n) · coef`.
+pub fn shade(coef: &[f64; N_SH], n: V3) -> f64 {
+    dot(&sh_basis(n), coef)
+}
+
+/// Gradient of [`shade`] with respect to the normal (grey levels per radian of tilt along a unit tangent
+/// direction, once projected onto it).
+pub fn shade_gradient(coef: &[f64; N_SH], n: V3) -> V3 {
+    let [x, y, z] = n;
+    let c = coef;
+    [
+        c[1] + c[4] * y + c[6] * z + 2.0 * c[7] * x,
+        c[2] + c[4] * x + c[5] * z - 2.0 * c[7] * y,
+        c[3] + c[5] * y + c[6] * x + 6.0 * c[8] * z,
+    ]
 }
 
 /// Fits the lighting of `photo` seen by `camera` to the captured mesh (module documentation). `None` when too

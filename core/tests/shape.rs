@@ -182,7 +182,8 @@ fn shape_of(seq: &Sequence, out: &[Vec<V3>]) -> crease_core::shape::ShapeStats {
 /// surface normal) where the real cloth's rims drift by 0.05. Checked on the sleeve fixture (captured frames
 /// 20–23 with their ground truth) with the folds the stretch detector finds: the default output's drift, mean
 /// and max, stays within twice the ground truth's and its extent change within the ground truth's + 1 %, and
-/// the shape projection lowers the drift against the behaviour before it (`shape_projection` 0). Four frames
+/// the shape projection lowers the drift against the behaviour before it (`shape_projection` 0; by about a
+/// quarter here: the default screen already holds most of what it would remove). Four frames
 /// are too few for the rims to flap as they do over the whole sequence (frames 9–44), so without the
 /// projection this fixture is within the bound as well (0.31 against 0.55): the 48-frame figures are in
 /// bench/results/2026-12-02-shape-projection.md.
@@ -221,7 +222,7 @@ fn sleeve_rims_drift_no_more_than_twice_the_ground_truth() {
     let projected = shape_of(&seq, &run(&seq, &anchors, &no_relief));
     let old = shape_of(&seq, &run(&seq, &anchors, &unprojected));
     assert!(
-        projected.drift_max < 0.9 * old.drift_max && projected.drift_mean < 0.7 * old.drift_mean,
+        projected.drift_max < 0.9 * old.drift_max && projected.drift_mean < 0.8 * old.drift_mean,
         "projected {projected:?}\nwithout the projection: {old:?}"
     );
 }

@@ -73,7 +73,7 @@ impl Default for ShadingRefineParams {
     fn default() -> Self {
         ShadingRefineParams {
             rounds: 2,
-            smoothness: 2.0e4,
+            smoothness: 5.0e3,
             stay: 1.0e4,
             margin_px: 2.0,
             min_facing: 0.25,

@@ -43,8 +43,12 @@ impl std::fmt::Display for WeightMode {
     }
 }
 
-/// Default cutoff wavelength of the shape screen, in detail scales (docs/fidelity.md).
-pub const DEFAULT_SHAPE_CUTOFF: f64 = super::shape::SHAPE_SCALES;
+/// Default cutoff wavelength of the shape screen, in detail scales (docs/fidelity.md). Shorter than the
+/// projection's shape scale ([`super::shape::SHAPE_SCALES`]): the projection only removes what passes its
+/// low-pass, so displacements between a fold's width and twice the detail scale (7–10 mean edge lengths at the
+/// default) were left to the solve, which moved the garment there; the screen holds them from the start and the
+/// folds, narrower, stay free.
+pub const DEFAULT_SHAPE_CUTOFF: f64 = 1.5;
 
 /// The lengths a sequence's deformation works at ([`DeformParams::scales`]), in the input's units.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -187,7 +187,7 @@ pub static KNOBS: &[Knob] = &[
     knob("deform.pinning", Kind::Choice(&["centroid", "vertex"]), at!(deform.pinning),
         "with shape_cutoff 0 only: each component keeps its mean position (centroid) or its lowest-index vertex (vertex)"),
     knob("deform.relief.scale", NON_NEGATIVE, at!(deform.relief.scale),
-        "detail scale, in the input's length unit: the wavelength a generic capture low-pass is taken to halve; the fold relief undoes it, the shape screen and projection work at twice it; 0 = five mean edge lengths of the first frame (`crease run --detail-scale`)"),
+        "detail scale, in the input's length unit: the wavelength a generic capture low-pass is taken to halve; the fold relief undoes it, the shape screen works at `deform.shape_cutoff` times it and the projection at twice it; 0 = five mean edge lengths of the first frame (`crease run --detail-scale`)"),
     knob("deform.relief.steps", count(0, 32), at!(deform.relief.steps),
         "fold relief: Van Cittert steps of the deconvolution (the gain on what the capture damped most is at most steps + 1); 0 = no relief"),
     knob("deform.relief.temporal_sigma", num(ge(0.0), le(8.0)), at!(deform.relief.temporal_sigma),

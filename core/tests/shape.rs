@@ -180,7 +180,8 @@ fn shape_of(seq: &Sequence, out: &[Vec<V3>]) -> crease_core::shape::ShapeStats {
 /// The sleeve's open cuffs keep their shape (drift ≤ 2× the ground truth's): on the public sleeve
 /// the output's largest low-frequency drift was on the two rims, which flapped by up to 0.7 edges (along the
 /// surface normal) where the real cloth's rims drift by 0.05. Checked on the sleeve fixture (captured frames
-/// 20–23 with their ground truth) with the folds the stretch detector finds: the default output's drift, mean
+/// 20–23 with their ground truth) with the folds the stretch detector finds and the lost-area bound off (four
+/// frames are too few for it): the output's drift, mean
 /// and max, stays within twice the ground truth's and its extent change within the ground truth's + 1 %, and
 /// the shape projection lowers the drift against the behaviour before it (`shape_projection` 0; by about a
 /// quarter here: the default screen already holds most of what it would remove). Four frames
@@ -195,7 +196,14 @@ fn sleeve_rims_drift_no_more_than_twice_the_ground_truth() {
     let anchors = anchors_of(&seq);
     assert!(anchors.total() > 100, "{} anchors", anchors.total());
     let truth = shape_of(&seq, &gt.frames);
-    let out = run(&seq, &anchors, &DeformParams::default());
+    // Four frames are also too few for the lost-area bound, which measures what the capture lost against the
+    // sequence's own frames: the cloth never lies open in them, so it would give the frames back as captured
+    // and leave no folds to check the shape of.
+    let defaults = DeformParams {
+        lost_area_bound: false,
+        ..DeformParams::default()
+    };
+    let out = run(&seq, &anchors, &defaults);
     let s = shape_of(&seq, &out);
     assert!(s.displacement_max > 0.3, "no folds were added: {s:?}");
     assert!(
@@ -213,7 +221,7 @@ fn sleeve_rims_drift_no_more_than_twice_the_ground_truth() {
             steps: 0,
             ..Default::default()
         },
-        ..DeformParams::default()
+        ..defaults.clone()
     };
     let unprojected = DeformParams {
         shape_projection: 0.0,

@@ -41,11 +41,6 @@ pub const TRUST_FULL: f64 = 0.25;
 /// so the capture kept its folds and anything added is a fold drawn twice.
 pub const TRUST_NONE: f64 = 0.1;
 
-/// A frame whose deformation adds less than this share of its surface is not judged whole (the per-vertex
-/// bound still holds it): a deformation that bends the cloth without adding surface (a hinge, a fold that
-/// draws the cloth in) says nothing about where surface was lost, and the share of nothing is noise.
-const MIN_ADDED: f64 = 1e-3;
-
 /// Smoothing rounds (half the vertex, half its one-ring mean) of the per-vertex areas: a few rings, so that the
 /// area of a neighbourhood, not of one triangle, is compared over time.
 const AREA_ROUNDS: usize = 16;
@@ -135,7 +130,7 @@ impl RestAreas {
 
     /// `out`'s displacement from `captured` scaled down, per vertex, where it adds more area than the frame
     /// lost against the rest areas, and as a whole by the frame's [`trust`]. Returns the share of the added
-    /// surface that was lost (1 where almost nothing was added, [`MIN_ADDED`]).
+    /// surface that was lost (1 where nothing was added).
     pub fn limit(&self, topo: &Topology, captured: &[vec3::V3], out: &mut [vec3::V3]) -> f64 {
         if self.rest.len() != captured.len() || out.len() != captured.len() {
             return 1.0;
@@ -159,8 +154,7 @@ impl RestAreas {
                 added_area += added * a0;
             }
         }
-        let frame_area: f64 = before.iter().filter(|a| a.is_finite()).sum();
-        let lost_share = if added_area > MIN_ADDED * frame_area {
+        let lost_share = if added_area > 0.0 {
             justified / added_area
         } else {
             1.0

@@ -281,6 +281,13 @@ pub fn run(a: RunArgs) -> Result<()> {
         vs_rest.max * 100.0,
         vs_rest.mean * 100.0
     ));
+    if let Some(j) = &report.summary.lost_area {
+        // A capture that kept its folds gives most frames back: say so, or the unchanged output looks like a fault.
+        progress.println(&format!(
+            "lost-area bound: {} frame(s) kept whole, {} scaled, {} given back as captured (median lost share {:.2})",
+            j.frames_kept, j.frames_scaled, j.frames_given_back, j.median_share
+        ));
+    }
     progress.println(&format!(
         "wrote {} frames, report.json, preview.png, stretch.png to {} ({} tasks, {:.2}s of work)",
         n,

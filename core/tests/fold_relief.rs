@@ -7,8 +7,9 @@
 use crease_core::folds::{Anchor, AnchorSet};
 use crease_core::mesh::{geometry, MemorySink, Sequence, Topology};
 use crease_core::progress::NoProgress;
+use crease_core::spacetime::shape::lost_area::{TRUST_FULL, TRUST_NONE};
 use crease_core::spacetime::shape::relief::ReliefParams;
-use crease_core::spacetime::{deform, DeformParams};
+use crease_core::spacetime::{deform, DeformParams, DeformReport};
 use crease_core::vec3::{self, V3};
 use std::sync::Arc;
 
@@ -156,6 +157,16 @@ fn run(seq: &Sequence, anchors: &AnchorSet, steps: u32) -> Vec<Vec<V3>> {
 }
 
 fn run_with(seq: &Sequence, anchors: &AnchorSet, steps: u32, bound: bool) -> Vec<Vec<V3>> {
+    run_reporting(seq, anchors, steps, bound).0
+}
+
+/// [`run_with`], with the deformation's report.
+fn run_reporting(
+    seq: &Sequence,
+    anchors: &AnchorSet,
+    steps: u32,
+    bound: bool,
+) -> (Vec<Vec<V3>>, DeformReport) {
     let params = DeformParams {
         relief: ReliefParams {
             steps,
@@ -167,8 +178,8 @@ fn run_with(seq: &Sequence, anchors: &AnchorSet, steps: u32, bound: bool) -> Vec
         ..DeformParams::default()
     };
     let mut sink = MemorySink::default();
-    deform(seq, anchors, &params, &mut sink, &NoProgress, &[]).unwrap();
-    sink.frames.into_values().collect()
+    let (report, _) = deform(seq, anchors, &params, &mut sink, &NoProgress, &[]).unwrap();
+    (sink.frames.into_values().collect(), report)
 }
 
 #[test]
@@ -383,8 +394,14 @@ fn a_capture_that_kept_its_folds_comes_back_no_further_from_the_cloth() {
     });
     let topo = seq.topology.clone();
     let everywhere = |_| true;
-    let bounded = run_with(&seq, &anchors, 8, true);
+    let (bounded, report) = run_reporting(&seq, &anchors, 8, true);
     let free = run_with(&seq, &anchors, 8, false);
+    // The report says why: every frame's share of the added surface that was lost is below the trust floor.
+    assert_eq!(report.frame_lost_share.len(), truths.len());
+    for (t, share) in report.frame_lost_share.iter().enumerate() {
+        let share = share.unwrap_or_else(|| panic!("frame {t}: not judged"));
+        assert!(share < TRUST_NONE, "frame {t}: share {share}");
+    }
     let mut worse_without = 0;
     for (t, truth) in truths.iter().enumerate() {
         let e_in = mean_normal_error(&topo, &seq.frames[t], truth, everywhere);
@@ -413,8 +430,11 @@ fn a_capture_that_lost_its_folds_keeps_them_under_the_bound() {
         let q = seq.frames[0][v];
         (17.0..25.0).contains(&q[0]) && (5.0..15.0).contains(&q[1])
     };
-    let out = run_with(&seq, &anchors, 8, true);
+    let (out, report) = run_reporting(&seq, &anchors, 8, true);
+    eprintln!("lost shares: {:?}", report.frame_lost_share);
     for t in 5..truths.len() {
+        let share = report.frame_lost_share[t].unwrap_or_else(|| panic!("frame {t}: not judged"));
+        assert!(share >= TRUST_FULL, "frame {t}: share {share}");
         let e_in = mean_normal_error(&topo, &seq.frames[t], &truths[t], band);
         let e_out = mean_normal_error(&topo, &out[t], &truths[t], band);
         assert!(

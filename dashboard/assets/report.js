@@ -75,7 +75,19 @@ function shapeTable(r) {
     row("Drift, mean", [k.drift_mean], (v) => fmt(v, 3), e, "the smooth part of the displacement (folds filtered out): how much the garment's shape itself moved"),
     row("Drift, max", [k.drift_max], (v) => fmt(v, 3), e, "largest smooth displacement of a vertex"),
     row("Extent change", [k.extent_change], pct, "%", "largest change of the garment's size along an axis, relative to its largest extent"),
-  ]);
+  ].concat(lostAreaRows((r.summary || {}).lost_area)));
+}
+
+// The lost-area bound's verdict on the frames: a capture that kept its folds has most of them given back.
+function lostAreaRows(j) {
+  if (!j) return [];
+  const n = (v) => String(v);
+  return [
+    row("Frames kept whole", [j.frames_kept], n, "frames", "the deformation added surface where the capture had lost it, and stands whole"),
+    row("Frames scaled", [j.frames_scaled], n, "frames", "only part of what the deformation added was surface the capture lost: scaled down"),
+    row("Frames given back", [j.frames_given_back], n, "frames", "what the deformation added was not lost surface: the frame comes back as captured"),
+    row("Lost share, median", [j.median_share], (v) => fmt(v, 2), "share", "of the surface a frame's deformation adds, the part the capture had lost (below 0.1: given back)"),
+  ];
 }
 
 function stretchTables(r) {

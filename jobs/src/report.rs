@@ -93,6 +93,9 @@ pub struct Summary {
     pub stretch_vs_rest: VsRest,
     /// Every output frame against its input frame.
     pub shape_kept: ShapeStats,
+    /// How the lost-area bound judged the frames (none: the bound did not run).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lost_area: Option<LostAreaJudgement>,
     pub seconds_per_frame: SecondsPerFrame,
     pub timings_note: String,
     pub preview_seconds: f64,
@@ -104,6 +107,47 @@ pub struct VsRest {
     pub reference: String,
     #[serde(rename = "final")]
     pub output: RestStretchStats,
+}
+
+/// The lost-area bound's judgement of the frames, counted: each frame's share of the surface its deformation added
+/// that the capture had lost (per frame in `report.frame_lost_share`) decides how much of its deformation stands.
+/// A capture that kept its folds has most of its frames given back as captured.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LostAreaJudgement {
+    /// What the counts mean.
+    pub rule: String,
+    /// Frames whose deformation stands whole.
+    pub frames_kept: usize,
+    /// Frames whose deformation was scaled down as a whole.
+    pub frames_scaled: usize,
+    /// Frames that came back as captured: what the deformation added was not surface the capture lost.
+    pub frames_given_back: usize,
+    /// The median share over the judged frames.
+    pub median_share: f64,
+}
+
+impl LostAreaJudgement {
+    /// Counts `shares` (one per frame, `None` where the bound did not run); none when no frame was judged.
+    pub fn of_frames(shares: &[Option<f64>]) -> Option<Self> {
+        use crease_core::spacetime::shape::lost_area::{trust, TRUST_FULL, TRUST_NONE};
+        let mut judged: Vec<f64> = shares.iter().flatten().copied().collect();
+        if judged.is_empty() {
+            return None;
+        }
+        judged.sort_by(f64::total_cmp);
+        let count = |keep: fn(f64) -> bool| judged.iter().filter(|s| keep(trust(**s))).count();
+        Some(LostAreaJudgement {
+            rule: format!(
+                "per frame, the share of the surface the deformation added that the capture had lost: below \
+                 {TRUST_NONE} the frame is given back as captured, from {TRUST_FULL} its deformation stands \
+                 whole, scaled linearly between"
+            ),
+            frames_kept: count(|w| w == 1.0),
+            frames_scaled: count(|w| w > 0.0 && w < 1.0),
+            frames_given_back: count(|w| w == 0.0),
+            median_share: judged[judged.len() / 2],
+        })
+    }
 }
 
 /// Work seconds per frame of each stage, summed over tasks.

@@ -51,7 +51,14 @@ async fn assert_matches_reference(
     assert_eq!(doc["complete"], Value::Bool(true));
     let want_report: Value =
         serde_json::from_str(&serde_json::to_string(&report).unwrap()).unwrap();
-    for field in ["stretch", "frame_stretch", "anchors", "frames", "params"] {
+    for field in [
+        "stretch",
+        "frame_stretch",
+        "frame_lost_share",
+        "anchors",
+        "frames",
+        "params",
+    ] {
         assert_eq!(
             doc["report"][field], want_report[field],
             "{name}: report.{field}"

@@ -74,6 +74,18 @@ fn stretch_folds_on_the_captured_sleeve_fixture() {
     assert_eq!(report["complete"], true);
     assert_eq!(report["fold_detection"]["source"], "stretch");
     assert_eq!(report["fold_detection"]["anchors"], n_anchors);
+    // The lost-area bound judged every frame, and the summary counts those judgements.
+    let shares = report["report"]["frame_lost_share"].as_array().unwrap();
+    assert_eq!(shares.len(), ins.len());
+    assert!(shares
+        .iter()
+        .all(|s| s.as_f64().is_some_and(|s| (0.0..=1.0).contains(&s))));
+    let judged = &report["summary"]["lost_area"];
+    let counted: u64 = ["frames_kept", "frames_scaled", "frames_given_back"]
+        .iter()
+        .map(|k| judged[k].as_u64().unwrap())
+        .sum();
+    assert_eq!(counted as usize, ins.len(), "{judged}");
     // Per frame: the folds traced and the seeds tried to find them. Every fold took a
     // seed; a frame with anchors has folds; the anchors file itself does not carry these figures.
     let per_frame = report["fold_detection"]["per_frame"].as_array().unwrap();

@@ -59,6 +59,11 @@ pub struct DeformReport {
     pub stretch: Vec<StretchStats>,
     /// Per frame, the same list.
     pub frame_stretch: Vec<Vec<StretchStats>>,
+    /// Per frame, the share of the surface its deformation added that the capture had lost: the lost-area
+    /// bound's judgement ([`super::shape::lost_area::trust`]: below 0.1 the frame came back as captured, from
+    /// 0.25 its deformation stands whole). `None` where the bound did not run.
+    #[serde(default)]
+    pub frame_lost_share: Vec<Option<f64>>,
     pub timings: StageTimings,
 }
 
@@ -127,6 +132,7 @@ pub fn deform(
     let mut window_stats = Vec::with_capacity(windows.len());
     let mut seq_stretch = vec![StretchAccumulator::default(); params.stretch_passes + 1];
     let mut frame_stretch = vec![Vec::new(); n];
+    let mut frame_lost_share = vec![None; n];
     let mut kept = KeptFrames::default();
     progress.begin("weights", windows.len() as u64);
     progress.begin("position", n as u64);
@@ -204,6 +210,7 @@ pub fn deform(
                 seq_stretch[k].merge(acc);
                 frame_stretch[o.t].push(*st);
             }
+            frame_lost_share[o.t] = o.lost_share;
             if keep.contains(&o.t) {
                 kept.frames.push((o.t, o.rest, o.out));
             }
@@ -233,6 +240,7 @@ pub fn deform(
         windows: window_stats,
         stretch: seq_stretch.iter().map(|a| a.stats()).collect(),
         frame_stretch,
+        frame_lost_share,
         timings,
     };
     Ok((report, kept))

@@ -83,6 +83,10 @@ pub struct PositionedFrame {
     pub position: f64,
     pub passes: Vec<f64>,
     pub metrics: f64,
+    /// The share of the surface the frame's deformation added that the capture had lost (the lost-area bound's
+    /// judgement of the frame, [`super::shape::lost_area::trust`]); `None` where the bound did not run (no bound,
+    /// or nothing changed the frame).
+    pub lost_share: Option<f64>,
 }
 
 /// Positions frame `t` of `source` from its cross-faded rotation-vector field `phi` (Alexa blend, gradient-
@@ -157,24 +161,23 @@ pub fn position_frame(
     let changed = moved || relief || refiner.is_some();
     // The finished frame's last steps: the shape ending, then edges stretched past the cap are shortened (never
     // in a frame nothing changed).
-    let finish = |out: Frame| -> Result<Frame> {
+    let finish = |out: Frame| -> Result<(Frame, Option<f64>)> {
         if !changed {
-            return Ok(out);
+            return Ok((out, None));
         }
         let mut done = ending.finish(system.topology(), &rest, &out, heights);
         if let Some(r) = refiner {
             done = r.refine(system.topology(), t, &done)?;
         }
-        if let Some(areas) = lost_area {
-            areas.limit(system.topology(), &rest, &mut done);
-        }
+        let share = lost_area.map(|areas| areas.limit(system.topology(), &rest, &mut done));
         if let Some(l) = limit {
             l.apply(&rest, &mut done);
         }
-        Ok(done)
+        Ok((done, share))
     };
+    let mut lost_share = None;
     if passes == 0 {
-        out = finish(out)?;
+        (out, lost_share) = finish(out)?;
     }
     stretch.push(measure(&out, &mut metrics));
     let mut pass_times = Vec::with_capacity(passes);
@@ -184,7 +187,7 @@ pub fn position_frame(
             out = super::position::stretch::pass(&fp, &out, rotation, &rotations);
         }
         if k + 1 == passes {
-            out = finish(out)?;
+            (out, lost_share) = finish(out)?;
         }
         pass_times.push(clock.elapsed().as_secs_f64());
         stretch.push(measure(&out, &mut metrics));
@@ -201,6 +204,7 @@ pub fn position_frame(
         position,
         passes: pass_times,
         metrics,
+        lost_share,
     })
 }
 

@@ -9,7 +9,9 @@ use super::position::FrameTimings;
 use super::weights::WindowRecord;
 use crate::error::{JobError, TaskError};
 use crate::plan::inspect::{output_files, output_sink, writes_frames};
-use crate::report::{AnchorsSource, FoldDetection, JobReport, SecondsPerFrame, Summary, VsRest};
+use crate::report::{
+    AnchorsSource, FoldDetection, JobReport, LostAreaJudgement, SecondsPerFrame, Summary, VsRest,
+};
 use crate::spec::FoldSpec;
 use crate::storage::keys;
 use crease_core::mesh::{Frame, FrameSource};
@@ -61,6 +63,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     };
     let mut seq_stretch = vec![StretchAccumulator::default(); params.stretch_passes + 1];
     let mut frame_stretch = vec![Vec::new(); n];
+    let mut frame_lost_share = vec![None; n];
     let mut kept: Vec<(usize, Frame, Frame)> = Vec::new();
     // "Shape kept" (docs/fidelity.md): every output frame against its input frame, measured by the positioning task
     // and merged here in frame order (the same figures for any chunking and any number of workers).
@@ -113,7 +116,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             acc.merge(&a);
             stretch_of_t.push(a.stats());
         }
-        let (shape, _) = ShapeAccumulator::from_words(&words[at..]).ok_or_else(|| {
+        let (shape, used) = ShapeAccumulator::from_words(&words[at..]).ok_or_else(|| {
             TaskError::fatal(format!(
                 "{}: no shape accumulator after the {} stretch accumulators",
                 env.out.describe(&key),
@@ -121,6 +124,13 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             ))
         })?;
         shape_kept.merge(&shape);
+        let share = words.get(at + used).ok_or_else(|| {
+            TaskError::fatal(format!(
+                "{}: no lost-area judgement after the shape accumulator",
+                env.out.describe(&key)
+            ))
+        })?;
+        frame_lost_share[t] = Some(f64::from_bits(*share)).filter(|s| !s.is_nan());
         let ft: FrameTimings = env.get_json(&keys::frame_timings(t))?;
         timings.symbolic += ft.symbolic;
         timings.read += ft.read;
@@ -200,6 +210,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         windows,
         stretch: seq_stretch.iter().map(|a| a.stats()).collect(),
         frame_stretch,
+        frame_lost_share,
         timings,
     };
     let first = report.stretch.first().copied().unwrap_or_default();
@@ -254,6 +265,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
                 output: vs_rest.stats(),
             },
             shape_kept: shape_kept.stats(),
+            lost_area: LostAreaJudgement::of_frames(&report.frame_lost_share),
             seconds_per_frame: SecondsPerFrame {
                 weights: per_frame(t.weights),
                 blend: per_frame(t.blend),

@@ -239,6 +239,8 @@ fn store_frame(
         .flat_map(|(acc, _)| acc.to_words())
         .collect();
     words.extend(shape.to_words());
+    // The lost-area bound's judgement of the frame, as the bits of an f64 (NaN: the bound did not run).
+    words.push(p.lost_share.unwrap_or(f64::NAN).to_bits());
     let timings = FrameTimings {
         read: p.read,
         blend: p.blend,

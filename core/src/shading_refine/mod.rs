@@ -74,7 +74,7 @@ impl Default for ShadingRefineParams {
         ShadingRefineParams {
             rounds: 2,
             smoothness: 5.0e3,
-            stay: 1.0e4,
+            stay: 5.0e3,
             margin_px: 2.0,
             min_facing: 0.25,
             max_offset_edges: 1.5,

@@ -169,7 +169,7 @@ pub fn position_frame(
         if let Some(r) = refiner {
             done = r.refine(system.topology(), t, &done)?;
         }
-        let share = lost_area.map(|areas| areas.limit(system.topology(), &rest, &mut done));
+        let share = lost_area.and_then(|areas| areas.limit(system.topology(), &rest, &mut done));
         if let Some(l) = limit {
             l.apply(&rest, &mut done);
         }

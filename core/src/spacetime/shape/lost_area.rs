@@ -130,10 +130,16 @@ impl RestAreas {
 
     /// `out`'s displacement from `captured` scaled down, per vertex, where it adds more area than the frame
     /// lost against the rest areas, and as a whole by the frame's [`trust`]. Returns the share of the added
-    /// surface that was lost (1 where nothing was added).
-    pub fn limit(&self, topo: &Topology, captured: &[vec3::V3], out: &mut [vec3::V3]) -> f64 {
+    /// surface that was lost (1 where nothing was added); `None`, with `out` untouched, where the frames do not
+    /// have the rest areas' vertex count (nothing was judged).
+    pub fn limit(
+        &self,
+        topo: &Topology,
+        captured: &[vec3::V3],
+        out: &mut [vec3::V3],
+    ) -> Option<f64> {
         if self.rest.len() != captured.len() || out.len() != captured.len() {
-            return 1.0;
+            return None;
         }
         let before = self.rings.smoothed_areas(topo, captured);
         let after = self.rings.smoothed_areas(topo, out);
@@ -170,7 +176,7 @@ impl RestAreas {
                 *o = vec3::add(*c, vec3::scale(vec3::sub(*o, *c), scale));
             }
         }
-        lost_share
+        Some(lost_share)
     }
 }
 
@@ -315,7 +321,9 @@ mod tests {
         // Lost: half of what the ripple adds, at every vertex; the frame is trusted whole.
         let rest = rest_losing(&topo, &flat, &folded, 0.5);
         let mut out = folded.clone();
-        let share = RestAreas::from_areas(&topo, rest, 0.0).limit(&topo, &flat, &mut out);
+        let share = RestAreas::from_areas(&topo, rest, 0.0)
+            .limit(&topo, &flat, &mut out)
+            .unwrap();
         assert!((share - 0.5).abs() < 1e-9, "lost share {share}");
         assert_scaled(&out, &flat, &folded, 0.5);
     }
@@ -329,7 +337,9 @@ mod tests {
         let between = 0.5 * (TRUST_NONE + TRUST_FULL);
         let rest = rest_losing(&topo, &flat, &folded, between);
         let mut out = folded.clone();
-        let share = RestAreas::from_areas(&topo, rest, 0.0).limit(&topo, &flat, &mut out);
+        let share = RestAreas::from_areas(&topo, rest, 0.0)
+            .limit(&topo, &flat, &mut out)
+            .unwrap();
         assert!((share - between).abs() < 1e-9, "lost share {share}");
         assert_scaled(&out, &flat, &folded, between * 0.5);
 
@@ -343,7 +353,9 @@ mod tests {
             .collect();
         assert!((0..flat.len()).any(patch) && !(0..flat.len()).all(patch));
         let mut out = folded.clone();
-        let share = RestAreas::from_areas(&topo, rest, 0.0).limit(&topo, &flat, &mut out);
+        let share = RestAreas::from_areas(&topo, rest, 0.0)
+            .limit(&topo, &flat, &mut out)
+            .unwrap();
         assert!(share < TRUST_NONE, "lost share {share}");
         assert_eq!(out, flat);
         assert_eq!(trust(TRUST_NONE), 0.0);

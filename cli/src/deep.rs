@@ -107,10 +107,13 @@ pub struct TrainArgs {
     #[arg(long, default_value_t = 200)]
     pub k: usize,
     /// Regressor `apply --pose` uses: autoregressive (pose and its own previous shapes, rolled out from the
-    /// first frame), linear (pose only), blend (a weighted mean of those two) or lstm. The linear,
-    /// autoregressive and blend ones are always trained.
-    #[arg(long, default_value = "blend")]
+    /// first frame), linear (pose only), blend (a weighted mean of those two), kernel (a Gaussian kernel over
+    /// the last few poses) or lstm. All but the LSTM are always trained.
+    #[arg(long, default_value = "kernel")]
     pub regressor: RegressorKind,
+    /// Earlier frames whose poses the kernel regression compares besides the frame itself (0 is the frame).
+    #[arg(long, value_delimiter = ',', default_value = "0,2,4,6")]
+    pub kernel_window: Vec<usize>,
     /// Leading shape coefficients the autoregressive regressor feeds back (capped at --k).
     #[arg(long, default_value_t = 10)]
     pub ar_state: usize,
@@ -292,7 +295,7 @@ pub struct ApplyArgs {
     /// Normal map space: world (default) or tangent.
     #[arg(long, default_value = "world")]
     pub space: Space,
-    /// Override the model's regressor for --pose: linear, autoregressive, blend or lstm.
+    /// Override the model's regressor for --pose: linear, autoregressive, blend, kernel or lstm.
     #[arg(long)]
     pub regressor: Option<RegressorKind>,
     /// Write the coarse maps without the cGAN.
@@ -447,6 +450,7 @@ fn train_params(a: &TrainArgs) -> TrainParams {
         pose_features: a.pose_features,
         mirror: a.mirror,
         regressor: a.regressor,
+        kernel_window: a.kernel_window.clone(),
         ar_state: a.ar_state,
         ar_rollout_iters: a.ar_rollout_iters,
         blend_weight: a.blend_weight,

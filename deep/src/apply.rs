@@ -151,6 +151,11 @@ pub fn coefficients_from_poses(
             let linear: Vec<Vec<f64>> = controls.iter().map(|c| model.linear.predict(c)).collect();
             crate::regression::blend::mix(&linear, &ar.rollout(&controls), blend.weight)
         }
+        RegressorKind::Kernel => model
+            .kernel
+            .as_ref()
+            .ok_or_else(|| model.missing_regressor(regressor))?
+            .predict_sequence(&poses),
         RegressorKind::Lstm => {
             let net = model
                 .lstm

@@ -9,6 +9,7 @@
 use crate::detail::{DetailModel, DetailSpec};
 use crate::normal_maps::uv::{write_obj_with_uv, UvLayout};
 use crate::regression::autoregress::{AutoregressiveLinear, ShapeHistory};
+use crate::regression::kernel::{KernelRegression, KernelSpec};
 use crate::regression::linear::LinearRegression;
 use crate::regression::lstm::{LstmConfig, LstmRegressor};
 use crate::regression::pose::ControlSpec;
@@ -26,7 +27,7 @@ use std::sync::Arc;
 /// (`detail` in the manifest, `detail.npy`: conditioned weights and a guard) and the pose-only shape's
 /// smoothing by a cotangent diffusion (`pose_lowpass`). Older models held a filter and a smoothing tied to one
 /// data set's capture; they are refused by version, to be retrained.
-pub const MODEL_VERSION: u32 = 9;
+pub const MODEL_VERSION: u32 = 10;
 /// Oldest format this build reads.
 pub const MODEL_VERSION_MIN: u32 = 9;
 pub const MODEL_FORMAT: &str = "crease-deep-model";
@@ -57,6 +58,10 @@ pub struct Manifest {
     /// The blend regressor's weight and how it was chosen; absent before version 4.
     #[serde(default)]
     pub blend: Option<crate::regression::blend::BlendSpec>,
+    /// The kernel regression's width, ridge and standardisation (centres in `kernel_inputs.npy`, dual weights
+    /// in `kernel_dual.npy`, mean coefficients in `kernel_offset.npy`); absent before version 10.
+    #[serde(default)]
+    pub kernel: Option<KernelSpec>,
     /// The detail model `apply --coarse` runs ([`crate::detail`], weights in `detail.npy`).
     pub detail: DetailSpec,
     /// How `apply --pose` low-passes the regression's shape ([`crate::regression::pose_lowpass`]).
@@ -103,6 +108,7 @@ pub struct Model {
     pub linear: LinearRegression,
     pub autoregressive: Option<AutoregressiveLinear>,
     pub lstm: Option<LstmRegressor>,
+    pub kernel: Option<KernelRegression>,
     /// The detail model `apply --coarse` runs.
     pub detail: DetailModel,
     /// Directory the model was loaded from (for components that load lazily, like the cGAN).
@@ -270,6 +276,23 @@ pub fn write_detail(w: &mut ModelWriter, m: &DetailModel) -> Result<()> {
     w.put(
         "detail.npy",
         &npy::to_bytes(&[2, m.interior.len()], &weights),
+    )
+}
+
+/// Writes the kernel regression's arrays; its [`KernelSpec`] goes into the manifest.
+pub fn write_kernel(w: &mut ModelWriter, kr: &KernelRegression) -> Result<()> {
+    let n = kr.spec.centres;
+    w.put(
+        "kernel_inputs.npy",
+        &npy::to_bytes(&[n, kr.input_len()], &kr.inputs),
+    )?;
+    w.put(
+        "kernel_dual.npy",
+        &npy::to_bytes(&[n, kr.offset.len()], &kr.dual),
+    )?;
+    w.put(
+        "kernel_offset.npy",
+        &npy::to_bytes(&[kr.offset.len()], &kr.offset),
     )
 }
 
@@ -448,6 +471,47 @@ impl Model {
             }
             None => None,
         };
+        let kernel = match &manifest.kernel {
+            Some(spec) => {
+                let (_, inputs) =
+                    npy::from_bytes::<f64>(&p("kernel_inputs.npy"), &read("kernel_inputs.npy")?)?;
+                let (_, dual) =
+                    npy::from_bytes::<f64>(&p("kernel_dual.npy"), &read("kernel_dual.npy")?)?;
+                let (_, offset) =
+                    npy::from_bytes::<f64>(&p("kernel_offset.npy"), &read("kernel_offset.npy")?)?;
+                let kr = KernelRegression {
+                    spec: spec.clone(),
+                    inputs,
+                    dual,
+                    offset,
+                };
+                let numbers = manifest.control.pose_dim();
+                let fits = kr.check().and_then(|_| {
+                    if kr.offset.len() != k {
+                        Err(format!(
+                            "{} coefficients; the model has {k}",
+                            kr.offset.len()
+                        ))
+                    } else if kr.spec.mean.len() != numbers {
+                        Err(format!(
+                            "{} pose numbers; the control spec gives {numbers}",
+                            kr.spec.mean.len()
+                        ))
+                    } else {
+                        Ok(())
+                    }
+                });
+                fits.map_err(|e| {
+                    Error::format(
+                        p("kernel_dual.npy"),
+                        None,
+                        format!("does not fit the manifest's `kernel`: {e}"),
+                    )
+                })?;
+                Some(kr)
+            }
+            None => None,
+        };
         if let Some(c) = &manifest.cgan {
             read("cgan.safetensors")?;
             c.config
@@ -509,6 +573,7 @@ impl Model {
             linear,
             autoregressive,
             lstm,
+            kernel,
             detail,
             dir: dir.to_path_buf(),
         })
@@ -537,6 +602,7 @@ impl Model {
                 }
             },
             RegressorKind::Blend => self.autoregressive.is_some() && self.manifest.blend.is_some(),
+            RegressorKind::Kernel => self.kernel.is_some(),
         };
         if has {
             Ok(())
@@ -548,10 +614,12 @@ impl Model {
     /// The error for a regressor the model lacks.
     pub fn missing_regressor(&self, kind: RegressorKind) -> Error {
         let why = match kind {
-            RegressorKind::Autoregressive | RegressorKind::Blend => format!(
-                "format version {} models have none; retrain it with this crease",
-                self.manifest.version
-            ),
+            RegressorKind::Autoregressive | RegressorKind::Blend | RegressorKind::Kernel => {
+                format!(
+                    "format version {} models have none; retrain it with this crease",
+                    self.manifest.version
+                )
+            }
             _ => "it was trained without one".to_string(),
         };
         Error::format(

@@ -148,14 +148,14 @@ fn models_of_older_versions_are_refused_by_version_and_missing_regressors_by_nam
     let path = dir.join("manifest.json");
     let mut manifest: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
-    manifest["version"] = (crease_deep::model::MODEL_VERSION - 1).into();
+    manifest["version"] = (crease_deep::model::MODEL_VERSION_MIN - 1).into();
     std::fs::write(&path, manifest.to_string()).unwrap();
     let e = Model::load(&dir).err().unwrap().to_string();
     assert!(
         e.contains("manifest.json")
             && e.contains(&format!(
                 "version {}",
-                crease_deep::model::MODEL_VERSION - 1
+                crease_deep::model::MODEL_VERSION_MIN - 1
             ))
             && e.contains("retrain"),
         "{e}"

@@ -19,6 +19,7 @@ fn params() -> TrainParams {
         ridge: 1e-6,
         ar_state: 2,
         resolution: 16,
+        regressor: RegressorKind::Blend,
         ..Default::default()
     }
 }
@@ -46,11 +47,11 @@ fn the_blend_mixes_the_stored_parts_by_its_weight_and_its_ends_are_the_parts() {
         leaky_sequence(&tmp.path().join("b"), 60, 0.13, 1.0),
     ];
     let held = leaky_sequence(&tmp.path().join("held"), 60, 0.17, 2.0);
-    // The default: the blend with the even weight.
+    // The blend with its default even weight.
     let even = tmp.path().join("even");
     train(&seqs, &params(), &even, &NoProgress).unwrap();
     let even = Model::load(&even).unwrap();
-    assert_eq!(even.manifest.regressor, RegressorKind::Blend, "the default");
+    assert_eq!(even.manifest.regressor, RegressorKind::Blend);
     let b = even.manifest.blend.clone().unwrap();
     assert_eq!((b.weight, b.method.as_str()), (0.5, "fixed"));
 

@@ -203,8 +203,10 @@ fn deep_jobs_on_two_workers_write_the_bytes_of_the_single_node_commands() {
         "same files, sizes and hashes"
     );
     assert!(m_ref["files"]["cgan.safetensors"].is_object());
-    // The default regressor: the pose chunks below each roll it out from the first frame.
-    assert_eq!(m_ref["regressor"], "blend");
+    // The default regressor: the pose chunks below each read the poses of the frames before theirs (its
+    // window); the autoregressive regressor the blend rolls out is stored too.
+    assert_eq!(m_ref["regressor"], "kernel");
+    assert!(m_ref["files"]["kernel_dual.npy"].is_object());
     assert!(m_ref["files"]["autoregressive.npy"].is_object());
     for (f, _) in m_ref["files"].as_object().unwrap() {
         assert!(

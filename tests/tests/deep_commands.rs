@@ -167,7 +167,7 @@ fn train_apply_writes_the_output_contract_deterministically() {
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
-    assert_eq!(manifest["version"], 9);
+    assert_eq!(manifest["version"], 10);
     // The synthetic shapes are affine in the two pose numbers that move (a, b): the subspace keeps only
     // components with non-negligible variance, so k is capped at that rank.
     assert_eq!(manifest["k"], 2);
@@ -265,7 +265,7 @@ fn obj_vertices(path: &Path) -> Vec<[f64; 3]> {
 }
 
 #[test]
-fn apply_rolls_out_the_autoregressive_regressor_and_blends_it_by_default() {
+fn apply_rolls_out_the_autoregressive_regressor_and_uses_the_kernel_by_default() {
     let tmp = tempfile::tempdir().unwrap();
     let a = training_dir(tmp.path(), "a", 16, 0.0);
     let b = training_dir(tmp.path(), "b", 16, 1.0);
@@ -293,7 +293,11 @@ fn apply_rolls_out_the_autoregressive_regressor_and_blends_it_by_default() {
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
-    assert_eq!(manifest["regressor"], "blend", "the default");
+    assert_eq!(manifest["regressor"], "kernel", "the default");
+    assert_eq!(
+        manifest["kernel"]["window"],
+        serde_json::json!([0, 2, 4, 6])
+    );
     assert_eq!(manifest["pose_lowpass"]["half_wavelength"], 0.0);
     assert_eq!(manifest["blend"]["weight"], 0.5);
     // k is capped at the data's rank (2), and the fed-back state at k.
@@ -326,10 +330,12 @@ fn apply_rolls_out_the_autoregressive_regressor_and_blends_it_by_default() {
     let default = tree_bytes(&apply("out-default", &[]));
     assert_eq!(
         default,
-        tree_bytes(&apply("out-blend", &["--regressor", "blend"])),
-        "the default is the blend regressor"
+        tree_bytes(&apply("out-kernel", &["--regressor", "kernel"])),
+        "the default is the kernel regressor"
     );
-    assert_ne!(default, tree_bytes(&rolled), "the blend is not the rollout");
+    let blend = tree_bytes(&apply("out-blend", &["--regressor", "blend"]));
+    assert_ne!(blend, tree_bytes(&rolled), "the blend is not the rollout");
+    assert_ne!(default, blend, "the kernel is not the blend");
     // The rollout follows the training sequence's ripples (4 mm) and bulge (10 mm) from pose alone: far closer
     // to each frame than the training mean shape (the model's template.obj) is.
     let dist = |x: &[[f64; 3]], y: &[[f64; 3]]| -> f64 {
@@ -602,7 +608,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
     }
     let m = std::fs::read_to_string(old.join("manifest.json"))
         .unwrap()
-        .replace("\"version\": 9", "\"version\": 99");
+        .replace("\"version\": 10", "\"version\": 99");
     std::fs::write(old.join("manifest.json"), m).unwrap();
     fails(
         &[
@@ -615,7 +621,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
             "--out",
             s(&tmp.path().join("o4")),
         ],
-        &["manifest.json", "version 99", "versions 9 to 9"],
+        &["manifest.json", "version 99", "versions 9 to 10"],
     );
 
     // A half-written model (no manifest) is not a model; a damaged file is caught by the manifest.

@@ -13,6 +13,8 @@ pub enum RegressorKind {
     Lstm,
     /// Weighted mean of the linear map and the autoregressive rollout ([`crate::regression::blend`]).
     Blend,
+    /// Gaussian kernel ridge regression over a short window of poses ([`crate::regression::kernel`]).
+    Kernel,
 }
 
 impl RegressorKind {
@@ -22,6 +24,7 @@ impl RegressorKind {
             RegressorKind::Autoregressive => "autoregressive",
             RegressorKind::Lstm => "lstm",
             RegressorKind::Blend => "blend",
+            RegressorKind::Kernel => "kernel",
         }
     }
 }
@@ -34,8 +37,9 @@ impl std::str::FromStr for RegressorKind {
             "autoregressive" => Ok(RegressorKind::Autoregressive),
             "lstm" => Ok(RegressorKind::Lstm),
             "blend" => Ok(RegressorKind::Blend),
+            "kernel" => Ok(RegressorKind::Kernel),
             _ => Err(format!(
-                "unknown regressor `{s}` (linear, autoregressive, blend or lstm)"
+                "unknown regressor `{s}` (kernel, linear, autoregressive, blend or lstm)"
             )),
         }
     }

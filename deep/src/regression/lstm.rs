@@ -78,10 +78,13 @@ impl LstmConfig {
         if !(self.lr.is_finite() && self.lr > 0.0) {
             return Err(Error::param("lstm.lr", "must be a positive number"));
         }
-        if self.residual_of == Some(RegressorKind::Lstm) {
+        if let Some(r @ (RegressorKind::Lstm | RegressorKind::Kernel)) = self.residual_of {
             return Err(Error::param(
                 "lstm.residual_of",
-                "the LSTM cannot correct itself (linear, autoregressive or blend)",
+                format!(
+                    "the LSTM corrects the linear, autoregressive or blend regressor, not the {}",
+                    r.name()
+                ),
             ));
         }
         Ok(())

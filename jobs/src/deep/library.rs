@@ -23,6 +23,7 @@ impl From<Regressor> for RegressorKind {
             Regressor::Autoregressive => RegressorKind::Autoregressive,
             Regressor::Lstm => RegressorKind::Lstm,
             Regressor::Blend => RegressorKind::Blend,
+            Regressor::Kernel => RegressorKind::Kernel,
         }
     }
 }
@@ -78,6 +79,7 @@ pub fn train_params(p: &DeepTrainParams, uv: Option<PathBuf>) -> TrainParams {
         pose_features: p.pose_features.into(),
         mirror: p.mirror.into(),
         regressor: p.regressor.into(),
+        kernel_window: p.kernel_window.clone(),
         ar_state: p.ar_state,
         ar_rollout_iters: p.ar_rollout_iters,
         blend_weight: p.blend_weight,
@@ -159,7 +161,13 @@ mod tests {
         let c = CganConfig::default();
         let d = DeepTrainParams::default();
         let want = (
-            (t.k, t.regressor, t.ar_state, t.ar_rollout_iters),
+            (
+                t.k,
+                t.regressor,
+                t.ar_state,
+                t.ar_rollout_iters,
+                t.kernel_window,
+            ),
             (t.blend_weight, t.blend_fit, t.lags, t.pose_history, t.ridge),
             (t.pose_features, t.mirror),
             (
@@ -187,6 +195,7 @@ mod tests {
                 RegressorKind::from(d.regressor),
                 d.ar_state,
                 d.ar_rollout_iters,
+                d.kernel_window.clone(),
             ),
             (
                 d.blend_weight,

@@ -73,6 +73,8 @@ pub enum Regressor {
     Lstm,
     /// Weighted mean of the linear map and the autoregressive rollout.
     Blend,
+    /// Gaussian kernel ridge regression over a short window of poses.
+    Kernel,
 }
 
 /// What the pose numbers become before the regression (`--pose-features`).
@@ -119,6 +121,7 @@ pub enum ApplyFrom {
 pub struct DeepTrainParams {
     pub k: usize,
     pub regressor: Regressor,
+    pub kernel_window: Vec<usize>,
     pub ar_state: usize,
     pub ar_rollout_iters: usize,
     pub blend_weight: f64,
@@ -156,7 +159,8 @@ impl Default for DeepTrainParams {
     fn default() -> Self {
         DeepTrainParams {
             k: 200,
-            regressor: Regressor::Blend,
+            regressor: Regressor::Kernel,
+            kernel_window: vec![0, 2, 4, 6],
             ar_state: 10,
             ar_rollout_iters: 20,
             blend_weight: 0.5,
@@ -172,7 +176,7 @@ impl Default for DeepTrainParams {
             lstm_epochs: 300,
             lstm_lr: 1e-3,
             pose_components: 0,
-            pose_lowpass: 0.0,
+            pose_lowpass: 6.0,
             detail_degree: 16,
             detail_captures: 1,
             seed: 1,

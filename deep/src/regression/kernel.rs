@@ -1,0 +1,383 @@
+//! Kernel ridge regression from a short window of poses to subspace coefficients.
+//!
+//! How the sleeve folds is not linear in the pose: where along the arm the cloth bunches depends on how far the
+//! cuff has travelled *and* how far it has turned, and on how it got there over the last few frames. The linear
+//! map (Lähner et al. §3.3) can only add those effects up; the autoregressive rollout carries the history but
+//! drifts. A Gaussian kernel over a window of recent poses lets nearby pose trajectories share their shapes
+//! and far ones not, with no feedback and so no drift: the prediction of frame t reads poses t − w … t only.
+//!
+//! The inputs are the pose file's own numbers (not the rigid features' products and sines, which would count
+//! the location several times in a distance and fold the angle's sign into a cosine: on sleeve-train the
+//! location and the sine and cosine of the twist measured 3.84–3.88 mm held out where the location and the
+//! angle measured 3.51 mm), each standardised on the training poses, at the frame and at a few earlier frames
+//! (`window`). The kernel is exp(−(w / d)‖x − y‖²) for inputs of d numbers, so its relative width w means the
+//! same for any window and pose size; w and the ridge λ are chosen by an inner leave-one-sequence-out over the
+//! training sequences (a sequence and its reflection held out together): nothing of the held-out motion
+//! decides them.
+
+use crease_core::{Error, Result};
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Relative kernel widths tried by the inner leave-one-out (γ · d: the inverse squared distance, in standard
+/// deviations per input number, at which two frames' weights fall to 1/e).
+pub const WIDTHS: [f64; 5] = [0.125, 0.25, 0.5, 1.0, 2.0];
+/// Ridges tried (the kernel's diagonal is 1).
+pub const RIDGES: [f64; 3] = [1e-3, 1e-2, 1e-1];
+/// Width and ridge when there is no second training sequence to choose them on.
+pub const FALLBACK: (f64, f64) = (0.5, 1e-2);
+
+/// The scalar part of a kernel regression, stored in the model's manifest; its arrays are files.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct KernelSpec {
+    /// Earlier frames whose poses join the input (0 is the frame itself; clamped at the first frame).
+    pub window: Vec<usize>,
+    /// Per pose number: mean and scale (1 / std, 0 for a constant number).
+    pub mean: Vec<f64>,
+    pub scale: Vec<f64>,
+    /// Relative width (γ · d) and ridge.
+    pub width: f64,
+    pub ridge: f64,
+    /// Training frames (the kernel's centres).
+    pub centres: usize,
+    /// `inner-leave-one-out` or `fixed` (fewer than two training sequences).
+    pub method: String,
+    /// Inner leave-one-out error of every (width, ridge) tried: mean squared coefficient error (m², the
+    /// subspace's basis is orthonormal, so per vertex coordinate summed over the coefficients), for people
+    /// judging how sharp the choice was; empty when fixed.
+    #[serde(default)]
+    pub scores: Vec<[f64; 3]>,
+}
+
+/// γ, the centres, their dual weights and the coefficients' mean.
+#[derive(Debug, Clone, PartialEq)]
+pub struct KernelRegression {
+    pub spec: KernelSpec,
+    /// Centres, `centres × input_len`, row-major.
+    pub inputs: Vec<f64>,
+    /// Dual weights, `centres × k`, row-major.
+    pub dual: Vec<f64>,
+    /// Mean training coefficients (k).
+    pub offset: Vec<f64>,
+}
+
+/// Inputs of every frame of one sequence of pose numbers: the standardised numbers at each window lag.
+pub fn window_inputs(
+    numbers: &[Vec<f64>],
+    mean: &[f64],
+    scale: &[f64],
+    window: &[usize],
+) -> Vec<Vec<f64>> {
+    let z: Vec<Vec<f64>> = numbers
+        .iter()
+        .map(|r| {
+            r.iter()
+                .zip(mean.iter().zip(scale))
+                .map(|(x, (m, s))| (x - m) * s)
+                .collect()
+        })
+        .collect();
+    (0..z.len())
+        .map(|t| {
+            window
+                .iter()
+                .flat_map(|&lag| z[t.saturating_sub(lag)].iter().copied())
+                .collect()
+        })
+        .collect()
+}
+
+fn sq_dist(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
+}
+
+/// Dual weights (K + λI)⁻¹ (Y − offset) for centres `x` (n × d), targets `y` (n × k), at γ = width / d.
+fn solve(x: &[Vec<f64>], y: &[Vec<f64>], width: f64, ridge: f64) -> Result<(Mat<f64>, Vec<f64>)> {
+    let (n, k) = (x.len(), y[0].len());
+    let gamma = width / x[0].len().max(1) as f64;
+    let offset: Vec<f64> = (0..k)
+        .map(|j| y.iter().map(|r| r[j]).sum::<f64>() / n as f64)
+        .collect();
+    let rows: Vec<Vec<f64>> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            (0..n)
+                .map(|j| (-gamma * sq_dist(&x[i], &x[j])).exp() + if i == j { ridge } else { 0.0 })
+                .collect()
+        })
+        .collect();
+    let kmat = Mat::<f64>::from_fn(n, n, |i, j| rows[i][j]);
+    let rhs = Mat::<f64>::from_fn(n, k, |i, j| y[i][j] - offset[j]);
+    let llt = kmat.llt(Side::Lower).map_err(|e| Error::Numeric {
+        stage: "kernel regression".into(),
+        msg: format!("Cholesky factorisation of the kernel matrix: {e:?}"),
+    })?;
+    Ok((llt.solve(&rhs), offset))
+}
+
+fn predict_with(
+    centres: &[Vec<f64>],
+    dual: &Mat<f64>,
+    offset: &[f64],
+    gamma: f64,
+    x: &[f64],
+) -> Vec<f64> {
+    let mut out = offset.to_vec();
+    for (i, c) in centres.iter().enumerate() {
+        let w = (-gamma * sq_dist(c, x)).exp();
+        if w < 1e-300 {
+            continue;
+        }
+        for (j, o) in out.iter_mut().enumerate() {
+            *o += w * dual[(i, j)];
+        }
+    }
+    out
+}
+
+/// One training sequence's inputs and target coefficients; `group` ties a sequence to its reflection.
+pub struct KernelData<'a> {
+    pub inputs: &'a [Vec<f64>],
+    pub targets: &'a [Vec<f64>],
+    pub group: usize,
+}
+
+impl KernelRegression {
+    /// Fits on every sequence of `data` with the width and ridge that predicted the held-out groups best in
+    /// an inner leave-one-group-out (or [`FALLBACK`] with a single group).
+    pub fn fit(
+        data: &[KernelData<'_>],
+        window: Vec<usize>,
+        mean: Vec<f64>,
+        scale: Vec<f64>,
+    ) -> Result<Self> {
+        if data.iter().any(|d| d.inputs.len() != d.targets.len()) || data.is_empty() {
+            return Err(Error::param(
+                "kernel regression",
+                "every training sequence needs one input per target",
+            ));
+        }
+        let mut groups: Vec<usize> = data.iter().map(|d| d.group).collect();
+        groups.sort_unstable();
+        groups.dedup();
+        let (width, ridge, method, scores) = if groups.len() < 2 {
+            (FALLBACK.0, FALLBACK.1, "fixed", Vec::new())
+        } else {
+            let mut scores = Vec::new();
+            for &w in &WIDTHS {
+                for &r in &RIDGES {
+                    let mut sse = 0.0;
+                    let mut count = 0usize;
+                    for &g in &groups {
+                        let (x, y) = gather(data, |d| d.group != g);
+                        let (dual, offset) = solve(&x, &y, w, r)?;
+                        let gamma = w / x[0].len().max(1) as f64;
+                        for d in data.iter().filter(|d| d.group == g) {
+                            for (xi, yi) in d.inputs.iter().zip(d.targets) {
+                                let p = predict_with(&x, &dual, &offset, gamma, xi);
+                                sse += sq_dist(&p, yi);
+                                count += 1;
+                            }
+                        }
+                    }
+                    scores.push([w, r, sse / count.max(1) as f64]);
+                }
+            }
+            let best = scores
+                .iter()
+                .filter(|s| s[2].is_finite())
+                .min_by(|a, b| a[2].total_cmp(&b[2]))
+                .copied()
+                .ok_or_else(|| Error::Numeric {
+                    stage: "kernel regression".into(),
+                    msg: "no width and ridge gave a finite held-out error".into(),
+                })?;
+            (best[0], best[1], "inner-leave-one-out", scores)
+        };
+        let (x, y) = gather(data, |_| true);
+        let (dual, offset) = solve(&x, &y, width, ridge)?;
+        let k = offset.len();
+        Ok(KernelRegression {
+            spec: KernelSpec {
+                window,
+                mean,
+                scale,
+                width,
+                ridge,
+                centres: x.len(),
+                method: method.into(),
+                scores,
+            },
+            inputs: x.iter().flat_map(|r| r.iter().copied()).collect(),
+            dual: (0..x.len())
+                .flat_map(|i| (0..k).map(move |j| (i, j)))
+                .map(|(i, j)| dual[(i, j)])
+                .collect(),
+            offset,
+        })
+    }
+
+    /// Length of one input (pose numbers × window).
+    pub fn input_len(&self) -> usize {
+        self.spec.mean.len() * self.spec.window.len()
+    }
+
+    /// Coefficients of every frame of one sequence of pose numbers.
+    pub fn predict_sequence(&self, numbers: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let d = self.input_len();
+        let gamma = self.spec.width / d.max(1) as f64;
+        let k = self.offset.len();
+        window_inputs(
+            numbers,
+            &self.spec.mean,
+            &self.spec.scale,
+            &self.spec.window,
+        )
+        .par_iter()
+        .map(|x| {
+            let mut out = self.offset.clone();
+            for (c, w) in self.inputs.chunks_exact(d).zip(self.dual.chunks_exact(k)) {
+                let a = (-gamma * sq_dist(c, x)).exp();
+                if a < 1e-300 {
+                    continue;
+                }
+                for (o, wj) in out.iter_mut().zip(w) {
+                    *o += a * wj;
+                }
+            }
+            out
+        })
+        .collect()
+    }
+
+    /// Checks the arrays against the spec (a loaded model).
+    pub fn check(&self) -> std::result::Result<(), String> {
+        let s = &self.spec;
+        if s.mean.len() != s.scale.len() || s.window.is_empty() {
+            return Err(format!(
+                "{} means, {} scales, window {:?}",
+                s.mean.len(),
+                s.scale.len(),
+                s.window
+            ));
+        }
+        if self.inputs.len() != s.centres * self.input_len()
+            || self.dual.len() != s.centres * self.offset.len()
+        {
+            return Err(format!(
+                "{} input numbers and {} dual weights for {} centres of {} numbers and {} coefficients",
+                self.inputs.len(),
+                self.dual.len(),
+                s.centres,
+                self.input_len(),
+                self.offset.len()
+            ));
+        }
+        if !(s.width.is_finite() && s.width > 0.0 && s.ridge.is_finite() && s.ridge >= 0.0) {
+            return Err(format!("width {} or ridge {}", s.width, s.ridge));
+        }
+        Ok(())
+    }
+}
+
+fn gather(
+    data: &[KernelData<'_>],
+    keep: impl Fn(&KernelData<'_>) -> bool,
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let (mut x, mut y) = (Vec::new(), Vec::new());
+    for d in data.iter().filter(|d| keep(d)) {
+        x.extend(d.inputs.iter().cloned());
+        y.extend(d.targets.iter().cloned());
+    }
+    (x, y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::regression::pose::ControlSpec;
+
+    /// A target that is a nonlinear function of the last two poses: the linear map cannot fit it, the kernel
+    /// must, from other sequences.
+    fn sequence(phase: f64, amp: f64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+        let poses: Vec<Vec<f64>> = (0..60)
+            .map(|t| {
+                let s = (t as f64 * 0.15 + phase).sin() * amp;
+                vec![s, (t as f64 * 0.07 + 2.0 * phase).cos()]
+            })
+            .collect();
+        let targets = (0..60)
+            .map(|t| {
+                let (p, q) = (&poses[t], &poses[t.saturating_sub(2)]);
+                vec![p[0] * p[1], (p[0] - q[0]).powi(2), p[1].sin()]
+            })
+            .collect();
+        (poses, targets)
+    }
+
+    #[test]
+    fn a_nonlinear_function_of_the_window_is_learned_from_other_sequences() {
+        let seqs: Vec<_> = (0..5)
+            .map(|i| sequence(0.7 * i as f64, 1.0 + 0.1 * i as f64))
+            .collect();
+        let refs: Vec<&[Vec<f64>]> = seqs[..4].iter().map(|s| s.0.as_slice()).collect();
+        let ControlSpec { mean, scale, .. } = ControlSpec::fit(&refs, vec![]).unwrap();
+        let window = vec![0, 2];
+        let inputs: Vec<Vec<Vec<f64>>> = seqs
+            .iter()
+            .map(|s| window_inputs(&s.0, &mean, &scale, &window))
+            .collect();
+        let data: Vec<KernelData> = (0..4)
+            .map(|i| KernelData {
+                inputs: &inputs[i],
+                targets: &seqs[i].1,
+                group: i,
+            })
+            .collect();
+        let m = KernelRegression::fit(&data, window, mean, scale).unwrap();
+        assert_eq!(m.spec.method, "inner-leave-one-out");
+        assert_eq!(m.spec.scores.len(), WIDTHS.len() * RIDGES.len());
+        m.check().unwrap();
+        let pred = m.predict_sequence(&seqs[4].0);
+        let err: f64 = pred
+            .iter()
+            .zip(&seqs[4].1)
+            .map(|(p, t)| sq_dist(p, t))
+            .sum::<f64>();
+        let spread: f64 = {
+            let mean: Vec<f64> = (0..3)
+                .map(|j| seqs[4].1.iter().map(|t| t[j]).sum::<f64>() / 60.0)
+                .collect();
+            seqs[4].1.iter().map(|t| sq_dist(t, &mean)).sum()
+        };
+        assert!(
+            err < 0.1 * spread,
+            "held-out error {err} against the targets' spread {spread}"
+        );
+    }
+
+    #[test]
+    fn one_group_takes_the_fixed_width_and_reproduces_its_training_frames() {
+        let (poses, targets) = sequence(0.3, 1.0);
+        let ControlSpec { mean, scale, .. } =
+            ControlSpec::fit(&[poses.as_slice()], vec![]).unwrap();
+        let inputs = window_inputs(&poses, &mean, &scale, &[0]);
+        let data = [KernelData {
+            inputs: &inputs,
+            targets: &targets,
+            group: 0,
+        }];
+        let m = KernelRegression::fit(&data, vec![0], mean, scale).unwrap();
+        assert_eq!((m.spec.width, m.spec.ridge), FALLBACK);
+        assert_eq!(m.spec.method, "fixed");
+        let pred = m.predict_sequence(&poses);
+        let worst = pred
+            .iter()
+            .zip(&targets)
+            .map(|(p, t)| sq_dist(p, t).sqrt())
+            .fold(0.0, f64::max);
+        assert!(worst < 0.2, "training frame off by {worst}");
+    }
+}

@@ -555,6 +555,14 @@ fn apply_cmd(a: ApplyArgs) -> Result<()> {
         a.out.display(),
         1e3 * t0.elapsed().as_secs_f64() / n.max(1) as f64
     ));
+    if let Some((t, d)) = summary.outside.first() {
+        // Said even with --quiet: these shapes are not a prediction the model can stand behind.
+        eprintln!(
+            "{} of {n} frames have poses outside what the kernel regressor learned (frame {}: {d:.2} training standard deviations from the nearest training frame's); their shapes are close to the mean shape",
+            summary.outside.len(),
+            t + 1
+        );
+    }
     if !summary.fallback.is_empty() {
         // Said even with --quiet: the maps of these frames are not what the model would make.
         eprintln!(

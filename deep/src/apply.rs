@@ -188,6 +188,26 @@ pub fn coefficients_from_poses(
     Ok(coeffs)
 }
 
+/// Frames of a pose file whose recent poses lie further than [`crate::regression::kernel::OUTSIDE`] from every
+/// training frame's, with their distance; none for the other regressors (their maps extrapolate linearly).
+fn poses_outside(
+    model: &Model,
+    pose_path: &Path,
+    regressor: RegressorKind,
+) -> Result<Vec<(usize, f64)>> {
+    let kernel = match (regressor, &model.kernel) {
+        (RegressorKind::Kernel, Some(k)) => k,
+        _ => return Ok(Vec::new()),
+    };
+    let poses = read_pose_file(pose_path, None)?;
+    Ok(kernel
+        .distances(&poses)
+        .into_iter()
+        .enumerate()
+        .filter(|(_, d)| *d > crate::regression::kernel::OUTSIDE)
+        .collect())
+}
+
 /// Opens coarse meshes and checks them against the model's topology, naming the file on a mismatch.
 pub fn open_coarse(model: &Model, dir: &Path) -> Result<Box<dyn FrameSource>> {
     let opened = open_sequence(dir)?;
@@ -217,6 +237,10 @@ pub struct ApplySummary {
     pub frames: usize,
     /// (0-based frame, reason) of every frame the detail model's guard sent back to the input's normals.
     pub fallback: Vec<(usize, String)>,
+    /// (0-based frame, distance) of every pose-path frame whose recent poses lie outside what the kernel
+    /// regressor learned ([`crate::regression::kernel::OUTSIDE`] training standard deviations from every
+    /// training frame's): its shape is little more than the mean shape.
+    pub outside: Vec<(usize, f64)>,
 }
 
 /// Runs the model on `input` and writes frames (all, or `params.frames`) into `out`. A coarse frame whose scale
@@ -240,6 +264,14 @@ pub fn apply(
     };
     let n = shapes.n_frames();
     let range = params.frames.clone().unwrap_or(0..n);
+    let outside = match input {
+        ApplyInput::Pose(p) => poses_outside(
+            model,
+            p,
+            params.regressor.unwrap_or(model.manifest.regressor),
+        )?,
+        ApplyInput::Coarse(_) => Vec::new(),
+    };
     if range.start >= range.end || range.end > n {
         return Err(Error::param(
             "frames",
@@ -366,8 +398,19 @@ pub fn apply(
     if params.frames.is_none() {
         contract::finish(out, n, params.space, res, "crease deep apply")?;
     }
+    if let Some((t, d)) = outside.iter().find(|(t, _)| range.contains(t)) {
+        progress.note(&format!(
+            "frame {} and {} more: the poses lie outside what the kernel regressor learned ({d:.2} training standard deviations from the nearest training frame's); those shapes are close to the mean shape",
+            t + 1,
+            outside.iter().filter(|(u, _)| range.contains(u)).count() - 1
+        ));
+    }
     Ok(ApplySummary {
         frames: range.len(),
+        outside: outside
+            .into_iter()
+            .filter(|(t, _)| range.contains(t))
+            .collect(),
         fallback: range
             .zip(fallbacks)
             .filter_map(|(t, f)| f.map(|r| (t, r)))

@@ -7,9 +7,9 @@ mod support;
 
 use crease_core::progress::NoProgress;
 use crease_core::vec3::V3;
-use crease_deep::apply::shapes_from_poses;
+use crease_deep::apply::{apply, shapes_from_poses, ApplyInput, ApplyParams};
 use crease_deep::model::{Model, RegressorKind, MODEL_VERSION};
-use crease_deep::regression::kernel::{RIDGES, WIDTHS};
+use crease_deep::regression::kernel::{OUTSIDE, RIDGES, WIDTHS};
 use crease_deep::train::{fit, train, TrainParams, TrainingSequence};
 use std::path::Path;
 
@@ -98,6 +98,34 @@ fn the_stored_kernel_reproduces_its_fit_and_beats_the_linear_map_on_an_unseen_mo
         e_kernel < 0.5 * e_lin,
         "kernel {e_kernel} vs linear {e_lin}"
     );
+
+    // `apply --pose` says which frames lie outside what the kernel learned: none of a motion like the
+    // training ones, the frames of a travel five times as long.
+    let run = |pose: &Path, name: &str| {
+        apply(
+            &model,
+            &ApplyInput::Pose(pose.to_path_buf()),
+            &ApplyParams::default(),
+            &tmp.path().join(name),
+            &NoProgress,
+        )
+        .unwrap()
+    };
+    assert!(run(&pose, "near").outside.is_empty());
+    let far: Vec<Vec<f64>> = held.poses.iter().map(|p| vec![5.0 * p[0], p[1]]).collect();
+    let far_pose = tmp.path().join("far.json");
+    std::fs::write(
+        &far_pose,
+        serde_json::json!({ "pose_vectors": far }).to_string(),
+    )
+    .unwrap();
+    let outside = run(&far_pose, "far").outside;
+    assert!(
+        !outside.is_empty() && outside.iter().all(|(_, d)| *d > OUTSIDE),
+        "{outside:?}"
+    );
+    // Where the travel is small the five-fold motion stays among the trained ones.
+    assert!(outside.len() < 70, "{}", outside.len());
 }
 
 #[test]

@@ -179,6 +179,8 @@ pub fn apply(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<String>)
         "ms_per_frame": 1e3 * seconds / frames.len().max(1) as f64,
         // Frames the detail model's guard gave the input's own normals (their OBJ says why too).
         "fallback_frames": applied.fallback.iter().map(|(t, _)| t + 1).collect::<Vec<_>>(),
+        // Pose frames outside what the kernel regressor learned (near the mean shape).
+        "outside_frames": applied.outside.iter().map(|(t, _)| t + 1).collect::<Vec<_>>(),
     });
     Ok((summary, written))
 }

@@ -119,7 +119,7 @@ impl Default for TrainParams {
             pose_features: PoseFeatureMode::Auto,
             mirror: MirrorMode::Auto,
             // The kernel regression over the poses of frames t, t − 2, t − 4, t − 6: leaving each of
-            // sleeve-train's seven sequences out in turn (trained on the other six, mirrored), 3.61 mm of
+            // sleeve-train's seven sequences out in turn (trained on the other six, mirrored), 3.55 mm of
             // vertex error against the even blend's 4.31 mm, lower on every split
             // (bench/results/2026-12-07-deep-kernel-regression.md). The blend stays available: its even
             // weight measured 6.85 mm over two-sequence splits against the rollout's 7.20 mm.

@@ -62,6 +62,7 @@ fn params() -> TrainParams {
         k: 16,
         resolution: 64,
         pose_lowpass: LOWPASS,
+        regressor: RegressorKind::Blend,
         ..Default::default()
     }
 }

@@ -233,28 +233,33 @@ impl KernelRegression {
         self.spec.mean.len() * self.spec.window.len()
     }
 
-    /// Per frame of one sequence of pose numbers: how far its input lies from the nearest training frame's, as
-    /// the root mean square over the varying numbers, in training standard deviations. Held-out motions of
-    /// sleeve-train stay within 0.3; a twist twice as large as any trained reaches 1.3–1.5.
-    pub fn distances(&self, numbers: &[Vec<f64>]) -> Vec<f64> {
-        let d = self.input_len();
-        let varying = varying_len(&self.spec.scale, &self.spec.window) as f64;
+    /// The inputs of every frame of one sequence of pose numbers, standardised as the training poses were.
+    fn window_inputs(&self, numbers: &[Vec<f64>]) -> Vec<Vec<f64>> {
         window_inputs(
             numbers,
             &self.spec.mean,
             &self.spec.scale,
             &self.spec.window,
         )
-        .par_iter()
-        .map(|x| {
-            let nearest = self
-                .inputs
-                .chunks_exact(d)
-                .map(|c| sq_dist(c, x))
-                .fold(f64::INFINITY, f64::min);
-            (nearest / varying).sqrt()
-        })
-        .collect()
+    }
+
+    /// Per frame of one sequence of pose numbers: how far its input lies from the nearest training frame's, as
+    /// the root mean square over the varying numbers, in training standard deviations. Held-out motions of
+    /// sleeve-train stay within 0.3; a twist twice as large as any trained reaches 1.3–1.5.
+    pub fn distances(&self, numbers: &[Vec<f64>]) -> Vec<f64> {
+        let d = self.input_len();
+        let varying = varying_len(&self.spec.scale, &self.spec.window) as f64;
+        self.window_inputs(numbers)
+            .par_iter()
+            .map(|x| {
+                let nearest = self
+                    .inputs
+                    .chunks_exact(d)
+                    .map(|c| sq_dist(c, x))
+                    .fold(f64::INFINITY, f64::min);
+                (nearest / varying).sqrt()
+            })
+            .collect()
     }
 
     /// Coefficients of every frame of one sequence of pose numbers.
@@ -262,27 +267,22 @@ impl KernelRegression {
         let d = self.input_len();
         let gamma = self.spec.width / varying_len(&self.spec.scale, &self.spec.window) as f64;
         let k = self.offset.len();
-        window_inputs(
-            numbers,
-            &self.spec.mean,
-            &self.spec.scale,
-            &self.spec.window,
-        )
-        .par_iter()
-        .map(|x| {
-            let mut out = self.offset.clone();
-            for (c, w) in self.inputs.chunks_exact(d).zip(self.dual.chunks_exact(k)) {
-                let a = (-gamma * sq_dist(c, x)).exp();
-                if a < 1e-300 {
-                    continue;
+        self.window_inputs(numbers)
+            .par_iter()
+            .map(|x| {
+                let mut out = self.offset.clone();
+                for (c, w) in self.inputs.chunks_exact(d).zip(self.dual.chunks_exact(k)) {
+                    let a = (-gamma * sq_dist(c, x)).exp();
+                    if a < 1e-300 {
+                        continue;
+                    }
+                    for (o, wj) in out.iter_mut().zip(w) {
+                        *o += a * wj;
+                    }
                 }
-                for (o, wj) in out.iter_mut().zip(w) {
-                    *o += a * wj;
-                }
-            }
-            out
-        })
-        .collect()
+                out
+            })
+            .collect()
     }
 
     /// Checks the arrays against the spec (a loaded model).

@@ -324,6 +324,14 @@ fn the_relief_settings_are_validated_by_name() {
         let err = params.validate().unwrap_err().to_string();
         assert!(err.contains(key), "{key}: {err}");
     }
+    for share in [-0.1, 1.5, f64::NAN] {
+        let params = DeformParams {
+            release_share: share,
+            ..DeformParams::default()
+        };
+        let err = params.validate().unwrap_err().to_string();
+        assert!(err.contains("release_share"), "{share}: {err}");
+    }
 }
 
 /// The flat sheet bent, without stretching, into `ripple`'s profile at `a` times its height: each row is the

@@ -1,6 +1,8 @@
 //! Stretch fold detection split across a real coordinator and two workers on 127.0.0.1 (step chunks, the
 //! phase task, one-frame tracing chunks without warm-up, one-frame settle ranges, the reconciling merge) writes
-//! the same bytes as `crease run --folds stretch` with its default chunking.
+//! the same bytes as `crease run --folds stretch` with its default chunking; the positioning tasks, one frame each,
+//! also let the shape screen go where the capture kept no trace of what it lost (`deform.release_share`), as the
+//! single run does.
 
 use crease_e2e::*;
 use std::collections::BTreeMap;
@@ -22,6 +24,7 @@ fn split_stretch_detection_on_two_workers_matches_crease_run() {
         ])
         .args(["--out", reference.to_str().unwrap(), "--mode", "fused"])
         .args(["--set", "deform.window=3", "--set", "deform.shift=2"])
+        .args(["--set", "deform.release_share=0.1"])
         .args(["--preview-size", "64"])
         .args(["--threads", "2"])
         .output()
@@ -37,7 +40,7 @@ fn split_stretch_detection_on_two_workers_matches_crease_run() {
         &job,
         format!(
             "name = \"split\"\ninput = \"{}\"\noutput = \"{}\"\n[folds]\nkind = \"stretch\"\n\
-             [deform]\nmode = \"fused\"\nwindow = 3\nshift = 2\n[partition]\nframes_per_chunk = 1\n\
+             [deform]\nmode = \"fused\"\nwindow = 3\nshift = 2\nrelease_share = 0.1\n[partition]\nframes_per_chunk = 1\n\
              stretch_frames_per_chunk = 1\nstretch_warm_up = 0\n[preview]\nsize = 64\n",
             input.display(),
             out.display()

@@ -102,6 +102,13 @@ pub struct DeformParams {
     /// relief and the anchors act wherever they reach (a capture whose folds never open in any frame, anchors
     /// an artist placed on purpose).
     pub lost_area_bound: bool,
+    /// Let the shape screen and the projection go where the capture kept no trace of the surface it lost
+    /// ([`super::shape::lost_area::RestAreas::hold`]): at a vertex whose captured neighbourhood the relief
+    /// gives back less than this share of the surface lost there, they hold only in proportion. A capture that
+    /// erased a fold outright leaves the relief nothing to sharpen, and the screen, which cannot tell a
+    /// fold's rise from a drift of the garment, keeps most of the fold the anchors make. 0 (default): the
+    /// screen holds everywhere. Acts only with the lost-area bound, which still caps what is added.
+    pub release_share: f64,
 
     /// Strain limit (see [`super::position::strain_limit`]): the last step of the positioning shortens every edge
     /// longer than (1 + this) times its reference length back to it; a fraction, 0 turns it off.
@@ -130,6 +137,7 @@ impl Default for DeformParams {
             relief: ReliefParams::default(),
             shape_projection: super::shape::projection::DEFAULT_SHAPE_PROJECTION,
             lost_area_bound: true,
+            release_share: 0.0,
 
             strain_limit: super::position::strain_limit::DEFAULT_STRAIN_LIMIT,
             strain_limit_sweeps: super::position::strain_limit::DEFAULT_STRAIN_LIMIT_SWEEPS,
@@ -164,6 +172,7 @@ struct DeformFields {
     relief: Option<ReliefParams>,
     shape_projection: Option<f64>,
     lost_area_bound: Option<bool>,
+    release_share: Option<f64>,
 
     strain_limit: Option<f64>,
     strain_limit_sweeps: Option<usize>,
@@ -212,6 +221,7 @@ impl TryFrom<DeformFields> for DeformParams {
             relief: f.relief.unwrap_or(d.relief),
             shape_projection: f.shape_projection.unwrap_or(d.shape_projection),
             lost_area_bound: f.lost_area_bound.unwrap_or(d.lost_area_bound),
+            release_share: f.release_share.unwrap_or(d.release_share),
 
             strain_limit: f.strain_limit.unwrap_or(d.strain_limit),
             strain_limit_sweeps: f.strain_limit_sweeps.unwrap_or(d.strain_limit_sweeps),
@@ -236,6 +246,11 @@ impl DeformParams {
                     0.0
                 },
                 shape_scale: super::shape::SHAPE_SCALES * detail,
+                release_share: if screen.is_some() && self.lost_area_bound {
+                    self.release_share
+                } else {
+                    0.0
+                },
             },
         }
     }
@@ -326,6 +341,15 @@ impl DeformParams {
                 format!(
                     "must be a fraction in [0, {max_projection}] (0: off), got {}",
                     self.shape_projection
+                ),
+            ));
+        }
+        if !(self.release_share.is_finite() && (0.0..=1.0).contains(&self.release_share)) {
+            return Err(Error::param(
+                "release_share",
+                format!(
+                    "must be a share in [0, 1] (0: the screen holds everywhere), got {}",
+                    self.release_share
                 ),
             ));
         }

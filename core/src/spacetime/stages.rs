@@ -114,14 +114,27 @@ pub fn position_frame(
     let rest = source.read_frame(t)?;
     let read = clock.elapsed().as_secs_f64();
 
+    // Where the capture kept no trace of the surface it lost, the screen lets go (`release_share`).
+    let hold = lost_area
+        .filter(|_| ending.release_share > 0.0)
+        .and_then(|areas| {
+            let relieved = match heights {
+                Some(h) => super::shape::relief::add_heights(system.topology(), &rest, &rest, h),
+                None => rest.clone(),
+            };
+            areas.hold(system.topology(), &rest, &relieved, ending.release_share)
+        });
+
     let clock = Instant::now();
-    let fp = system.factor_frame(&rest).map_err(|e| match e {
-        Error::Numeric { stage, msg } => Error::numeric(
-            stage,
-            format!("frame {t} ({}): {msg}", source.describe_frame(t)),
-        ),
-        e => e.at(None, Some(t)),
-    })?;
+    let fp = system
+        .factor_frame_held(&rest, hold.as_deref())
+        .map_err(|e| match e {
+            Error::Numeric { stage, msg } => Error::numeric(
+                stage,
+                format!("frame {t} ({}): {msg}", source.describe_frame(t)),
+            ),
+            e => e.at(None, Some(t)),
+        })?;
     let factor = clock.elapsed().as_secs_f64();
 
     let clock = Instant::now();
@@ -165,7 +178,7 @@ pub fn position_frame(
         if !changed {
             return Ok((out, None));
         }
-        let mut done = ending.finish(system.topology(), &rest, &out, heights);
+        let mut done = ending.finish(system.topology(), &rest, &out, heights, hold.as_deref());
         if let Some(r) = refiner {
             done = r.refine(system.topology(), t, &done)?;
         }

@@ -198,6 +198,8 @@ pub static KNOBS: &[Knob] = &[
         "the positioning's last step shortens every edge longer than (1 + this) times its reference length; 0 = off (`crease run --strain-limit`; the built-in demo uses 0.02)"),
     knob("deform.lost_area_bound", Kind::Switch, at!(deform.lost_area_bound),
         "bound what the deformation adds (relief and anchors) by the surface the capture lost: a region whose captured area is as large as it ever is in the sequence gets no folds added; false: they act wherever they reach (folds that never open in any frame, anchors placed on purpose)"),
+    knob("deform.release_share", FRACTION, at!(deform.release_share),
+        "let the shape screen go where the capture kept no trace of the surface it lost: at a vertex whose lost surface the fold relief gives back less than this share of, the screen and projection hold only in proportion (folds a capture erased outright); 0 = the screen holds everywhere (needs lost_area_bound)"),
     knob("deform.strain_limit_sweeps", count(1, 1000), at!(deform.strain_limit_sweeps), "Gauss–Seidel sweeps of the strain limit (it stops once a sweep moves nothing)"),
     knob("deform.strain_reference", Kind::Choice(&["sequence", "frame"]), at!(deform.strain_reference),
         "the strain limit's reference length per edge: its longest captured length (sequence) or its length in the same frame (frame: an input that is its own rest state, as the built-in demo)"),

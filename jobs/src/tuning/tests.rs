@@ -145,7 +145,7 @@ fn set_and_the_tuning_table_give_the_same_spec() {
 /// `--set` alike.
 #[test]
 fn bad_keys_and_values_name_the_key() {
-    let cases: [(&str, &str, &str, &str); 9] = [
+    let cases: [(&str, &str, &str, &str); 10] = [
         (
             "",
             "deform.c_z = 1",
@@ -188,6 +188,12 @@ fn bad_keys_and_values_name_the_key() {
             "video.radii = []",
             "tuning.video.radii",
             "at least one",
+        ),
+        (
+            "",
+            "deform.release_share = 1.5",
+            "tuning.deform.release_share",
+            "[0, 1]",
         ),
         (
             "",

@@ -183,6 +183,17 @@ impl PositionSystem {
     /// the pattern of [`PositionSystem::pattern`]), with the per-triangle gradients, areas and unit normals.
     #[allow(clippy::type_complexity)]
     pub fn assemble(&self, rest: &[V3]) -> Result<(Vec<f64>, Vec<[V3; 3]>, Vec<f64>, Vec<V3>)> {
+        self.assemble_held(rest, None)
+    }
+
+    /// [`PositionSystem::assemble`] with the screen scaled per vertex by `hold` (1 or `None`: the full screen;
+    /// see [`crate::spacetime::shape::lost_area::RestAreas::hold`]).
+    #[allow(clippy::type_complexity)]
+    pub fn assemble_held(
+        &self,
+        rest: &[V3],
+        hold: Option<&[f64]>,
+    ) -> Result<(Vec<f64>, Vec<[V3; 3]>, Vec<f64>, Vec<V3>)> {
         let topo = &self.topo;
         let mut grads = Vec::with_capacity(topo.n_triangles());
         let mut areas = Vec::with_capacity(topo.n_triangles());
@@ -211,7 +222,11 @@ impl PositionSystem {
                 let slot = self.scatter[t][k];
                 if slot != NONE {
                     // The first three pairs are the diagonal: each corner gets a third of the area as mass.
-                    let mass = if k < 3 { screen * area / 3.0 } else { 0.0 };
+                    let mass = if k < 3 {
+                        screen * area / 3.0 * hold.map_or(1.0, |h| h[tri[*i] as usize])
+                    } else {
+                        0.0
+                    };
                     values[slot as usize] += area * vec3::dot(g[*i], g[*j]) + mass;
                 }
             }
@@ -239,7 +254,25 @@ impl PositionSystem {
 
     /// Assembles and factorises the stiffness matrix of one original frame.
     pub fn factor_frame<'a>(&'a self, rest: &'a [V3]) -> Result<FramePositioner<'a>> {
-        let (values, grads, areas, normals) = self.assemble(rest)?;
+        self.factor_frame_held(rest, None)
+    }
+
+    /// [`PositionSystem::factor_frame`] with the screen scaled per vertex by `hold`.
+    pub fn factor_frame_held<'a>(
+        &'a self,
+        rest: &'a [V3],
+        hold: Option<&[f64]>,
+    ) -> Result<FramePositioner<'a>> {
+        if let Some(h) = hold {
+            if h.len() != rest.len() {
+                return Err(Error::mesh(format!(
+                    "screen weights for {} vertices, frame has {}",
+                    h.len(),
+                    rest.len()
+                )));
+            }
+        }
+        let (values, grads, areas, normals) = self.assemble_held(rest, hold)?;
         let l_values = Arc::new(self.factorize(&values)?);
         Ok(self.positioner(rest, l_values, grads, areas, normals))
     }

@@ -25,6 +25,11 @@
 //! tells the two apart ([`trust`]): where the capture lost folds, most of the surface the deformation adds is
 //! surface it lost; where it kept them, little is. A frame below [`TRUST_NONE`] comes back as captured.
 //!
+//! The same measure says where the capture kept no trace of the surface it lost ([`RestAreas::hold`]): the
+//! relief gives back what a capture damped, so where it gives back almost none of what was lost there, the
+//! capture erased the fold outright and only the anchors can make it; the positioning's shape screen may then
+//! let go there (`deform.release_share`).
+//!
 //! Everything is measured on the captured frames and the frame's own output; the result is a pure function of
 //! the input sequence and that frame.
 
@@ -121,6 +126,47 @@ impl RestAreas {
             rest,
             floor,
         }
+    }
+
+    /// Per vertex, how far the positioning's shape screen and projection hold (1: fully, 0: not at all) in the
+    /// captured frame `captured`, given `relieved` (that frame with the fold relief added along its normals):
+    /// 1 where the capture lost no surface or the relief gives back at least `share` of what it lost there,
+    /// falling in proportion to 0 where the relief gives back none of it. `None` where the frames do not have
+    /// the rest areas' vertex count, or `share` is 0 (the screen holds everywhere).
+    ///
+    /// Why: the screen holds long wavelengths to the capture, and a fold the capture erased outright (its
+    /// footprint kept, its height gone) is a rise as wide as the band that lost length, which the screen cannot
+    /// tell from a drift of the garment. Where the capture kept an attenuated copy, the relief restores it and
+    /// the screen rightly keeps the anchors' less precise folds small; where it kept nothing, the anchors are the
+    /// only source of the fold and the lost-area bound ([`RestAreas::limit`]) still caps what they add.
+    pub fn hold(
+        &self,
+        topo: &Topology,
+        captured: &[vec3::V3],
+        relieved: &[vec3::V3],
+        share: f64,
+    ) -> Option<Vec<f64>> {
+        if share <= 0.0 || self.rest.len() != captured.len() || relieved.len() != captured.len() {
+            return None;
+        }
+        let before = self.rings.smoothed_areas(topo, captured);
+        let after = self.rings.smoothed_areas(topo, relieved);
+        Some(
+            (0..captured.len())
+                .map(|v| {
+                    let (rest, a0, a1) = (self.rest[v], before[v], after[v]);
+                    if !(rest > 0.0 && a0 > 0.0 && a1.is_finite()) {
+                        return 1.0;
+                    }
+                    let lost = (1.0 - a0 / rest - self.floor).max(0.0);
+                    if lost <= 0.0 {
+                        return 1.0;
+                    }
+                    let given = (a1 / a0 - 1.0).max(0.0);
+                    (given / lost / share).clamp(0.0, 1.0)
+                })
+                .collect(),
+        )
     }
 
     /// The lost fraction below which nothing counts as lost (the capture's noise), for reports and tests.
@@ -326,6 +372,42 @@ mod tests {
             .unwrap();
         assert!((share - 0.5).abs() < 1e-9, "lost share {share}");
         assert_scaled(&out, &flat, &folded, 0.5);
+    }
+
+    /// The screen holds where nothing was lost and where the relief gives the lost surface back, and lets go in
+    /// proportion where it gives back less than the share.
+    #[test]
+    fn the_screen_lets_go_only_where_the_relief_gives_back_little_of_what_was_lost() {
+        let (topo, flat) = waved_grid(24, 24, 8.0, 0.0);
+        let folded = ripple(&topo, &flat, 0.3);
+        let a0 = smoothed_areas(&topo, &flat);
+        let patch = |v: usize| flat[v][0] < 8.0;
+        // The patch lost what the full ripple adds; elsewhere nothing was lost.
+        let rest: Vec<f64> = rest_losing(&topo, &flat, &folded, 1.0)
+            .into_iter()
+            .enumerate()
+            .map(|(v, r)| if patch(v) { r } else { a0[v] })
+            .collect();
+        let areas = RestAreas::from_areas(&topo, rest, 0.0);
+        // The relief gives back nothing: the patch lets go entirely, the rest holds.
+        let hold = areas.hold(&topo, &flat, &flat, 0.1).unwrap();
+        for (v, h) in hold.iter().enumerate() {
+            assert_eq!(*h, if patch(v) { 0.0 } else { 1.0 }, "vertex {v}");
+        }
+        // A relief a quarter as high gives back about a sixteenth of the lost surface: over half the share 0.1.
+        let quarter = ripple(&topo, &flat, 0.075);
+        let hold = areas.hold(&topo, &flat, &quarter, 0.1).unwrap();
+        let inner: Vec<f64> = (0..flat.len())
+            .filter(|&v| patch(v) && flat[v][0] > 1.0 && flat[v][1] > 1.0 && flat[v][1] < 22.0)
+            .map(|v| hold[v])
+            .collect();
+        let mean = inner.iter().sum::<f64>() / inner.len() as f64;
+        assert!((0.4..0.8).contains(&mean), "mean hold {mean}");
+        // The full ripple gives back all of it: everything holds; a share of 0 is no release at all.
+        let hold = areas.hold(&topo, &flat, &folded, 0.1).unwrap();
+        assert!(hold.iter().all(|&h| h == 1.0));
+        assert!(areas.hold(&topo, &flat, &flat, 0.0).is_none());
+        assert!(areas.hold(&topo, &flat[1..], &flat[1..], 0.1).is_none());
     }
 
     /// A frame in which most of what the deformation adds was never lost is trusted less as a whole, down to

@@ -17,7 +17,7 @@ pub mod relief;
 
 use crate::heat::{self, SurfaceOperator};
 use crate::mesh::Topology;
-use crate::vec3::V3;
+use crate::vec3::{self, V3};
 
 /// The shape scale (the cutoff of the positioning's screen and the wavelength the projection's low-pass halves)
 /// in detail scales, by default.
@@ -30,22 +30,36 @@ pub struct ShapeEnding {
     pub projection: f64,
     /// Wavelength the projection's low-pass halves, in the input's units.
     pub shape_scale: f64,
+    /// Below this share of its lost surface given back by the relief, a vertex's screen and projection let go
+    /// (0: they hold everywhere; see [`lost_area::RestAreas::hold`]).
+    pub release_share: f64,
 }
 
 impl ShapeEnding {
-    /// The projection of a positioned frame `out` of the captured frame `rest`, then the relief `heights` (one
-    /// per vertex, along the captured normals; `None`: no relief).
+    /// The projection of a positioned frame `out` of the captured frame `rest`, held per vertex by `hold` where
+    /// given ([`lost_area::RestAreas::hold`]), then the relief `heights` (one per vertex, along the captured
+    /// normals; `None`: no relief).
     pub fn finish(
         &self,
         topo: &Topology,
         rest: &[V3],
         out: &[V3],
         heights: Option<&[f64]>,
+        hold: Option<&[f64]>,
     ) -> Vec<V3> {
         let projected = if self.projection > 0.0 && out != rest {
             let op = SurfaceOperator::with_rims_along_themselves(topo, rest);
             let low = heat::low_pass(&op, self.shape_scale);
-            projection::project(&op, &low, rest, out, self.projection)
+            let projected = projection::project(&op, &low, rest, out, self.projection);
+            match hold {
+                Some(hold) => out
+                    .iter()
+                    .zip(&projected)
+                    .zip(hold)
+                    .map(|((o, p), &k)| vec3::add(*o, vec3::scale(vec3::sub(*p, *o), k)))
+                    .collect(),
+                None => projected,
+            }
         } else {
             out.to_vec()
         };

@@ -21,6 +21,10 @@ use crease_core::synth::{self, DemoSpec};
 use crease_jobs::report::{FoldDetection, JobReport};
 use std::path::{Path, PathBuf};
 
+/// Below this median share of its lost surface given back by the relief, a capture erased its folds rather than
+/// blurred them: every smoothed capture measured keeps over a quarter, an erased fold about a hundredth.
+const ERASED_TRACE: f64 = 0.1;
+
 #[derive(Args, Debug)]
 pub struct DemoArgs {
     /// Directory to write `input/` (numbered OBJ frames) and `anchors.json` into.
@@ -287,6 +291,19 @@ pub fn run(a: RunArgs) -> Result<()> {
             "lost-area bound: {} frame(s) kept whole, {} scaled, {} given back as captured (median lost share {:.2})",
             j.frames_kept, j.frames_scaled, j.frames_given_back, j.median_share
         ));
+        if let Some(r) = j.median_relief_share {
+            progress.println(&format!(
+                "capture trace: the fold relief gives back a median {:.0}% of the surface the capture lost",
+                r * 100.0
+            ));
+            if r < ERASED_TRACE && report.report.params.release_share == 0.0 {
+                progress.println(
+                    "  the capture kept almost no trace of its folds (erased, not blurred): the anchors alone make \
+                     them, and the shape screen holds most of that back; `--set deform.release_share=0.1` lets it \
+                     go where nothing was kept (docs/fidelity.md)",
+                );
+            }
+        }
     }
     progress.println(&format!(
         "wrote {} frames, report.json, preview.png, stretch.png to {} ({} tasks, {:.2}s of work)",

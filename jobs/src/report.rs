@@ -124,11 +124,18 @@ pub struct LostAreaJudgement {
     pub frames_given_back: usize,
     /// The median share over the judged frames.
     pub median_share: f64,
+    /// The median over the frames that lost surface of the share of it the fold relief gives back (per frame in
+    /// `report.frame_relief_share`): a capture that blurred its folds keeps an attenuated copy for the relief to
+    /// sharpen; one that erased them outright keeps almost none, and only the anchors can make them
+    /// (`deform.release_share`). `None` without the relief.
+    #[serde(default)]
+    pub median_relief_share: Option<f64>,
 }
 
 impl LostAreaJudgement {
-    /// Counts `shares` (one per frame, `None` where the bound did not run); none when no frame was judged.
-    pub fn of_frames(shares: &[Option<f64>]) -> Option<Self> {
+    /// Counts `shares` (one per frame, `None` where the bound did not run), with the median of `relief_shares`
+    /// (likewise); none when no frame was judged.
+    pub fn of_frames(shares: &[Option<f64>], relief_shares: &[Option<f64>]) -> Option<Self> {
         use crease_core::spacetime::shape::lost_area::{trust, TRUST_FULL, TRUST_NONE};
         let mut judged: Vec<f64> = shares.iter().flatten().copied().collect();
         if judged.is_empty() {
@@ -146,6 +153,11 @@ impl LostAreaJudgement {
             frames_scaled: count(|w| w > 0.0 && w < 1.0),
             frames_given_back: count(|w| w == 0.0),
             median_share: judged[judged.len() / 2],
+            median_relief_share: {
+                let mut r: Vec<f64> = relief_shares.iter().flatten().copied().collect();
+                r.sort_by(f64::total_cmp);
+                r.get(r.len() / 2).copied()
+            },
         })
     }
 }

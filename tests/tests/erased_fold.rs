@@ -191,6 +191,16 @@ fn a_fold_the_capture_erased_comes_back_where_the_stretch_detector_finds_it() {
         (out, eval)
     };
     let (held, held_eval) = run("held", &[]);
+    // The report says the capture erased its folds: the relief gives back almost none of the lost surface.
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(held.join("report.json")).unwrap()).unwrap();
+    let trace = report["summary"]["lost_area"]["median_relief_share"]
+        .as_f64()
+        .unwrap();
+    assert!(
+        trace < 0.05,
+        "the relief gives back {trace:.3} of the lost surface"
+    );
     let (released, eval) = run("released", &["--set", "deform.release_share=0.1"]);
 
     // The peak frames (4 and 5 of 8): the truth's ridge, and the output's height above the capture.

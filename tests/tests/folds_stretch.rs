@@ -86,6 +86,16 @@ fn stretch_folds_on_the_captured_sleeve_fixture() {
         .map(|k| judged[k].as_u64().unwrap())
         .sum();
     assert_eq!(counted as usize, ins.len(), "{judged}");
+    // And what the relief gives back of the surface the smoothed capture lost: a share, with its median.
+    let relief = report["report"]["frame_relief_share"].as_array().unwrap();
+    assert_eq!(relief.len(), ins.len());
+    assert!(relief
+        .iter()
+        .all(|s| s.is_null() || s.as_f64().is_some_and(|s| (0.0..=1.0).contains(&s))));
+    let median = judged["median_relief_share"]
+        .as_f64()
+        .expect("a median relief share");
+    assert!(median > 0.0 && median <= 1.0, "{judged}");
     // Per frame: the folds traced and the seeds tried to find them. Every fold took a
     // seed; a frame with anchors has folds; the anchors file itself does not carry these figures.
     let per_frame = report["fold_detection"]["per_frame"].as_array().unwrap();

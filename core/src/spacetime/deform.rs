@@ -64,6 +64,11 @@ pub struct DeformReport {
     /// 0.25 its deformation stands whole). `None` where the bound did not run.
     #[serde(default)]
     pub frame_lost_share: Vec<Option<f64>>,
+    /// Per frame, the share of the surface the capture lost that the fold relief gives back
+    /// ([`super::shape::lost_area::Trace::share`]): a capture that blurred its folds keeps a copy to sharpen, one
+    /// that erased them keeps almost none. `None` without the bound or the relief, or where nothing was lost.
+    #[serde(default)]
+    pub frame_relief_share: Vec<Option<f64>>,
     pub timings: StageTimings,
 }
 
@@ -133,6 +138,7 @@ pub fn deform(
     let mut seq_stretch = vec![StretchAccumulator::default(); params.stretch_passes + 1];
     let mut frame_stretch = vec![Vec::new(); n];
     let mut frame_lost_share = vec![None; n];
+    let mut frame_relief_share = vec![None; n];
     let mut kept = KeptFrames::default();
     progress.begin("weights", windows.len() as u64);
     progress.begin("position", n as u64);
@@ -211,6 +217,7 @@ pub fn deform(
                 frame_stretch[o.t].push(*st);
             }
             frame_lost_share[o.t] = o.lost_share;
+            frame_relief_share[o.t] = o.relief_share;
             if keep.contains(&o.t) {
                 kept.frames.push((o.t, o.rest, o.out));
             }
@@ -241,6 +248,7 @@ pub fn deform(
         stretch: seq_stretch.iter().map(|a| a.stats()).collect(),
         frame_stretch,
         frame_lost_share,
+        frame_relief_share,
         timings,
     };
     Ok((report, kept))

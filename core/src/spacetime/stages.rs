@@ -87,6 +87,10 @@ pub struct PositionedFrame {
     /// judgement of the frame, [`super::shape::lost_area::trust`]); `None` where the bound did not run (no bound,
     /// or nothing changed the frame).
     pub lost_share: Option<f64>,
+    /// The share of the surface the capture lost that the fold relief gives back
+    /// ([`super::shape::lost_area::Trace::share`]); `None` without the bound or the relief, or where the frame lost
+    /// nothing.
+    pub relief_share: Option<f64>,
 }
 
 /// Positions frame `t` of `source` from its cross-faded rotation-vector field `phi` (Alexa blend, gradient-
@@ -114,16 +118,16 @@ pub fn position_frame(
     let rest = source.read_frame(t)?;
     let read = clock.elapsed().as_secs_f64();
 
-    // Where the capture kept no trace of the surface it lost, the screen lets go (`release_share`).
-    let hold = lost_area
-        .filter(|_| ending.release_share > 0.0)
-        .and_then(|areas| {
-            let relieved = match heights {
-                Some(h) => super::shape::relief::add_heights(system.topology(), &rest, &rest, h),
-                None => rest.clone(),
-            };
-            areas.hold(system.topology(), &rest, &relieved, ending.release_share)
-        });
+    // What the relief gives back of the surface the capture lost (reported per frame); where it gives back
+    // little, the screen lets go (`release_share`).
+    let trace = match (lost_area, heights) {
+        (Some(areas), Some(h)) => {
+            let relieved = super::shape::relief::add_heights(system.topology(), &rest, &rest, h);
+            areas.trace(system.topology(), &rest, &relieved)
+        }
+        _ => None,
+    };
+    let hold = trace.as_ref().and_then(|tr| tr.hold(ending.release_share));
 
     let clock = Instant::now();
     let fp = system
@@ -218,6 +222,7 @@ pub fn position_frame(
         passes: pass_times,
         metrics,
         lost_share,
+        relief_share: trace.as_ref().and_then(|tr| tr.share()),
     })
 }
 

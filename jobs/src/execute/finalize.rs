@@ -64,6 +64,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     let mut seq_stretch = vec![StretchAccumulator::default(); params.stretch_passes + 1];
     let mut frame_stretch = vec![Vec::new(); n];
     let mut frame_lost_share = vec![None; n];
+    let mut frame_relief_share = vec![None; n];
     let mut kept: Vec<(usize, Frame, Frame)> = Vec::new();
     // "Shape kept" (docs/fidelity.md): every output frame against its input frame, measured by the positioning task
     // and merged here in frame order (the same figures for any chunking and any number of workers).
@@ -131,6 +132,13 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
             ))
         })?;
         frame_lost_share[t] = Some(f64::from_bits(*share)).filter(|s| !s.is_nan());
+        let relief = words.get(at + used + 1).ok_or_else(|| {
+            TaskError::fatal(format!(
+                "{}: no relief share after the lost-area judgement",
+                env.out.describe(&key)
+            ))
+        })?;
+        frame_relief_share[t] = Some(f64::from_bits(*relief)).filter(|s| !s.is_nan());
         let ft: FrameTimings = env.get_json(&keys::frame_timings(t))?;
         timings.symbolic += ft.symbolic;
         timings.read += ft.read;
@@ -211,6 +219,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         stretch: seq_stretch.iter().map(|a| a.stats()).collect(),
         frame_stretch,
         frame_lost_share,
+        frame_relief_share,
         timings,
     };
     let first = report.stretch.first().copied().unwrap_or_default();
@@ -265,7 +274,10 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
                 output: vs_rest.stats(),
             },
             shape_kept: shape_kept.stats(),
-            lost_area: LostAreaJudgement::of_frames(&report.frame_lost_share),
+            lost_area: LostAreaJudgement::of_frames(
+                &report.frame_lost_share,
+                &report.frame_relief_share,
+            ),
             seconds_per_frame: SecondsPerFrame {
                 weights: per_frame(t.weights),
                 blend: per_frame(t.blend),

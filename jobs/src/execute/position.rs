@@ -241,6 +241,8 @@ fn store_frame(
     words.extend(shape.to_words());
     // The lost-area bound's judgement of the frame, as the bits of an f64 (NaN: the bound did not run).
     words.push(p.lost_share.unwrap_or(f64::NAN).to_bits());
+    // What the relief gives back of the surface the capture lost, likewise.
+    words.push(p.relief_share.unwrap_or(f64::NAN).to_bits());
     let timings = FrameTimings {
         read: p.read,
         blend: p.blend,

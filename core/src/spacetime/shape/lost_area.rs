@@ -25,10 +25,10 @@
 //! tells the two apart ([`trust`]): where the capture lost folds, most of the surface the deformation adds is
 //! surface it lost; where it kept them, little is. A frame below [`TRUST_NONE`] comes back as captured.
 //!
-//! The same measure says where the capture kept no trace of the surface it lost ([`RestAreas::hold`]): the
+//! The same measure says where the capture kept no trace of the surface it lost ([`RestAreas::trace`]): the
 //! relief gives back what a capture damped, so where it gives back almost none of what was lost there, the
 //! capture erased the fold outright and only the anchors can make it; the positioning's shape screen may then
-//! let go there (`deform.release_share`).
+//! let go there (`deform.release_share`), and the report gives each frame's share so a user can tell.
 //!
 //! Everything is measured on the captured frames and the frame's own output; the result is a pure function of
 //! the input sequence and that frame.
@@ -128,48 +128,34 @@ impl RestAreas {
         }
     }
 
-    /// Per vertex, how far the positioning's shape screen and projection hold (1: fully, 0: not at all) in the
-    /// captured frame `captured`, given `relieved` (that frame with the fold relief added along its normals):
-    /// 1 where the capture lost no surface or the relief gives back at least `share` of what it lost there,
-    /// falling in proportion to 0 where the relief gives back none of it. `None` where the frames do not have
-    /// the rest areas' vertex count, or `share` is 0 (the screen holds everywhere).
-    ///
-    /// Why: the screen holds long wavelengths to the capture, and a fold the capture erased outright (its
-    /// footprint kept, its height gone) is a rise as wide as the band that lost length, which the screen cannot
-    /// tell from a drift of the garment. Where the capture kept an attenuated copy, the relief restores it and
-    /// the screen rightly keeps the anchors' less precise folds small; where it kept nothing, the anchors are the
-    /// only source of the fold and the lost-area bound ([`RestAreas::limit`]) still caps what they add.
-    pub fn hold(
+    /// What the relief of captured frame `captured` gives back of the surface the capture lost there
+    /// (`relieved`: that frame with the fold relief added along its normals); `None` where the frames do not
+    /// have the rest areas' vertex count.
+    pub fn trace(
         &self,
         topo: &Topology,
         captured: &[vec3::V3],
         relieved: &[vec3::V3],
-        share: f64,
-    ) -> Option<Vec<f64>> {
-        if share <= 0.0 || self.rest.len() != captured.len() || relieved.len() != captured.len() {
+    ) -> Option<Trace> {
+        if self.rest.len() != captured.len() || relieved.len() != captured.len() {
             return None;
         }
         let before = self.rings.smoothed_areas(topo, captured);
         let after = self.rings.smoothed_areas(topo, relieved);
-        Some(
-            (0..captured.len())
-                .map(|v| {
-                    let (rest, a0, a1) = (self.rest[v], before[v], after[v]);
-                    if !(rest > 0.0 && a0 > 0.0 && a1.is_finite()) {
-                        return 1.0;
-                    }
-                    let lost = (1.0 - a0 / rest - self.floor).max(0.0);
-                    if lost <= 0.0 {
-                        return 1.0;
-                    }
-                    let given = (a1 / a0 - 1.0).max(0.0);
-                    (given / lost / share).clamp(0.0, 1.0)
-                })
-                .collect(),
-        )
+        let vertices = (0..captured.len())
+            .map(|v| {
+                let (rest, a0, a1) = (self.rest[v], before[v], after[v]);
+                if !(rest > 0.0 && a0 > 0.0 && a1.is_finite()) {
+                    return None;
+                }
+                let lost = (1.0 - a0 / rest - self.floor).max(0.0);
+                (lost > 0.0).then(|| (lost, (a1 / a0 - 1.0).max(0.0), a0))
+            })
+            .collect();
+        Some(Trace { vertices })
     }
 
-    /// The lost fraction below which nothing counts as lost (the capture's noise), for reports and tests.
+    /// The lost fraction below which nothing counts as lost    /// The lost fraction below which nothing counts as lost (the capture's noise), for reports and tests.
     pub fn floor(&self) -> f64 {
         self.floor
     }
@@ -223,6 +209,51 @@ impl RestAreas {
             }
         }
         Some(lost_share)
+    }
+}
+
+/// What a frame's relief gives back of the surface its capture lost ([`RestAreas::trace`]): per vertex that lost
+/// surface, the lost and the given-back fractions and the captured area.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Trace {
+    vertices: Vec<Option<(f64, f64, f64)>>,
+}
+
+impl Trace {
+    /// The share of the frame's lost surface (in area) that the relief gives back, at most all of it at each
+    /// vertex; `None` where the frame lost none. A capture that blurred its folds keeps an attenuated copy for
+    /// the relief to sharpen (a quarter to three fifths, per sequence, on every smoothed capture measured); one
+    /// that erased them keeps nothing of them (about a hundredth).
+    pub fn share(&self) -> Option<f64> {
+        let (mut lost, mut given) = (0.0, 0.0);
+        for &(l, g, a) in self.vertices.iter().flatten() {
+            lost += l * a;
+            given += g.min(l) * a;
+        }
+        (lost > 0.0).then(|| given / lost)
+    }
+
+    /// Per vertex, how far the positioning's shape screen and projection hold (1: fully, 0: not at all): 1 where
+    /// the capture lost no surface or the relief gives back at least `share` of what it lost there, falling in
+    /// proportion to 0 where the relief gives back none of it. `None` when `share` is 0 (the screen holds
+    /// everywhere).
+    ///
+    /// Why: the screen holds long wavelengths to the capture, and a fold the capture erased outright (its
+    /// footprint kept, its height gone) is a rise as wide as the band that lost length, which the screen cannot
+    /// tell from a drift of the garment. Where the capture kept an attenuated copy, the relief restores it and
+    /// the screen rightly keeps the anchors' less precise folds small; where it kept nothing, the anchors are the
+    /// only source of the fold and the lost-area bound ([`RestAreas::limit`]) still caps what they add.
+    pub fn hold(&self, share: f64) -> Option<Vec<f64>> {
+        (share > 0.0).then(|| {
+            self.vertices
+                .iter()
+                .map(|v| {
+                    v.map_or(1.0, |(lost, given, _)| {
+                        (given / lost / share).clamp(0.0, 1.0)
+                    })
+                })
+                .collect()
+        })
     }
 }
 
@@ -389,14 +420,18 @@ mod tests {
             .map(|(v, r)| if patch(v) { r } else { a0[v] })
             .collect();
         let areas = RestAreas::from_areas(&topo, rest, 0.0);
+        let trace = |relieved: &[vec3::V3]| areas.trace(&topo, &flat, relieved).unwrap();
         // The relief gives back nothing: the patch lets go entirely, the rest holds.
-        let hold = areas.hold(&topo, &flat, &flat, 0.1).unwrap();
+        assert_eq!(trace(&flat).share(), Some(0.0));
+        let hold = trace(&flat).hold(0.1).unwrap();
         for (v, h) in hold.iter().enumerate() {
             assert_eq!(*h, if patch(v) { 0.0 } else { 1.0 }, "vertex {v}");
         }
         // A relief a quarter as high gives back about a sixteenth of the lost surface: over half the share 0.1.
-        let quarter = ripple(&topo, &flat, 0.075);
-        let hold = areas.hold(&topo, &flat, &quarter, 0.1).unwrap();
+        let quarter = trace(&ripple(&topo, &flat, 0.075));
+        let share = quarter.share().unwrap();
+        assert!((0.04..0.09).contains(&share), "share {share}");
+        let hold = quarter.hold(0.1).unwrap();
         let inner: Vec<f64> = (0..flat.len())
             .filter(|&v| patch(v) && flat[v][0] > 1.0 && flat[v][1] > 1.0 && flat[v][1] < 22.0)
             .map(|v| hold[v])
@@ -404,10 +439,14 @@ mod tests {
         let mean = inner.iter().sum::<f64>() / inner.len() as f64;
         assert!((0.4..0.8).contains(&mean), "mean hold {mean}");
         // The full ripple gives back all of it: everything holds; a share of 0 is no release at all.
-        let hold = areas.hold(&topo, &flat, &folded, 0.1).unwrap();
-        assert!(hold.iter().all(|&h| h == 1.0));
-        assert!(areas.hold(&topo, &flat, &flat, 0.0).is_none());
-        assert!(areas.hold(&topo, &flat[1..], &flat[1..], 0.1).is_none());
+        let full = trace(&folded);
+        assert!(full.share().unwrap() > 0.99);
+        assert!(full.hold(0.1).unwrap().iter().all(|&h| h == 1.0));
+        assert!(trace(&flat).hold(0.0).is_none());
+        assert!(areas.trace(&topo, &flat[1..], &flat[1..]).is_none());
+        // A frame that lost nothing has no share.
+        let open = RestAreas::from_areas(&topo, a0.clone(), 0.0);
+        assert_eq!(open.trace(&topo, &flat, &folded).unwrap().share(), None);
     }
 
     /// A frame in which most of what the deformation adds was never lost is trusted less as a whole, down to

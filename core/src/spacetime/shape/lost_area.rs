@@ -137,25 +137,44 @@ impl RestAreas {
         captured: &[vec3::V3],
         relieved: &[vec3::V3],
     ) -> Option<Trace> {
-        if self.rest.len() != captured.len() || relieved.len() != captured.len() {
-            return None;
-        }
-        let before = self.rings.smoothed_areas(topo, captured);
-        let after = self.rings.smoothed_areas(topo, relieved);
-        let vertices = (0..captured.len())
-            .map(|v| {
-                let (rest, a0, a1) = (self.rest[v], before[v], after[v]);
-                if !(rest > 0.0 && a0 > 0.0 && a1.is_finite()) {
-                    return None;
-                }
-                let lost = (1.0 - a0 / rest - self.floor).max(0.0);
-                (lost > 0.0).then(|| (lost, (a1 / a0 - 1.0).max(0.0), a0))
+        let (before, fractions) = self.fractions(topo, captured, relieved)?;
+        let vertices = fractions
+            .iter()
+            .zip(&before)
+            .map(|(f, a0)| {
+                f.filter(|(lost, _)| *lost > 0.0)
+                    .map(|(l, g)| (l, g.max(0.0), *a0))
             })
             .collect();
         Some(Trace { vertices })
     }
 
-    /// The lost fraction below which nothing counts as lost    /// The lost fraction below which nothing counts as lost (the capture's noise), for reports and tests.
+    /// The captured frame's smoothed areas and, per vertex, its lost fraction against the rest areas and the
+    /// fraction `other` adds to its area (None where an area is degenerate); `None` where the frames do not have
+    /// the rest areas' vertex count.
+    #[allow(clippy::type_complexity)]
+    fn fractions(
+        &self,
+        topo: &Topology,
+        captured: &[vec3::V3],
+        other: &[vec3::V3],
+    ) -> Option<(Vec<f64>, Vec<Option<(f64, f64)>>)> {
+        if self.rest.len() != captured.len() || other.len() != captured.len() {
+            return None;
+        }
+        let before = self.rings.smoothed_areas(topo, captured);
+        let after = self.rings.smoothed_areas(topo, other);
+        let fractions = (0..captured.len())
+            .map(|v| {
+                let (rest, a0, a1) = (self.rest[v], before[v], after[v]);
+                (rest > 0.0 && a0 > 0.0 && a1.is_finite())
+                    .then(|| ((1.0 - a0 / rest - self.floor).max(0.0), a1 / a0 - 1.0))
+            })
+            .collect();
+        Some((before, fractions))
+    }
+
+    /// The lost fraction below which nothing counts as lost (the capture's noise), for reports and tests.
     pub fn floor(&self) -> f64 {
         self.floor
     }
@@ -170,19 +189,8 @@ impl RestAreas {
         captured: &[vec3::V3],
         out: &mut [vec3::V3],
     ) -> Option<f64> {
-        if self.rest.len() != captured.len() || out.len() != captured.len() {
-            return None;
-        }
-        let before = self.rings.smoothed_areas(topo, captured);
-        let after = self.rings.smoothed_areas(topo, out);
         // Per vertex: the lost and the added fraction (None where an area is degenerate).
-        let shares: Vec<Option<(f64, f64)>> = (0..out.len())
-            .map(|v| {
-                let (rest, a0, a1) = (self.rest[v], before[v], after[v]);
-                (rest > 0.0 && a0 > 0.0 && a1.is_finite())
-                    .then(|| ((1.0 - a0 / rest - self.floor).max(0.0), a1 / a0 - 1.0))
-            })
-            .collect();
+        let (before, shares) = self.fractions(topo, captured, out)?;
         // The share of the added surface (in area, not per vertex) that the capture had lost.
         let (mut justified, mut added_area) = (0.0, 0.0);
         for (share, a0) in shares.iter().zip(&before) {

@@ -103,7 +103,7 @@ pub struct DeformParams {
     /// an artist placed on purpose).
     pub lost_area_bound: bool,
     /// Let the shape screen and the projection go where the capture kept no trace of the surface it lost
-    /// ([`super::shape::lost_area::RestAreas::hold`]): at a vertex whose captured neighbourhood the relief
+    /// ([`super::shape::lost_area::Trace::hold`]): at a vertex whose captured neighbourhood the relief
     /// gives back less than this share of the surface lost there, they hold only in proportion. A capture that
     /// erased a fold outright leaves the relief nothing to sharpen, and the screen, which cannot tell a
     /// fold's rise from a drift of the garment, keeps most of the fold the anchors make. 0 (default): the

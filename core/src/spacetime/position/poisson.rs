@@ -187,7 +187,7 @@ impl PositionSystem {
     }
 
     /// [`PositionSystem::assemble`] with the screen scaled per vertex by `hold` (1 or `None`: the full screen;
-    /// see [`crate::spacetime::shape::lost_area::RestAreas::hold`]).
+    /// see [`crate::spacetime::shape::lost_area::Trace::hold`]).
     #[allow(clippy::type_complexity)]
     pub fn assemble_held(
         &self,

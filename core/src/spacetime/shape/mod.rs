@@ -31,13 +31,13 @@ pub struct ShapeEnding {
     /// Wavelength the projection's low-pass halves, in the input's units.
     pub shape_scale: f64,
     /// Below this share of its lost surface given back by the relief, a vertex's screen and projection let go
-    /// (0: they hold everywhere; see [`lost_area::RestAreas::hold`]).
+    /// (0: they hold everywhere; see [`lost_area::Trace::hold`]).
     pub release_share: f64,
 }
 
 impl ShapeEnding {
     /// The projection of a positioned frame `out` of the captured frame `rest`, held per vertex by `hold` where
-    /// given ([`lost_area::RestAreas::hold`]), then the relief `heights` (one per vertex, along the captured
+    /// given ([`lost_area::Trace::hold`]), then the relief `heights` (one per vertex, along the captured
     /// normals; `None`: no relief).
     pub fn finish(
         &self,

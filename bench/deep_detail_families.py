@@ -104,6 +104,32 @@ def chebyshev_features(walk, c, degree):
     return out
 
 
+def heat_lowpass(walk, p, wl):
+    """One implicit heat step of the walk that halves wavelength `wl` (edges)."""
+    a = (1 + np.cos(2 * np.pi / wl)) / 2
+    t = 1 / (1 - a)
+    return spla.spsolve(((1 + t) * sp.identity(len(p)) - t * walk).tocsc(), p)
+
+
+def band_lowpass(walk, p, wl):
+    """A smooth spectral cut of the walk: wavelengths under `wl` edges removed, over 1.5 `wl` kept, a raised
+    cosine between (a Chebyshev series of degree 80)."""
+    lo = np.degrees(np.arccos((1 + np.cos(2 * np.pi / (1.5 * wl))) / 2))
+    hi = np.degrees(np.arccos((1 + np.cos(2 * np.pi / wl)) / 2))
+    d, nodes = 80, 648
+    th = np.pi * (np.arange(nodes) + 0.5) / nodes
+    deg = np.degrees(th)
+    g = np.where(deg < lo, 1.0, np.where(deg > hi, 0.0, 0.5 * (1 + np.cos(np.pi * (deg - lo) / (hi - lo)))))
+    coef = np.array([2 / nodes * (g * np.cos(j * th)).sum() for j in range(d + 1)])
+    coef[0] *= 0.5
+    t0, t1 = p, walk @ p
+    x = coef[0] * t0 + coef[1] * t1
+    for j in range(2, d + 1):
+        t0, t1 = t1, 2 * (walk @ t1) - t0
+        x = x + coef[j] * t1
+    return x
+
+
 def capture(f, p, family, rng):
     """A capture of fine frame `p`: a family's low-pass at a random half-amplitude wavelength, then noise."""
     h = edge(f, p)
@@ -112,22 +138,9 @@ def capture(f, p, family, rng):
     walk = cot_walk(f, p)
     a = (1 + np.cos(2 * np.pi / wl)) / 2
     if family == "heat":
-        t = 1 / (1 - a)
-        x = spla.spsolve(((1 + t) * sp.identity(len(p)) - t * walk).tocsc(), p)
+        x = heat_lowpass(walk, p, wl)
     elif family == "band":
-        lo = np.degrees(np.arccos((1 + np.cos(2 * np.pi / (1.5 * wl))) / 2))
-        hi = np.degrees(np.arccos((1 + np.cos(2 * np.pi / wl)) / 2))
-        d, nodes = 80, 648
-        th = np.pi * (np.arange(nodes) + 0.5) / nodes
-        deg = np.degrees(th)
-        g = np.where(deg < lo, 1.0, np.where(deg > hi, 0.0, 0.5 * (1 + np.cos(np.pi * (deg - lo) / (hi - lo)))))
-        coef = np.array([2 / nodes * (g * np.cos(j * th)).sum() for j in range(d + 1)])
-        coef[0] *= 0.5
-        t0, t1 = p, walk @ p
-        x = coef[0] * t0 + coef[1] * t1
-        for j in range(2, d + 1):
-            t0, t1 = t1, 2 * (walk @ t1) - t0
-            x = x + coef[j] * t1
+        x = band_lowpass(walk, p, wl)
     else:
         lam, band = 0.3 + rng.random() * 0.5, 0.01 + rng.random() * 0.12
         k = 0.5 * (1 - a)

@@ -2,10 +2,11 @@
 //! frame is (so a task holds one frame's images at a time, and any machine that positions a frame refines it
 //! the same way).
 
-use super::{refine_frame, RefineView, ShadingRefineParams};
+use super::{refine_frame_traced, RefineView, ShadingRefineParams};
 use crate::error::{Error, Result};
 use crate::folds::video::cameras::CameraRig;
 use crate::mesh::Topology;
+use crate::spacetime::shape::lost_area::Trace;
 use crate::spacetime::stages::FrameRefiner;
 use crate::vec3::V3;
 
@@ -17,7 +18,13 @@ pub struct ImageRefiner {
 }
 
 impl FrameRefiner for ImageRefiner {
-    fn refine(&self, topo: &Topology, t: usize, positions: &[V3]) -> Result<Vec<V3>> {
+    fn refine(
+        &self,
+        topo: &Topology,
+        t: usize,
+        positions: &[V3],
+        trace: Option<&Trace>,
+    ) -> Result<Vec<V3>> {
         let number = *self.numbers.get(t).ok_or_else(|| {
             Error::param(
                 "image_numbers",
@@ -40,6 +47,6 @@ impl FrameRefiner for ImageRefiner {
                 photo,
             })
             .collect();
-        Ok(refine_frame(topo, positions, views, &self.params)?.positions)
+        Ok(refine_frame_traced(topo, positions, views, &self.params, trace)?.positions)
     }
 }

@@ -38,6 +38,7 @@ use crate::heat::{self, SurfaceOperator};
 use crate::mesh::{geometry, Topology};
 use crate::render::CalibratedCamera;
 use crate::shape::mean_edge_length;
+use crate::spacetime::shape::lost_area::Trace;
 use crate::spacetime::shape::relief::DEFAULT_SCALE_EDGES;
 use crate::spacetime::shape::{projection, SHAPE_SCALES};
 use crate::vec3::{self, V3};
@@ -57,6 +58,19 @@ pub struct ShadingRefineParams {
     pub smoothness: f64,
     /// Weight of the offsets themselves (staying at the input shape), in the same units.
     pub stay: f64,
+    /// The stay weight where the capture kept no trace of the surface it lost there (its fold relief gives back
+    /// none of it; [`crate::spacetime::shape::lost_area::Trace`]), rising to `stay` where the relief gives back
+    /// `erased_share` of it. Why: where the capture kept an attenuated copy of a fold, the input shape (the
+    /// relief's sharpened copy) is a good prior and the images only correct it; where it erased the fold, the
+    /// input holds only the anchors' rough fold and the images are the one precise source.
+    pub erased_stay: f64,
+    /// The share of its lost surface given back by the relief from which a vertex's stay is `stay`; 0 turns
+    /// the lower stay off.
+    pub erased_share: f64,
+    /// The stay weight where the relief gives back all of the surface the capture lost, rising geometrically
+    /// from `stay` at `erased_share`. Why: where the capture kept its folds in attenuated form the relief has
+    /// already restored them, and what the images would add there is mostly the shading model's own error.
+    pub kept_stay: f64,
     /// Pixels this close to the garment's silhouette in an image are not used (misregistration).
     pub margin_px: f64,
     /// Pixels whose surface is seen more obliquely than this (cosine between normal and view ray) are not used.
@@ -75,6 +89,9 @@ impl Default for ShadingRefineParams {
             rounds: 2,
             smoothness: 5.0e3,
             stay: 5.0e3,
+            erased_stay: 1.0e3,
+            erased_share: 0.2,
+            kept_stay: 2.0e4,
             margin_px: 2.0,
             min_facing: 0.25,
             max_offset_edges: 1.5,
@@ -101,6 +118,24 @@ impl ShadingRefineParams {
         )?;
         check("stay", self.stay, self.stay > 0.0, "a finite value > 0")?;
         check(
+            "erased_stay",
+            self.erased_stay,
+            self.erased_stay > 0.0,
+            "a finite value > 0",
+        )?;
+        check(
+            "kept_stay",
+            self.kept_stay,
+            self.kept_stay > 0.0,
+            "a finite value > 0",
+        )?;
+        check(
+            "erased_share",
+            self.erased_share,
+            (0.0..=1.0).contains(&self.erased_share),
+            "a share in [0, 1]",
+        )?;
+        check(
             "margin_px",
             self.margin_px,
             self.margin_px >= 0.0,
@@ -125,6 +160,37 @@ impl ShadingRefineParams {
             "a finite value > 0",
         )
     }
+}
+
+/// Per vertex, the stay weight ([`ShadingRefineParams::erased_stay`]); `None` where it is `stay` everywhere (no
+/// trace, no lower stay, or a trace for another mesh).
+fn stay_weights(params: &ShadingRefineParams, trace: Option<&Trace>, n: usize) -> Option<Vec<f64>> {
+    let lower = params.erased_stay != params.stay && params.erased_share > 0.0;
+    let upper = params.kept_stay != params.stay && params.erased_share < 1.0;
+    if !(lower || upper) {
+        return None;
+    }
+    let given = trace?.given_back();
+    (given.len() == n).then(|| {
+        given
+            .iter()
+            .map(|g| match *g {
+                None => params.stay,
+                Some(g) if g < params.erased_share => {
+                    params.erased_stay
+                        + (params.stay - params.erased_stay) * g / params.erased_share
+                }
+                Some(g) => {
+                    let up = if params.erased_share < 1.0 {
+                        (g - params.erased_share) / (1.0 - params.erased_share)
+                    } else {
+                        0.0
+                    };
+                    params.stay * (params.kept_stay / params.stay).powf(up)
+                }
+            })
+            .collect()
+    })
 }
 
 /// One calibrated view of the frame.
@@ -393,6 +459,18 @@ pub fn refine_frame(
     views: Vec<RefineView<'_>>,
     params: &ShadingRefineParams,
 ) -> Result<Refined> {
+    refine_frame_traced(topo, positions, views, params, None)
+}
+
+/// [`refine_frame`] with the stay weight lowered towards `erased_stay` where `trace` (what the frame's fold
+/// relief gives back of the surface its capture lost) says the capture erased the fold.
+pub fn refine_frame_traced(
+    topo: &Topology,
+    positions: &[V3],
+    views: Vec<RefineView<'_>>,
+    params: &ShadingRefineParams,
+    trace: Option<&Trace>,
+) -> Result<Refined> {
     params.validate()?;
     if positions.len() != topo.n_vertices() {
         return Err(Error::param(
@@ -420,6 +498,7 @@ pub fn refine_frame(
         return Ok(refined(positions.to_vec(), vec![0.0; n], 0.0, 0.0));
     }
     let neighbours: Vec<Vec<u32>> = (0..n).map(|v| topo.vertex_neighbors(v)).collect();
+    let stay = stay_weights(params, trace, n);
     let edge = mean_edge_length(topo, positions);
     let max_offset = params.max_offset_edges * edge;
     // Weighted mean square residual, back in grey levels (the weights carry 1 / grain²).
@@ -437,8 +516,16 @@ pub fn refine_frame(
         let data = data_term(topo, &cur, &lit, std::mem::take(&mut rendered), params);
         last = rms(&data);
         first.get_or_insert(last);
-        let step =
-            solve::solve_offsets(topo, &neighbours, &data.h, &data.g, &offsets, params, edge);
+        let step = solve::solve_offsets(
+            topo,
+            &neighbours,
+            &data.h,
+            &data.g,
+            &offsets,
+            params,
+            stay.as_deref(),
+            edge,
+        );
         let Some(step) = step else { break };
         // Keep every offset within the bound: scale the whole step, so its direction stays the solve's.
         let mut s: f64 = 1.0;

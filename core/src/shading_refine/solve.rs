@@ -13,7 +13,8 @@ struct System<'a> {
     neighbours: &'a [Vec<u32>],
     h: &'a [[[f64; 3]; 3]],
     smooth: f64,
-    stay: f64,
+    /// Per vertex.
+    stay: Vec<f64>,
 }
 
 impl System<'_> {
@@ -51,7 +52,8 @@ impl System<'_> {
         let llx = self.laplacian_t(&self.laplacian(x));
         llx.iter()
             .zip(x)
-            .map(|(l, v)| self.smooth * l + self.stay * v)
+            .zip(&self.stay)
+            .map(|((l, v), s)| self.smooth * l + s * v)
             .collect()
     }
 
@@ -70,8 +72,7 @@ impl System<'_> {
     }
 
     fn diagonal(&self) -> Vec<f64> {
-        let n = self.neighbours.len();
-        let mut d = vec![self.stay; n];
+        let mut d = self.stay.clone();
         for (i, nb) in self.neighbours.iter().enumerate() {
             if nb.is_empty() {
                 continue;
@@ -92,7 +93,9 @@ impl System<'_> {
 }
 
 /// The step of one Gauss–Newton round: argmin over δ of the data term's quadratic model plus the regularisers
-/// at `offsets + δ`. `None` when no pixel carries a data weight (nothing to refine from).
+/// at `offsets + δ`, the stay weight scaled per vertex by `stay` where given. `None` when no pixel carries a
+/// data weight (nothing to refine from).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn solve_offsets(
     topo: &Topology,
     neighbours: &[Vec<u32>],
@@ -100,6 +103,7 @@ pub(super) fn solve_offsets(
     g: &[[f64; 3]],
     offsets: &[f64],
     params: &ShadingRefineParams,
+    stay: Option<&[f64]>,
     edge: f64,
 ) -> Option<Vec<f64>> {
     let n = offsets.len();
@@ -124,7 +128,10 @@ pub(super) fn solve_offsets(
         neighbours,
         h,
         smooth: params.smoothness * per_edge,
-        stay: params.stay * per_edge,
+        stay: match stay {
+            Some(w) => w.iter().map(|w| w * per_edge).collect(),
+            None => vec![params.stay * per_edge; n],
+        },
     };
     for (bi, r) in b.iter_mut().zip(sys.regular(offsets)) {
         *bi -= r;

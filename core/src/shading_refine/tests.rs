@@ -202,3 +202,101 @@ fn bad_settings_and_inputs_are_named() {
     let e = refine_frame(&topo, &truth[..3], vec![], &ShadingRefineParams::default());
     assert!(e.unwrap_err().to_string().contains("positions"));
 }
+
+#[test]
+fn where_the_capture_erased_the_fold_the_images_are_followed_further() {
+    let (topo, truth) = sheet(61, 49, fold);
+    let (_, flat) = sheet(61, 49, base);
+    let cam = camera();
+    let photo = render(&topo, &truth, &cam, 0.0);
+    let views = || {
+        vec![RefineView {
+            camera: &cam,
+            photo: &photo,
+        }]
+    };
+    // The band of the ridge lost surface and the relief gave none of it back (rest areas far above the
+    // captured ones there); elsewhere nothing was lost (no rest area to compare with).
+    let band = |p: &V3| p[0].abs() < 8.0 / 60.0;
+    let rest = flat
+        .iter()
+        .map(|p| if band(p) { 1.0 } else { 0.0 })
+        .collect();
+    let areas = crate::spacetime::shape::lost_area::RestAreas::from_areas(&topo, rest, 0.0);
+    let trace = areas.trace(&topo, &flat, &flat).unwrap();
+    assert_eq!(trace.share(), Some(0.0));
+    let params = ShadingRefineParams::default();
+    assert!(params.erased_stay < params.stay && params.stay < params.kept_stay);
+    // Per vertex: the erased band at the lowest stay, where nothing was lost the plain stay, and where the relief
+    // gives back all that was lost (here a relief that doubles the sheet) the highest.
+    let n = flat.len();
+    let weights = stay_weights(&params, Some(&trace), n).unwrap();
+    let doubled: Vec<V3> = flat.iter().map(|p| vec3::scale(*p, 2.0)).collect();
+    let full = areas.trace(&topo, &flat, &doubled).unwrap();
+    let kept = stay_weights(&params, Some(&full), n).unwrap();
+    for v in 0..n {
+        let (want_erased, want_kept) = if band(&flat[v]) {
+            (params.erased_stay, params.kept_stay)
+        } else {
+            (params.stay, params.stay)
+        };
+        assert!(
+            (weights[v] - want_erased).abs() < 1e-9 * want_erased,
+            "vertex {v}"
+        );
+        assert!((kept[v] - want_kept).abs() < 1e-9 * want_kept, "vertex {v}");
+    }
+    assert!(stay_weights(&params, None, n).is_none());
+    assert!(stay_weights(&params, Some(&trace), n - 1).is_none());
+    let held = refine_frame(&topo, &flat, views(), &params).unwrap();
+    let erased = refine_frame_traced(&topo, &flat, views(), &params, Some(&trace)).unwrap();
+    let (e_held, e_erased) = (
+        normal_error(&topo, &held.positions, &truth),
+        normal_error(&topo, &erased.positions, &truth),
+    );
+    assert!(
+        e_erased < e_held - 0.05,
+        "normal error {e_held:.3}° held, {e_erased:.3}° with the erased band's lower stay"
+    );
+    // The crest comes up further towards the true ridge's (the refinement stays below it either way).
+    let crest = |h: &dyn Fn(usize) -> f64| {
+        (0..flat.len())
+            .filter(|&v| flat[v][0].abs() < 1.0 / 60.0)
+            .map(h)
+            .sum::<f64>()
+    };
+    let (true_crest, held_crest, erased_crest) = (
+        crest(&|v| ridge(flat[v][0])),
+        crest(&|v| held.offsets[v]),
+        crest(&|v| erased.offsets[v]),
+    );
+    assert!(
+        held_crest < erased_crest && erased_crest < true_crest,
+        "crest offsets {held_crest:.4} held, {erased_crest:.4} erased, {true_crest:.4} true"
+    );
+    // Off (a share of 0, or the same stay everywhere), the trace changes nothing, bit for bit.
+    for off in [
+        ShadingRefineParams {
+            erased_share: 0.0,
+            ..params.clone()
+        },
+        ShadingRefineParams {
+            erased_stay: params.stay,
+            kept_stay: params.stay,
+            ..params.clone()
+        },
+    ] {
+        let a = refine_frame(&topo, &flat, views(), &off).unwrap();
+        let b = refine_frame_traced(&topo, &flat, views(), &off, Some(&trace)).unwrap();
+        assert_eq!(a.positions, b.positions);
+    }
+    let bad = ShadingRefineParams {
+        erased_share: 1.5,
+        ..params.clone()
+    };
+    assert!(bad
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("erased_share"));
+}

@@ -61,10 +61,18 @@ pub fn windows_covering(windows: &[Window], t: usize) -> Vec<usize> {
 }
 
 /// A last step of a finished frame from evidence beyond the mesh (the shading refinement reads the frame's
-/// images, [`crate::shading_refine::ImageRefiner`]). It sees frame `t`'s finished shape and returns the shape to
-/// keep; it must be a pure function of its inputs so that wherever a frame is positioned it comes out the same.
+/// images, [`crate::shading_refine::ImageRefiner`]). It sees frame `t`'s finished shape, and what the frame's
+/// fold relief gives back of the surface its capture lost where that was measured (`trace`), and returns the
+/// shape to keep; it must be a pure function of its inputs so that wherever a frame is positioned it comes out
+/// the same.
 pub trait FrameRefiner: Sync {
-    fn refine(&self, topo: &crate::mesh::Topology, t: usize, positions: &[V3]) -> Result<Vec<V3>>;
+    fn refine(
+        &self,
+        topo: &crate::mesh::Topology,
+        t: usize,
+        positions: &[V3],
+        trace: Option<&super::shape::lost_area::Trace>,
+    ) -> Result<Vec<V3>>;
 }
 
 /// One frame positioned and stretch-reduced, with its stretch after each step and the seconds each step took.
@@ -184,7 +192,7 @@ pub fn position_frame(
         }
         let mut done = ending.finish(system.topology(), &rest, &out, heights, hold.as_deref());
         if let Some(r) = refiner {
-            done = r.refine(system.topology(), t, &done)?;
+            done = r.refine(system.topology(), t, &done, trace.as_ref())?;
         }
         let share = lost_area.and_then(|areas| areas.limit(system.topology(), &rest, &mut done));
         if let Some(l) = limit {

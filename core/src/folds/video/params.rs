@@ -102,6 +102,15 @@ pub struct VideoParams {
     pub refine_smoothness: f64,
     /// The refinement's weight on staying at the deformed shape ([`ShadingRefineParams::stay`]).
     pub refine_stay: f64,
+    /// The refinement's stay weight where the capture kept no trace of the surface it lost
+    /// ([`ShadingRefineParams::erased_stay`]).
+    pub refine_erased_stay: f64,
+    /// The share of its lost surface given back by the fold relief from which the refinement's stay is
+    /// `refine_stay` ([`ShadingRefineParams::erased_share`]).
+    pub refine_erased_share: f64,
+    /// The refinement's stay weight where the relief gives back all the capture lost
+    /// ([`ShadingRefineParams::kept_stay`]).
+    pub refine_kept_stay: f64,
     /// Largest offset the refinement gives a vertex, in mean edge lengths.
     pub refine_max_offset: f64,
     /// Wavelength in the input's units above which the refinement's offsets are removed (they move the garment
@@ -165,6 +174,9 @@ impl Default for VideoParams {
             refine_rounds: refine.rounds,
             refine_smoothness: refine.smoothness,
             refine_stay: refine.stay,
+            refine_erased_stay: refine.erased_stay,
+            refine_erased_share: refine.erased_share,
+            refine_kept_stay: refine.kept_stay,
             refine_max_offset: refine.max_offset_edges,
             refine_scale: refine.shape_scale,
         }
@@ -297,6 +309,9 @@ impl VideoParams {
             rounds: self.refine_rounds,
             smoothness: self.refine_smoothness,
             stay: self.refine_stay,
+            erased_stay: self.refine_erased_stay,
+            erased_share: self.refine_erased_share,
+            kept_stay: self.refine_kept_stay,
             max_offset_edges: self.refine_max_offset,
             shape_scale: self.refine_scale,
             ..ShadingRefineParams::default()

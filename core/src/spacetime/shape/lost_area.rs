@@ -28,7 +28,9 @@
 //! The same measure says where the capture kept no trace of the surface it lost ([`RestAreas::trace`]): the
 //! relief gives back what a capture damped, so where it gives back almost none of what was lost there, the
 //! capture erased the fold outright and only the anchors can make it; the positioning's shape screen may then
-//! let go there (`deform.release_share`), and the report gives each frame's share so a user can tell.
+//! let go there (`deform.release_share`), the shading refinement of video jobs follows the images further there
+//! ([`crate::shading_refine::ShadingRefineParams::erased_stay`]), and the report gives each frame's share so a
+//! user can tell.
 //!
 //! Everything is measured on the captured frames and the frame's own output; the result is a pure function of
 //! the input sequence and that frame.
@@ -239,6 +241,15 @@ impl Trace {
             given += g.min(l) * a;
         }
         (lost > 0.0).then(|| given / lost)
+    }
+
+    /// Per vertex, the share of the surface lost there that the relief gives back (at most 1); `None` where the
+    /// vertex lost none.
+    pub fn given_back(&self) -> Vec<Option<f64>> {
+        self.vertices
+            .iter()
+            .map(|v| v.map(|(lost, given, _)| (given / lost).min(1.0)))
+            .collect()
     }
 
     /// Per vertex, how far the positioning's shape screen and projection hold (1: fully, 0: not at all): 1 where

@@ -296,12 +296,18 @@ pub fn run(a: RunArgs) -> Result<()> {
                 "capture trace: the fold relief gives back a median {:.0}% of the surface the capture lost",
                 r * 100.0
             ));
-            if r < ERASED_TRACE && report.report.params.release_share == 0.0 {
-                progress.println(
-                    "  the capture kept almost no trace of its folds (erased, not blurred): the anchors alone make \
-                     them, and the shape screen holds most of that back; `--set deform.release_share=0.1` lets it \
-                     go where nothing was kept (docs/fidelity.md)",
-                );
+            if r < ERASED_TRACE {
+                progress.println(match folds {
+                    Folds::Video => {
+                        "  the capture kept almost no trace of its folds (erased, not blurred): the shading \
+                         refinement followed the images further there (`video.refine_erased_stay`)"
+                    }
+                    _ => {
+                        "  the capture kept almost no trace of its folds (erased, not blurred): from the geometry \
+                         alone their places are only roughly known; with the capture's calibrated images \
+                         (`--folds video`) the shading refinement brings them back (docs/fidelity.md)"
+                    }
+                });
             }
         }
     }

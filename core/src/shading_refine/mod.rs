@@ -162,35 +162,31 @@ impl ShadingRefineParams {
     }
 }
 
-/// Per vertex, the stay weight ([`ShadingRefineParams::erased_stay`]); `None` where it is `stay` everywhere (no
-/// trace, no lower stay, or a trace for another mesh).
-fn stay_weights(params: &ShadingRefineParams, trace: Option<&Trace>, n: usize) -> Option<Vec<f64>> {
-    let lower = params.erased_stay != params.stay && params.erased_share > 0.0;
-    let upper = params.kept_stay != params.stay && params.erased_share < 1.0;
-    if !(lower || upper) {
-        return None;
-    }
-    let given = trace?.given_back();
-    (given.len() == n).then(|| {
-        given
-            .iter()
-            .map(|g| match *g {
-                None => params.stay,
-                Some(g) if g < params.erased_share => {
-                    params.erased_stay
-                        + (params.stay - params.erased_stay) * g / params.erased_share
-                }
-                Some(g) => {
-                    let up = if params.erased_share < 1.0 {
-                        (g - params.erased_share) / (1.0 - params.erased_share)
-                    } else {
-                        0.0
-                    };
-                    params.stay * (params.kept_stay / params.stay).powf(up)
-                }
-            })
-            .collect()
-    })
+/// Per vertex, the stay weight: from [`ShadingRefineParams::erased_stay`] where the relief gives back none of
+/// what the capture lost there, through `stay` at `erased_share`, to `kept_stay` where it gives back all; `stay`
+/// where the vertex lost nothing, and everywhere without a trace (or with one for another mesh).
+fn stay_weights(params: &ShadingRefineParams, trace: Option<&Trace>, n: usize) -> Vec<f64> {
+    let given = trace.map(|t| t.given_back()).filter(|g| g.len() == n);
+    let Some(given) = given else {
+        return vec![params.stay; n];
+    };
+    given
+        .iter()
+        .map(|g| match *g {
+            None => params.stay,
+            Some(g) if g < params.erased_share => {
+                params.erased_stay + (params.stay - params.erased_stay) * g / params.erased_share
+            }
+            Some(g) => {
+                let up = if params.erased_share < 1.0 {
+                    (g - params.erased_share) / (1.0 - params.erased_share)
+                } else {
+                    0.0
+                };
+                params.stay * (params.kept_stay / params.stay).powf(up)
+            }
+        })
+        .collect()
 }
 
 /// One calibrated view of the frame.
@@ -462,8 +458,8 @@ pub fn refine_frame(
     refine_frame_traced(topo, positions, views, params, None)
 }
 
-/// [`refine_frame`] with the stay weight lowered towards `erased_stay` where `trace` (what the frame's fold
-/// relief gives back of the surface its capture lost) says the capture erased the fold.
+/// [`refine_frame`] with the stay weight following `trace`, what the frame's fold relief gives back of the
+/// surface its capture lost: lower where the capture erased the fold, higher where the relief restored it.
 pub fn refine_frame_traced(
     topo: &Topology,
     positions: &[V3],
@@ -523,7 +519,7 @@ pub fn refine_frame_traced(
             &data.g,
             &offsets,
             params,
-            stay.as_deref(),
+            &stay,
             edge,
         );
         let Some(step) = step else { break };

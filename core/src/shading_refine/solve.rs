@@ -93,8 +93,8 @@ impl System<'_> {
 }
 
 /// The step of one Gauss–Newton round: argmin over δ of the data term's quadratic model plus the regularisers
-/// at `offsets + δ`, the stay weight scaled per vertex by `stay` where given. `None` when no pixel carries a
-/// data weight (nothing to refine from).
+/// at `offsets + δ`, with each vertex's own stay weight (`stay`). `None` when no pixel carries a data weight
+/// (nothing to refine from).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn solve_offsets(
     topo: &Topology,
@@ -103,7 +103,7 @@ pub(super) fn solve_offsets(
     g: &[[f64; 3]],
     offsets: &[f64],
     params: &ShadingRefineParams,
-    stay: Option<&[f64]>,
+    stay: &[f64],
     edge: f64,
 ) -> Option<Vec<f64>> {
     let n = offsets.len();
@@ -128,10 +128,7 @@ pub(super) fn solve_offsets(
         neighbours,
         h,
         smooth: params.smoothness * per_edge,
-        stay: match stay {
-            Some(w) => w.iter().map(|w| w * per_edge).collect(),
-            None => vec![params.stay * per_edge; n],
-        },
+        stay: stay.iter().map(|w| w * per_edge).collect(),
     };
     for (bi, r) in b.iter_mut().zip(sys.regular(offsets)) {
         *bi -= r;

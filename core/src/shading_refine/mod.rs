@@ -81,6 +81,12 @@ pub struct ShadingRefineParams {
     /// garment rather than folding it) is removed as the positioning's shape projection removes it. 0: the
     /// positioning's default shape scale for this mesh.
     pub shape_scale: f64,
+    /// The sequence's detail scale ([`crate::spacetime::shape::relief`]), in the mesh's units; the offsets,
+    /// their bound and the stay are measured in fifths of it ("detail edges"), so that the same garment meshed
+    /// finer is refined the same way (the stay is a weight per vertex: in mean edge lengths it would grow with
+    /// the fourth power of the resolution and hold a fine mesh still). 0: five mean edge lengths of the frame
+    /// (the detail scale's own default).
+    pub detail_scale: f64,
 }
 
 impl Default for ShadingRefineParams {
@@ -96,6 +102,7 @@ impl Default for ShadingRefineParams {
             min_facing: 0.25,
             max_offset_edges: 1.5,
             shape_scale: 0.0,
+            detail_scale: 0.0,
         }
     }
 }
@@ -152,6 +159,12 @@ impl ShadingRefineParams {
             self.shape_scale,
             self.shape_scale >= 0.0,
             "a length ≥ 0 (0 = automatic)",
+        )?;
+        check(
+            "detail_scale",
+            self.detail_scale,
+            self.detail_scale >= 0.0,
+            "a length ≥ 0 (0 = five mean edge lengths)",
         )?;
         check(
             "max_offset",
@@ -494,9 +507,20 @@ pub fn refine_frame_traced(
         return Ok(refined(positions.to_vec(), vec![0.0; n], 0.0, 0.0));
     }
     let neighbours: Vec<Vec<u32>> = (0..n).map(|v| topo.vertex_neighbors(v)).collect();
-    let stay = stay_weights(params, trace, n);
     let edge = mean_edge_length(topo, positions);
-    let max_offset = params.max_offset_edges * edge;
+    // The detail edge: the unit of the offsets' bound and of the stay (field documentation). A stay per vertex
+    // over offsets in mean edge lengths weighs (edge / unit)⁴ as much per area as over offsets in detail edges.
+    let unit = if params.detail_scale > 0.0 {
+        params.detail_scale / DEFAULT_SCALE_EDGES
+    } else {
+        edge
+    };
+    let density = (edge / unit).powi(4);
+    let stay: Vec<f64> = stay_weights(params, trace, n)
+        .into_iter()
+        .map(|w| w * density)
+        .collect();
+    let max_offset = params.max_offset_edges * unit;
     // Weighted mean square residual, back in grey levels (the weights carry 1 / grain²).
     let rms = |d: &DataTerm| {
         if d.weight > 0.0 {
@@ -540,7 +564,7 @@ pub fn refine_frame_traced(
     let scale = if params.shape_scale > 0.0 {
         params.shape_scale
     } else {
-        SHAPE_SCALES * DEFAULT_SCALE_EDGES * edge
+        SHAPE_SCALES * DEFAULT_SCALE_EDGES * unit
     };
     let op = SurfaceOperator::with_rims_along_themselves(topo, positions);
     let cur = projection::project(&op, &heat::low_pass(&op, scale), positions, &cur, 1.0);

@@ -303,3 +303,48 @@ fn where_the_capture_erased_the_fold_the_images_are_followed_further() {
         .to_string()
         .contains("erased_share"));
 }
+
+/// How much of the ridge's height the offsets give back: their projection onto the true heights.
+fn height_recovered(truth: &[V3], offsets: &[f64]) -> f64 {
+    let h: Vec<f64> = truth.iter().map(|p| ridge(p[0])).collect();
+    let hh: f64 = h.iter().map(|a| a * a).sum();
+    h.iter().zip(offsets).map(|(a, b)| a * b).sum::<f64>() / hh
+}
+
+#[test]
+fn the_same_sheet_meshed_finer_is_refined_alike_at_the_same_detail_scale() {
+    let cam = camera();
+    let refine = |n: usize, detail_scale: f64| {
+        let (topo, truth) = sheet(60 * n + 1, 48 * n + 1, fold);
+        let (_, flat) = sheet(60 * n + 1, 48 * n + 1, base);
+        let photo = render(&topo, &truth, &cam, 0.0);
+        let views = vec![RefineView {
+            camera: &cam,
+            photo: &photo,
+        }];
+        let params = ShadingRefineParams {
+            detail_scale,
+            ..ShadingRefineParams::default()
+        };
+        let r = refine_frame(&topo, &flat, views, &params).unwrap();
+        height_recovered(&truth, &r.offsets)
+    };
+    // Five coarse edges, in metres: the fold's own scale, whatever the mesh.
+    let detail = 5.0 / 60.0;
+    let coarse = refine(1, detail);
+    let fine = refine(2, detail);
+    let fine_by_edges = refine(2, 0.0);
+    assert!(
+        coarse > 0.2,
+        "the coarse sheet got back {coarse:.3} of the ridge"
+    );
+    assert!(
+        (fine - coarse).abs() < 0.25 * coarse,
+        "same detail scale: coarse {coarse:.3}, fine {fine:.3} of the ridge"
+    );
+    // Measured in the fine mesh's own edges the stay holds it back: the detail scale is what keeps it alike.
+    assert!(
+        fine_by_edges < 0.8 * fine,
+        "fine mesh at five of its own edges {fine_by_edges:.3}, at the physical scale {fine:.3}"
+    );
+}

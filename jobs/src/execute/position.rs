@@ -14,7 +14,7 @@ use crease_core::folds::video::CameraRig;
 use crease_core::heat::{self, SurfaceOperator};
 use crease_core::mesh::io::OpenedSequence;
 use crease_core::mesh::{FrameSink, FrameSource};
-use crease_core::shading_refine::ImageRefiner;
+use crease_core::shading_refine::{ImageRefiner, ShadingRefineParams};
 use crease_core::shape::ShapeAccumulator;
 use crease_core::spacetime::params::Scales;
 use crease_core::spacetime::position::strain_limit::{StrainLimiter, StrainReference};
@@ -78,7 +78,7 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
     } else {
         None
     };
-    let refiner = image_refiner(env, &opened, &label)?;
+    let refiner = image_refiner(env, &opened, scales.detail, &label)?;
     lap.lap("position: input, system, strain limiter, reliefs");
     env.progress().begin("position", frames.len() as u64);
     let mut written = Vec::new();
@@ -189,10 +189,11 @@ pub fn position(env: &TaskEnv, frames: Range<usize>) -> Result<(Value, Vec<Strin
 }
 
 /// The shading refinement of a video job's frames from their own images (`folds.params.refine_rounds` > 0),
-/// read on whichever machine positions them.
+/// read on whichever machine positions them, at the sequence's detail scale `detail`.
 fn image_refiner(
     env: &TaskEnv,
     opened: &OpenedSequence,
+    detail: f64,
     label: &str,
 ) -> Result<Option<ImageRefiner>, TaskError> {
     let FoldSpec::Video {
@@ -218,7 +219,10 @@ fn image_refiner(
     Ok(Some(ImageRefiner {
         rig,
         numbers: image_numbers(&opened.layout, n, *first_image_number),
-        params: params.refine_params(),
+        params: ShadingRefineParams {
+            detail_scale: detail,
+            ..params.refine_params()
+        },
     }))
 }
 

@@ -285,6 +285,20 @@ pub fn run(a: RunArgs) -> Result<()> {
         vs_rest.max * 100.0,
         vs_rest.mean * 100.0
     ));
+    if let Some(l) = &report.summary.scales {
+        // The one length crease cannot know of the capture: say which it used and where it came from.
+        progress.println(&format!(
+            "detail scale: {:.4} input units, {:.1} mean edge lengths of the first frame ({})",
+            l.detail,
+            l.detail / l.mean_edge,
+            if l.detail_given {
+                "given"
+            } else {
+                "taken from the mesh; give --detail-scale when the mesh is much finer than the detail the \
+                 capture resolves"
+            }
+        ));
+    }
     if let Some(j) = &report.summary.lost_area {
         // A capture that kept its folds gives most frames back: say so, or the unchanged output looks like a fault.
         progress.println(&format!(

@@ -93,12 +93,30 @@ pub struct Summary {
     pub stretch_vs_rest: VsRest,
     /// Every output frame against its input frame.
     pub shape_kept: ShapeStats,
+    /// The lengths the deformation worked at (none in reports written before they were recorded).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scales: Option<SequenceLengths>,
     /// How the lost-area bound judged the frames (none: the bound did not run).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lost_area: Option<LostAreaJudgement>,
     pub seconds_per_frame: SecondsPerFrame,
     pub timings_note: String,
     pub preview_seconds: f64,
+}
+
+/// The lengths a run's deformation worked at, in the input's units: what `--detail-scale` would change.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SequenceLengths {
+    /// Mean edge length of the input's first frame.
+    pub mean_edge: f64,
+    /// The detail scale: given (`deform.relief.scale`), or five mean edge lengths.
+    pub detail: f64,
+    /// Whether the detail scale was given rather than taken from the mesh.
+    pub detail_given: bool,
+    /// The shape screen's cutoff wavelength (none: no screen).
+    pub screen: Option<f64>,
+    /// The wavelength above which the displacement is removed as shape.
+    pub shape: f64,
 }
 
 /// Edge tension of the output against the least-compressed captured edge lengths.

@@ -201,6 +201,23 @@ fn a_fold_the_capture_erased_comes_back_where_the_stretch_detector_finds_it() {
         trace < 0.05,
         "the relief gives back {trace:.3} of the lost surface"
     );
+    // The lengths it worked at: five mean edge lengths of the first frame unless given in the input's units.
+    let scales = &report["summary"]["scales"];
+    let (edge, detail) = (
+        scales["mean_edge"].as_f64().unwrap(),
+        scales["detail"].as_f64().unwrap(),
+    );
+    assert!(
+        (0.01..0.015).contains(&edge) && (detail / edge - 5.0).abs() < 1e-9,
+        "{scales}"
+    );
+    assert_eq!(scales["detail_given"], false);
+    let (given, _) = run("given", &["--detail-scale", "0.08"]);
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(given.join("report.json")).unwrap()).unwrap();
+    let scales = &report["summary"]["scales"];
+    assert_eq!(scales["detail"].as_f64(), Some(0.08), "{scales}");
+    assert_eq!(scales["detail_given"], true);
     let (released, eval) = run("released", &["--set", "deform.release_share=0.1"]);
 
     // The peak frames (4 and 5 of 8): the truth's ridge, and the output's height above the capture.

@@ -10,7 +10,8 @@ use super::weights::WindowRecord;
 use crate::error::{JobError, TaskError};
 use crate::plan::inspect::{output_files, output_sink, writes_frames};
 use crate::report::{
-    AnchorsSource, FoldDetection, JobReport, LostAreaJudgement, SecondsPerFrame, Summary, VsRest,
+    AnchorsSource, FoldDetection, JobReport, LostAreaJudgement, SecondsPerFrame, SequenceLengths,
+    Summary, VsRest,
 };
 use crate::spec::FoldSpec;
 use crate::storage::keys;
@@ -36,6 +37,7 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         .remove_put_leftovers()
         .map_err(|e| storage_err(JobError::storage_failure(env.out.uri(), &e)))?;
     let opened = env.open_input()?;
+    let (mean_edge, scales) = super::position::first_edge_and_scales(env, &opened, "finalize")?;
     let source: &dyn FrameSource = opened.source.as_ref();
     let topo = source.topology().clone();
     let n = source.n_frames();
@@ -274,6 +276,13 @@ pub fn finalize(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
                 output: vs_rest.stats(),
             },
             shape_kept: shape_kept.stats(),
+            scales: Some(SequenceLengths {
+                mean_edge,
+                detail: scales.detail,
+                detail_given: params.relief.scale > 0.0,
+                screen: scales.screen,
+                shape: scales.ending.shape_scale,
+            }),
             lost_area: LostAreaJudgement::of_frames(
                 &report.frame_lost_share,
                 &report.frame_relief_share,

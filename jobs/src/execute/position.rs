@@ -327,6 +327,15 @@ pub(super) fn sequence_scales(
     opened: &Arc<OpenedSequence>,
     label: &str,
 ) -> Result<Scales, TaskError> {
+    Ok(first_edge_and_scales(env, opened, label)?.1)
+}
+
+/// [`sequence_scales`] with the first frame's mean edge length they were measured by.
+pub(super) fn first_edge_and_scales(
+    env: &TaskEnv,
+    opened: &Arc<OpenedSequence>,
+    label: &str,
+) -> Result<(f64, Scales), TaskError> {
     let source = &opened.source;
     let first = source
         .read_frame(0)
@@ -338,7 +347,7 @@ pub(super) fn sequence_scales(
             source.describe_frame(0)
         )));
     }
-    Ok(env.params.scales(edge))
+    Ok((edge, env.params.scales(edge)))
 }
 
 /// The reliefs the heights of `frames` read (their spans), as (first frame, reliefs), or None when the job has

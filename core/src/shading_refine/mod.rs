@@ -19,8 +19,9 @@
 //!   anchors made) stays.
 //!
 //! Each view's pixels count by the inverse square of that image's own grain (read from the image: a pixel
-//! against its eight neighbours), and the offsets are measured in mean edge lengths, so a noisy camera is
-//! trusted less and the settings mean the same on any mesh in any units. A few Gauss–Newton rounds re-render
+//! against its eight neighbours), and the offsets are measured in fifths of the sequence's detail scale with the
+//! priors per unit of surface, so a noisy camera is trusted less and the settings mean the same in any units and
+//! on the same garment meshed finer. A few Gauss–Newton rounds re-render
 //! the moved surface; the lighting stays the one fitted to the input. Image grey levels are taken back to linear
 //! radiance (the sRGB transfer curve) first, where Lambert's law holds. Last, the offsets lose their long
 //! wavelengths (the positioning's shape projection at its shape scale): shading says little about them, and
@@ -75,11 +76,12 @@ pub struct ShadingRefineParams {
     pub margin_px: f64,
     /// Pixels whose surface is seen more obliquely than this (cosine between normal and view ray) are not used.
     pub min_facing: f64,
-    /// Largest offset, in mean edge lengths: a round's step is scaled down to keep every offset within it.
+    /// Largest offset, in fifths of the detail scale (mean edge lengths at the default one): a round's step is
+    /// scaled down to keep every offset within it.
     pub max_offset_edges: f64,
     /// Wavelength below which the offsets are kept, in the mesh's units; their longer part (which moves the
     /// garment rather than folding it) is removed as the positioning's shape projection removes it. 0: the
-    /// positioning's default shape scale for this mesh.
+    /// positioning's shape scale, twice the detail scale.
     pub shape_scale: f64,
     /// The sequence's detail scale ([`crate::spacetime::shape::relief`]), in the mesh's units; the offsets,
     /// their bound and the stay are measured in fifths of it ("detail edges"), so that the same garment meshed

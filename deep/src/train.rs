@@ -74,6 +74,9 @@ pub struct TrainParams {
     /// Earlier frames whose poses the kernel regression compares besides the frame itself
     /// ([`crate::regression::kernel`]; 0 is the frame).
     pub kernel_window: Vec<usize>,
+    /// Every input number of the kernel weighed alike, instead of the searched weights
+    /// ([`crate::regression::kernel::InputWeights`]).
+    pub kernel_uniform: bool,
     /// Leading shape coefficients the autoregressive regressor feeds back (capped at the subspace size).
     pub ar_state: usize,
     /// Steps of the autoregressive regressor's fit on its own rollout ([`crate::regression::rollout_fit`]) after the
@@ -125,6 +128,7 @@ impl Default for TrainParams {
             // weight measured 6.85 mm over two-sequence splits against the rollout's 7.20 mm.
             regressor: RegressorKind::Kernel,
             kernel_window: vec![0, 2, 4, 6],
+            kernel_uniform: false,
             ar_state: 10,
             ar_rollout_iters: 20,
             blend_weight: 0.5,
@@ -378,8 +382,19 @@ pub fn fit(
     let kernel_targets: Vec<&[Vec<f64>]> = per_seq.iter().map(|(_, t)| t.as_slice()).collect();
     let kernel = fit_kernel(&pose_refs, &kernel_targets, n_orig, params)?;
     let kernel_s = t_kernel.elapsed().as_secs_f64();
+    let weights = kernel
+        .spec
+        .weights
+        .as_ref()
+        .map(|w| {
+            format!(
+                ", lag decay {} per frame, pose number factors {:?}",
+                w.decay, w.numbers
+            )
+        })
+        .unwrap_or_default();
     progress.note(&format!(
-        "kernel: width {} ridge {:.0e} over {} frames ({}) in {kernel_s:.1} s",
+        "kernel: width {} ridge {:.0e}{weights} over {} frames ({}) in {kernel_s:.1} s",
         kernel.spec.width, kernel.spec.ridge, kernel.spec.centres, kernel.spec.method
     ));
     let (mut lstm, mut lstm_losses, mut lstm_s) = (None, Vec::new(), 0.0);
@@ -545,7 +560,13 @@ fn fit_kernel(
             group: i % n_orig.max(1),
         })
         .collect();
-    KernelRegression::fit(&kd, params.kernel_window.clone(), mean, scale)
+    KernelRegression::fit(
+        &kd,
+        params.kernel_window.clone(),
+        mean,
+        scale,
+        !params.kernel_uniform,
+    )
 }
 
 /// The coefficients of every frame by one of the linear regressors (not the LSTM), from the control vectors

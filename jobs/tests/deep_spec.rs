@@ -46,6 +46,7 @@ fn train_and_apply_specs_parse_with_the_cli_defaults() {
             assert_eq!(params.cgan_filters, 8);
             assert_eq!(params.regressor, Regressor::Kernel);
             assert_eq!(params.kernel_window, [0, 2, 4, 6]);
+            assert!(!params.kernel_uniform);
             assert_eq!(params.pose_lowpass, 6.0);
             assert_eq!((params.ar_state, params.ar_rollout_iters), (10, 20));
             assert_eq!((params.blend_weight, params.blend_fit), (0.5, false));

@@ -80,6 +80,7 @@ pub fn train_params(p: &DeepTrainParams, uv: Option<PathBuf>) -> TrainParams {
         mirror: p.mirror.into(),
         regressor: p.regressor.into(),
         kernel_window: p.kernel_window.clone(),
+        kernel_uniform: p.kernel_uniform,
         ar_state: p.ar_state,
         ar_rollout_iters: p.ar_rollout_iters,
         blend_weight: p.blend_weight,
@@ -167,6 +168,7 @@ mod tests {
                 t.ar_state,
                 t.ar_rollout_iters,
                 t.kernel_window,
+                t.kernel_uniform,
             ),
             (t.blend_weight, t.blend_fit, t.lags, t.pose_history, t.ridge),
             (t.pose_features, t.mirror),
@@ -196,6 +198,7 @@ mod tests {
                 d.ar_state,
                 d.ar_rollout_iters,
                 d.kernel_window.clone(),
+                d.kernel_uniform,
             ),
             (
                 d.blend_weight,

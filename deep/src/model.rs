@@ -26,8 +26,10 @@ use std::sync::Arc;
 /// Version 9 replaced the detail filter by the detail model learned from the model's own random captures
 /// (`detail` in the manifest, `detail.npy`: conditioned weights and a guard) and the pose-only shape's
 /// smoothing by a cotangent diffusion (`pose_lowpass`). Older models held a filter and a smoothing tied to one
-/// data set's capture; they are refused by version, to be retrained.
-pub const MODEL_VERSION: u32 = 10;
+/// data set's capture; they are refused by version, to be retrained. Version 11 weighs the kernel regression's
+/// input numbers (`kernel.weights`; `kernel_inputs.npy` holds the weighted centres): a version 10 model reads as
+/// uniform weights, and an older build must not read a version 11 one as if its centres were unweighted.
+pub const MODEL_VERSION: u32 = 11;
 /// Oldest format this build reads.
 pub const MODEL_VERSION_MIN: u32 = 9;
 pub const MODEL_FORMAT: &str = "crease-deep-model";

@@ -1,5 +1,5 @@
 //! The kernel regressor inside a stored model: `crease deep train` stores its centres, dual weights and the
-//! width and ridge its inner leave-one-out chose (format version 10); `apply --pose` reproduces the fitted
+//! width, ridge and input weights its inner leave-one-out chose (format version 11); `apply --pose` reproduces the fitted
 //! predictions from the stored files; on a shape that is a nonlinear function of the last poses it beats the
 //! linear map on an unseen motion; a model without it, or with damaged arrays, is refused naming the file.
 

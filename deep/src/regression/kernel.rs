@@ -21,9 +21,8 @@
 //! oldest lag as much as the newest. So each input number is weighted, by a decay per frame of lag and a
 //! factor per pose number ([`InputWeights`]), searched by the same inner leave-one-out one coordinate at a
 //! time (the decay, then each varying pose number's factor); the weights are normalised to a root mean square
-//! of 1 over the varying numbers, so the width keeps its meaning. On sleeve-train this took the held-out shape
-//! error from 3.83 to 3.42 mm (numpy, seven splits without reflections; the search chose a decay of 0.84 per
-//! frame and half the weight on the twist on every split).
+//! of 1 over the varying numbers, so the width keeps its meaning. On sleeve-train the search weighs the newest
+//! poses most and the cuff's travel above its twist (bench/results/2026-12-07-deep-kernel-weights.md).
 
 use crease_core::{Error, Result};
 use faer::linalg::solvers::Solve;

@@ -528,7 +528,7 @@ mod tests {
 
     /// A target that is a nonlinear function of the last two poses: the linear map cannot fit it, the kernel
     /// must, from other sequences.
-    fn sequence(phase: f64, amp: f64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    fn sequence(phase: f64, amp: f64) -> Sequence {
         let poses: Vec<Vec<f64>> = (0..60)
             .map(|t| {
                 let s = (t as f64 * 0.15 + phase).sin() * amp;
@@ -544,17 +544,16 @@ mod tests {
         (poses, targets)
     }
 
-    #[test]
-    fn a_nonlinear_function_of_the_window_is_learned_from_other_sequences() {
-        let seqs: Vec<_> = (0..5)
-            .map(|i| sequence(0.7 * i as f64, 1.0 + 0.1 * i as f64))
-            .collect();
+    /// One sequence's poses and targets, frame by frame.
+    type Sequence = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
+    /// A kernel fitted on the first four sequences, each its own group, standardised on them.
+    fn fit_on_first_four(seqs: &[Sequence], window: &[usize], search: bool) -> KernelRegression {
         let refs: Vec<&[Vec<f64>]> = seqs[..4].iter().map(|s| s.0.as_slice()).collect();
         let ControlSpec { mean, scale, .. } = ControlSpec::fit(&refs, vec![]).unwrap();
-        let window = vec![0, 2];
-        let inputs: Vec<Vec<Vec<f64>>> = seqs
+        let inputs: Vec<Vec<Vec<f64>>> = seqs[..4]
             .iter()
-            .map(|s| window_inputs(&s.0, &mean, &scale, &window))
+            .map(|s| window_inputs(&s.0, &mean, &scale, window))
             .collect();
         let data: Vec<KernelData> = (0..4)
             .map(|i| KernelData {
@@ -563,7 +562,15 @@ mod tests {
                 group: i,
             })
             .collect();
-        let m = KernelRegression::fit(&data, window, mean, scale, true).unwrap();
+        KernelRegression::fit(&data, window.to_vec(), mean, scale, search).unwrap()
+    }
+
+    #[test]
+    fn a_nonlinear_function_of_the_window_is_learned_from_other_sequences() {
+        let seqs: Vec<_> = (0..5)
+            .map(|i| sequence(0.7 * i as f64, 1.0 + 0.1 * i as f64))
+            .collect();
+        let m = fit_on_first_four(&seqs, &[0, 2], true);
         assert_eq!(m.spec.method, "inner-leave-one-out");
         assert_eq!(m.spec.scores.len(), WIDTHS.len() * RIDGES.len());
         m.check().unwrap();
@@ -591,7 +598,7 @@ mod tests {
     }
 
     /// Two pose numbers that vary alike, of which only the first moves the cloth, and only at the frame itself.
-    fn one_number_matters(phase: f64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    fn one_number_matters(phase: f64) -> Sequence {
         let poses: Vec<Vec<f64>> = (0..80)
             .map(|t| {
                 let t = t as f64;
@@ -608,25 +615,10 @@ mod tests {
     #[test]
     fn the_search_weighs_down_what_does_not_move_the_cloth_and_predicts_better() {
         let seqs: Vec<_> = (0..5).map(|i| one_number_matters(0.9 * i as f64)).collect();
-        let refs: Vec<&[Vec<f64>]> = seqs[..4].iter().map(|s| s.0.as_slice()).collect();
-        let ControlSpec { mean, scale, .. } = ControlSpec::fit(&refs, vec![]).unwrap();
-        let window = vec![0, 2];
-        let inputs: Vec<Vec<Vec<f64>>> = seqs
-            .iter()
-            .map(|s| window_inputs(&s.0, &mean, &scale, &window))
-            .collect();
-        let data: Vec<KernelData> = (0..4)
-            .map(|i| KernelData {
-                inputs: &inputs[i],
-                targets: &seqs[i].1,
-                group: i,
-            })
-            .collect();
-        let fit = |search| {
-            KernelRegression::fit(&data, window.clone(), mean.clone(), scale.clone(), search)
-                .unwrap()
-        };
-        let (searched, uniform) = (fit(true), fit(false));
+        let (searched, uniform) = (
+            fit_on_first_four(&seqs, &[0, 2], true),
+            fit_on_first_four(&seqs, &[0, 2], false),
+        );
         searched.check().unwrap();
         let w = searched.spec.weights.clone().unwrap();
         assert!(w.numbers[1] < w.numbers[0], "{w:?}");

@@ -127,13 +127,19 @@ fn models_meshes_and_uv_requirements_are_checked() {
     let old = copy("old");
     let m = std::fs::read_to_string(old.join("manifest.json"))
         .unwrap()
-        .replace("\"version\": 10", "\"version\": 99");
+        .replace(
+            &format!("\"version\": {}", crease_deep::model::MODEL_VERSION),
+            "\"version\": 99",
+        );
     std::fs::write(old.join("manifest.json"), m).unwrap();
     let e = err(Model::load(&old));
+    let range = format!(
+        "reads versions {} to {}",
+        crease_deep::model::MODEL_VERSION_MIN,
+        crease_deep::model::MODEL_VERSION
+    );
     assert!(
-        e.contains("manifest.json")
-            && e.contains("version 99")
-            && e.contains("reads versions 9 to 10"),
+        e.contains("manifest.json") && e.contains("version 99") && e.contains(&range),
         "{e}"
     );
     let damaged = copy("damaged");

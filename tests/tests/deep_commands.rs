@@ -167,7 +167,7 @@ fn train_apply_writes_the_output_contract_deterministically() {
     let manifest: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(model.join("manifest.json")).unwrap())
             .unwrap();
-    assert_eq!(manifest["version"], 10);
+    assert_eq!(manifest["version"], 11);
     // The synthetic shapes are affine in the two pose numbers that move (a, b): the subspace keeps only
     // components with non-negligible variance, so k is capped at that rank.
     assert_eq!(manifest["k"], 2);
@@ -608,7 +608,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
     }
     let m = std::fs::read_to_string(old.join("manifest.json"))
         .unwrap()
-        .replace("\"version\": 10", "\"version\": 99");
+        .replace("\"version\": 11", "\"version\": 99");
     std::fs::write(old.join("manifest.json"), m).unwrap();
     fails(
         &[
@@ -621,7 +621,7 @@ fn bad_inputs_get_clear_errors_naming_file_frame_or_field() {
             "--out",
             s(&tmp.path().join("o4")),
         ],
-        &["manifest.json", "version 99", "versions 9 to 10"],
+        &["manifest.json", "version 99", "versions 9 to 11"],
     );
 
     // A half-written model (no manifest) is not a model; a damaged file is caught by the manifest.

@@ -192,8 +192,8 @@ pub struct TrainArgs {
     /// Seed of every random choice (weights, batches): the same seed gives the same model.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Normal map resolution.
-    #[arg(long, default_value_t = 256)]
+    /// Normal map resolution (square, texels per side).
+    #[arg(long, default_value_t = crease_deep::normal_maps::DEFAULT_RESOLUTION)]
     pub resolution: usize,
     /// A template OBJ whose `vt` gives the UV layout (required to have `vt`); default: computed (LSCM charts).
     #[arg(long)]
@@ -330,7 +330,7 @@ pub struct BakeArgs {
     #[arg(long, default_value = "world")]
     pub space: Space,
     /// Normal map resolution (square, texels per side).
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = crease_deep::normal_maps::DEFAULT_RESOLUTION)]
     pub resolution: usize,
     /// OBJ with the UV layout to use (required to have `vt`); default: the coarse input's own `vt`, else
     /// computed (LSCM charts).

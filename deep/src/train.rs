@@ -142,7 +142,7 @@ impl Default for TrainParams {
                 half_wavelength: 6.0,
             },
             detail: DetailParams::default(),
-            resolution: 256,
+            resolution: crate::normal_maps::DEFAULT_RESOLUTION,
             uv: None,
             cgan: None,
             checkpoint: None,

@@ -42,7 +42,7 @@ fn train_and_apply_specs_parse_with_the_cli_defaults() {
             assert_eq!(data, &["/data/b"]);
             assert_eq!(params.k, 50);
             assert_eq!(params.cgan_steps, 2);
-            assert_eq!(params.resolution, 256, "crease deep train's default");
+            assert_eq!(params.resolution, 512, "crease deep train's default");
             assert_eq!(params.cgan_filters, 8);
             assert_eq!(params.regressor, Regressor::Kernel);
             assert_eq!(params.kernel_window, [0, 2, 4, 6]);

@@ -25,7 +25,7 @@ pub struct BakeParams {
 impl Default for BakeParams {
     fn default() -> Self {
         BakeParams {
-            resolution: 256,
+            resolution: super::DEFAULT_RESOLUTION,
             space: Space::World,
             max_dist_edges: 8.0,
         }

@@ -182,7 +182,8 @@ impl Default for DeepTrainParams {
             detail_degree: 16,
             detail_captures: 1,
             seed: 1,
-            resolution: 256,
+            // crease_deep::normal_maps::DEFAULT_RESOLUTION (the library may not be built in; a test checks).
+            resolution: 512,
             uv: None,
             cgan_steps: 1500,
             cgan_filters: 8,

@@ -22,9 +22,16 @@ use crate::vec3::{self, V3};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
-/// Cotangent weights are clamped to this magnitude (an angle of about 1.1° or 178.9°): a needle triangle would
-/// otherwise give a weight, and so a λ_max, large enough to need thousands of series terms, for a triangle
-/// whose shape carries no information about the surface.
+/// A triangle's cotangent weights are scaled down together until none exceeds this magnitude (an angle of about
+/// 1.1° or 178.9°): a needle triangle would otherwise give a weight, and so a λ_max, large enough to need
+/// thousands of series terms, for a triangle whose shape carries no information about the surface.
+///
+/// Together, not each on its own: a triangle's stiffness ½ Σ cot_k (x_i − x_j)² is positive semi-definite
+/// because its cotangents satisfy cot α cot β + cot β cot γ + cot γ cot α = 1. Clipping them one by one breaks
+/// that identity (a sliver's −200, 100, 100 clipped to −50, 50, 50 gives −2500): the Laplacian gets a negative
+/// eigenvalue, where every Chebyshev series on [0, λ_max] grows like a power of its term count, and one nearly
+/// collapsed triangle in a captured frame sent the shape projection's low-pass to 10⁴⁰. Scaled together, the
+/// three keep their identity up to a positive factor: the sliver is a weaker but still positive spring.
 const MAX_COT: f64 = 50.0;
 
 /// Coefficients below this fraction of the largest end the series.
@@ -82,16 +89,9 @@ impl SurfaceOperator {
             for &v in tri {
                 mass[v as usize] += area / 3.0;
             }
-            for k in 0..3 {
-                let (i, j, o) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
-                let u = vec3::sub(p[i as usize], p[o as usize]);
-                let w = vec3::sub(p[j as usize], p[o as usize]);
-                let cross = vec3::norm(vec3::cross(u, w));
-                let cot = if cross > 0.0 {
-                    (vec3::dot(u, w) / cross).clamp(-MAX_COT, MAX_COT)
-                } else {
-                    0.0
-                };
+            let cots = triangle_cotangents(q);
+            for (k, cot) in cots.into_iter().enumerate() {
+                let (i, j) = (tri[k], tri[(k + 1) % 3]);
                 pairs.push((i, j, 0.5 * cot));
                 pairs.push((j, i, 0.5 * cot));
             }
@@ -229,6 +229,27 @@ impl SurfaceOperator {
             std::mem::swap(&mut cur, &mut next);
         }
         out
+    }
+}
+
+/// The cotangent of the angle opposite each edge (k, k + 1) of triangle `q`, scaled together so that none
+/// exceeds [`MAX_COT`]; zero for a triangle without area.
+fn triangle_cotangents(q: [V3; 3]) -> [f64; 3] {
+    let cots: [f64; 3] = std::array::from_fn(|k| {
+        let o = q[(k + 2) % 3];
+        let (u, w) = (vec3::sub(q[k], o), vec3::sub(q[(k + 1) % 3], o));
+        let cross = vec3::norm(vec3::cross(u, w));
+        if cross > 0.0 {
+            vec3::dot(u, w) / cross
+        } else {
+            0.0
+        }
+    });
+    let largest = cots.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+    if largest > MAX_COT {
+        cots.map(|c| c * (MAX_COT / largest))
+    } else {
+        cots
     }
 }
 
@@ -384,14 +405,9 @@ pub(crate) mod tests {
         }
     }
 
-    /// The series evaluates f(A) x: on a small mesh, against f applied to A's eigendecomposition computed
-    /// densely.
-    #[test]
-    fn the_series_is_the_function_of_the_operator() {
-        let (topo, p) = waved_grid(9, 7, 4.0, 0.4);
-        let op = SurfaceOperator::new(&topo, &p);
+    /// S = M^{1/2} A M^{-1/2}, symmetric (L is), with A's eigenvalues.
+    fn symmetric(op: &SurfaceOperator) -> faer::Mat<f64> {
         let n = op.n_vertices();
-        // f(A) = M^{-1/2} f(S) M^{1/2} with S = M^{1/2} A M^{-1/2} symmetric (L is): dense eigendecomposition.
         let m = op.mass();
         let mut sym = faer::Mat::<f64>::zeros(n, n);
         for v in 0..n {
@@ -401,6 +417,58 @@ pub(crate) mod tests {
                 sym[(v, j)] -= op.weights[s] * (m[v] / m[j]).sqrt();
             }
         }
+        sym
+    }
+
+    /// A nearly collapsed triangle (a capture's vertex that slid almost onto its neighbours' edge) keeps the
+    /// operator positive semi-definite, so the low-pass stays a low-pass: clipping its three large cotangents
+    /// one by one gave a negative eigenvalue, which the series amplifies without bound.
+    #[test]
+    fn a_sliver_keeps_the_operator_positive() {
+        let (topo, mut p) = waved_grid(12, 9, 6.0, 0.0);
+        // Vertex 5 of row 4 moved to 0.002 above the edge between vertices 4 and 5 of row 3, the other two
+        // corners of its triangle below: the triangle becomes a needle with an angle of about 179.5°.
+        let (a, b, v) = (3 * 12 + 4, 3 * 12 + 5, 4 * 12 + 5);
+        let mid = vec3::scale(vec3::add(p[a], p[b]), 0.5);
+        p[v] = vec3::add(mid, [0.0, 0.002, 0.0]);
+        let tri = topo
+            .triangles()
+            .iter()
+            .find(|t| t.contains(&(a as u32)) && t.contains(&(b as u32)) && t.contains(&(v as u32)))
+            .copied()
+            .expect("the needle triangle");
+        let cots = triangle_cotangents(tri.map(|i| p[i as usize]));
+        assert!(
+            cots.iter().any(|c| c.abs() >= MAX_COT * (1.0 - 1e-12)),
+            "{cots:?}"
+        );
+        let identity = cots[0] * cots[1] + cots[1] * cots[2] + cots[2] * cots[0];
+        assert!(identity > 0.0, "{cots:?}");
+        let op = SurfaceOperator::new(&topo, &p);
+        let eig = symmetric(&op)
+            .self_adjoint_eigen(faer::Side::Lower)
+            .unwrap();
+        let smallest = eig.S().column_vector()[0];
+        assert!(smallest > -1e-9 * op.lambda_max(), "eigenvalue {smallest}");
+        // And the low-pass of a bounded field stays bounded.
+        let x: Vec<V3> = (0..p.len())
+            .map(|v| [(v as f64 * 0.7).sin(), 0.0, 0.0])
+            .collect();
+        let out = op.apply(&low_pass(&op, 8.0), &x);
+        let largest = out.iter().fold(0.0f64, |m, q| m.max(q[0].abs()));
+        assert!(largest < 1.5, "low-pass reached {largest}");
+    }
+
+    /// The series evaluates f(A) x: on a small mesh, against f applied to A's eigendecomposition computed
+    /// densely.
+    #[test]
+    fn the_series_is_the_function_of_the_operator() {
+        let (topo, p) = waved_grid(9, 7, 4.0, 0.4);
+        let op = SurfaceOperator::new(&topo, &p);
+        let n = op.n_vertices();
+        // f(A) = M^{-1/2} f(S) M^{1/2} with S = M^{1/2} A M^{-1/2} symmetric (L is): dense eigendecomposition.
+        let m = op.mass();
+        let sym = symmetric(&op);
         let f = |l: f64| 1.0 / (1.0 + 0.3 * l) + 0.1 * (-0.5 * l).exp();
         let series = Series::new(op.lambda_max(), f);
         let x: Vec<V3> = (0..n)

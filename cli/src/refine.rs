@@ -6,6 +6,7 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use crease_core::folds::video::cameras::CameraRig;
 use crease_core::mesh::io::{create_sink, open_sequence};
+use crease_core::mesh::seams::Seams;
 use crease_core::progress::Progress;
 use crease_core::shading_refine::{refine_frame, RefineView, ShadingRefineParams};
 use rayon::prelude::*;
@@ -87,7 +88,9 @@ pub fn refine(a: RefineArgs) -> Result<()> {
                     photo: p,
                 })
                 .collect();
-            let r = refine_frame(&topo, &positions, views, &params)?;
+            let mut r = refine_frame(&topo, &positions, views, &params)?;
+            // The input's unwelded seams stay closed, as in `crease run`.
+            Seams::of_frame(&topo, &positions).close(&mut r.positions);
             progress.advance("refine", 1);
             Ok(r)
         })

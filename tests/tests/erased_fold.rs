@@ -274,3 +274,88 @@ fn a_fold_the_capture_erased_comes_back_where_the_stretch_detector_finds_it() {
         "κ {kappa:.3} released, {held_kappa:.3} held"
     );
 }
+
+/// The same sheet written as two panels, the rows from [`SEAM_ROW`] on with copies of that row's vertices (a
+/// garment whose panels are sewn but not welded, or split at a UV seam); the capture keeps two fifths of the
+/// ridge, so the relief and the anchors both move the cloth on either side of the seam. The seam's copies must
+/// leave as they came in: at one point, in every frame.
+#[test]
+fn a_seam_across_the_fold_stays_closed() {
+    const SEAM_ROW: usize = NZ / 2;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = NX * NZ;
+    let copy = |i: usize| (n + i) as u32;
+    let tris: Vec<[u32; 3]> = triangles()
+        .into_iter()
+        .map(|t| {
+            // A triangle of the upper panel (every corner on the seam row or above) takes the copies.
+            if t.iter().all(|&v| v as usize / NX >= SEAM_ROW) {
+                t.map(|v| {
+                    let (i, j) = (v as usize % NX, v as usize / NX);
+                    if j == SEAM_ROW {
+                        copy(i)
+                    } else {
+                        v
+                    }
+                })
+            } else {
+                t
+            }
+        })
+        .collect();
+    let split = |p: &[[f64; 3]]| -> Vec<[f64; 3]> {
+        let seam: Vec<[f64; 3]> = p[SEAM_ROW * NX..(SEAM_ROW + 1) * NX].to_vec();
+        [p, &seam[..]].concat()
+    };
+    let peak = SLOPE_DEG.to_radians().tan() * WIDTH / std::f64::consts::PI;
+    let mut captured = Vec::new();
+    for t in 0..FRAMES {
+        let amp = peak
+            * (std::f64::consts::PI * t as f64 / (FRAMES - 1) as f64)
+                .sin()
+                .powi(2);
+        let (gt, flat) = frame(amp);
+        let kept: Vec<[f64; 3]> = gt
+            .iter()
+            .zip(&flat)
+            .map(|(g, c)| std::array::from_fn(|k| c[k] + 0.4 * (g[k] - c[k])))
+            .collect();
+        for (name, p) in [("gt", &gt), ("captured", &kept)] {
+            std::fs::create_dir_all(d.join(name)).unwrap();
+            write_obj(
+                &d.join(format!("{name}/frame_{:04}.obj", t + 1)),
+                &split(p),
+                &tris,
+            );
+        }
+        captured.push(split(&kept));
+    }
+    let out = d.join("out");
+    let o = Command::new(crease_e2e::bin())
+        .args([
+            "run",
+            "--input",
+            s(&d.join("captured")),
+            "--folds",
+            "stretch",
+        ])
+        .args(["--out", s(&out), "--quiet", "--threads", "2"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut moved = 0.0f64;
+    for (t, cap) in captured.iter().enumerate() {
+        let p = read_obj(&out.join(format!("frame_{:04}.obj", t + 1)));
+        assert_eq!(p.len(), cap.len());
+        for i in 0..NX {
+            let (a, b) = (p[SEAM_ROW * NX + i], p[n + i]);
+            assert_eq!(a, b, "frame {}: column {i} of the seam opened", t + 1);
+        }
+        for (q, c) in p.iter().zip(cap) {
+            moved = moved.max(((q[0] - c[0]).powi(2) + (q[1] - c[1]).powi(2)).sqrt() / EDGE);
+        }
+    }
+    // Something happened on either side: the seam is closed on a cloth that moved.
+    assert!(moved > 0.1, "the output moved {moved:.3} edges at most");
+}

@@ -2,6 +2,7 @@
 
 pub mod geometry;
 pub mod io;
+pub mod seams;
 pub mod subdivide;
 mod topology;
 pub mod uv;

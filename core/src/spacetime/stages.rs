@@ -19,6 +19,7 @@ use super::shape::lost_area::RestAreas;
 use super::shape::ShapeEnding;
 use super::windows::{crossfade_weight, Window};
 use crate::error::{Error, Result};
+use crate::mesh::seams::Seams;
 use crate::mesh::{Frame, FrameSource};
 use crate::metrics::{RestTriangles, StretchAccumulator, StretchStats};
 use crate::vec3::V3;
@@ -106,8 +107,8 @@ pub struct PositionedFrame {
 /// stretch after each step, and ends with `ending`: the shape projection and the fold relief `heights`
 /// ([`super::shape`]), the `refiner` (the shading refinement of video jobs), the bound of what all that adds to
 /// the surface the capture lost (`lost_area`,
-/// [`super::shape::lost_area`]), then the strain limit (`limit`, [`super::position::strain_limit`]); the last stretch
-/// figures are those of the finished frame.
+/// [`super::shape::lost_area`]), then the strain limit (`limit`, [`super::position::strain_limit`]), and closes the
+/// capture's unwelded seams ([`crate::mesh::seams`]); the last stretch figures are those of the finished frame.
 #[allow(clippy::too_many_arguments)]
 pub fn position_frame(
     system: &PositionSystem,
@@ -198,6 +199,8 @@ pub fn position_frame(
         if let Some(l) = limit {
             l.apply(&rest, &mut done);
         }
+        // Last: vertices the capture has at one point (a garment's unwelded seams) leave at one point.
+        Seams::of_frame(system.topology(), &rest).close(&mut done);
         Ok((done, share))
     };
     let mut lost_share = None;

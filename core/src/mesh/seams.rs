@@ -18,11 +18,17 @@
 
 use crate::mesh::Topology;
 use crate::vec3::{self, V3};
-use std::collections::HashMap;
 
 /// Vertices closer than this many mean edge lengths are one point of the surface (a sewing line written with
 /// rounding, or two copies of the same number).
 pub const TOLERANCE: f64 = 1e-3;
+
+/// The sweep's direction (unit length, oblique to the axes).
+const DIRECTION: V3 = [
+    0.577_350_269_189_625_8,
+    0.654_653_670_707_977_1,
+    0.487_950_036_474_266_7,
+];
 
 /// The groups of coincident vertices of one captured frame.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -41,47 +47,54 @@ impl Seams {
         if !(tol > 0.0 && tol.is_finite()) || n < 2 {
             return Seams::default();
         }
-        let cell = |q: V3| -> Option<[i64; 3]> {
-            let c = q.map(|x| (x / tol).floor());
-            c.iter()
-                .all(|x| x.abs() < 1e15)
-                .then(|| c.map(|x| x as i64))
-        };
-        let mut grid: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
+        // Sorted along a direction, a pair closer than `tol` is at most `tol` apart along it: each vertex is
+        // compared with the few that follow it within that, so the search is one sort and a sweep (no seams:
+        // about one comparison per vertex). The direction is oblique to every axis, so that the rows and columns
+        // of a mesh laid out on a grid do not share one coordinate.
+        let along: Vec<f64> = p[..n].iter().map(|q| vec3::dot(*q, DIRECTION)).collect();
+        let mut order: Vec<u32> = (0..n as u32)
+            .filter(|&v| along[v as usize].is_finite())
+            .collect();
+        order.sort_by(|&a, &b| {
+            along[a as usize]
+                .total_cmp(&along[b as usize])
+                .then(a.cmp(&b))
+        });
         let mut parent: Vec<u32> = (0..n as u32).collect();
-        for v in 0..n {
-            let Some(c) = cell(p[v]) else { continue };
-            for dx in -1..=1 {
-                for dy in -1..=1 {
-                    for dz in -1..=1 {
-                        let Some(others) = grid.get(&[c[0] + dx, c[1] + dy, c[2] + dz]) else {
-                            continue;
-                        };
-                        for &u in others {
-                            if vec3::norm(vec3::sub(p[v], p[u as usize])) <= tol
-                                && !share_triangle(topo, v, u as usize)
-                            {
-                                union(&mut parent, v as u32, u);
-                            }
-                        }
-                    }
+        for (k, &v) in order.iter().enumerate() {
+            let q = p[v as usize];
+            for &u in &order[k + 1..] {
+                let r = p[u as usize];
+                if along[u as usize] - along[v as usize] > tol {
+                    break;
+                }
+                if vec3::norm(vec3::sub(q, r)) <= tol
+                    && !share_triangle(topo, v as usize, u as usize)
+                {
+                    union(&mut parent, v, u);
                 }
             }
-            grid.entry(c).or_default().push(v as u32);
         }
-        // Groups in the order of their smallest vertex, members in increasing order.
-        let mut slot: HashMap<u32, usize> = HashMap::new();
+        // Groups in the order of their smallest vertex (every root is its group's smallest), members in
+        // increasing order; a vertex alone is no seam.
+        let roots: Vec<u32> = (0..n as u32).map(|v| find(&mut parent, v)).collect();
+        let mut size = vec![0u32; n];
+        for &r in &roots {
+            size[r as usize] += 1;
+        }
+        let mut slot = vec![usize::MAX; n];
         let mut groups: Vec<Vec<u32>> = Vec::new();
-        for v in 0..n as u32 {
-            let r = find(&mut parent, v);
-            let g = *slot.entry(r).or_insert_with(|| {
-                groups.push(Vec::new());
-                groups.len() - 1
-            });
-            groups[g].push(v);
+        for (v, &r) in roots.iter().enumerate() {
+            if size[r as usize] > 1 {
+                if slot[r as usize] == usize::MAX {
+                    slot[r as usize] = groups.len();
+                    groups.push(Vec::new());
+                }
+                groups[slot[r as usize]].push(v as u32);
+            }
         }
         let mut seams = Seams::default();
-        for g in groups.into_iter().filter(|g| g.len() > 1) {
+        for g in groups {
             seams.offsets.push(seams.members.len());
             seams.members.extend(g);
         }

@@ -42,8 +42,11 @@ pub struct Seams {
 impl Seams {
     /// The coincident vertices of frame `p` (positions indexed like `topo`'s vertices).
     pub fn of_frame(topo: &Topology, p: &[V3]) -> Self {
-        let n = p.len().min(topo.n_vertices());
-        let tol = TOLERANCE * mean_edge(topo, p);
+        let n = topo.n_vertices();
+        if p.len() < n {
+            return Seams::default();
+        }
+        let tol = TOLERANCE * crate::shape::mean_edge_length(topo, p);
         if !(tol > 0.0 && tol.is_finite()) || n < 2 {
             return Seams::default();
         }
@@ -131,24 +134,6 @@ impl Seams {
                 out[v as usize] = mean;
             }
         }
-    }
-}
-
-fn mean_edge(topo: &Topology, p: &[V3]) -> f64 {
-    let (mut sum, mut count) = (0.0, 0usize);
-    for tri in topo.triangles() {
-        for k in 0..3 {
-            let (a, b) = (tri[k] as usize, tri[(k + 1) % 3] as usize);
-            if a < p.len() && b < p.len() {
-                sum += vec3::norm(vec3::sub(p[a], p[b]));
-                count += 1;
-            }
-        }
-    }
-    if count == 0 {
-        0.0
-    } else {
-        sum / count as f64
     }
 }
 

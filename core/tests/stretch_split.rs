@@ -10,6 +10,7 @@ use crease_core::folds::FoldDetector;
 use crease_core::mesh::{FrameSource, Sequence};
 use crease_core::progress::NoProgress;
 use crease_core::synth;
+use crease_core::vec3;
 use std::collections::HashMap;
 
 fn ranges(n: usize, size: usize) -> Vec<std::ops::Range<usize>> {
@@ -159,6 +160,19 @@ fn split_detection_is_the_streaming_run_for_any_chunking() {
     let seq = synth::compressed_sheet(24, 24, 0.1, 0.5, (0.35, 0.65), 0.12, 0.03, &env).unwrap();
     check(&seq, StretchParams::default(), "compressed sheet");
     check(&seq, with_memory(), "compressed sheet, seed memory");
+    // Transients: a frame pulled back to an earlier one's shape, and a vertex lifted for one frame. The split
+    // run's phase task must resume the references the streaming run resumes.
+    let mut frames = seq.frames.clone();
+    frames[4] = frames[2].clone();
+    let v = frames[7].len() / 2 + 3;
+    let edge = vec3::norm(vec3::sub(frames[7][0], frames[7][1]));
+    frames[7][v][2] += edge;
+    let jittered = Sequence::new(seq.topology.clone(), frames).unwrap();
+    check(
+        &jittered,
+        StretchParams::default(),
+        "compressed sheet with transients",
+    );
     let (demo, _) = synth::demo(&synth::DemoSpec {
         triangles: 900,
         frames: 9,

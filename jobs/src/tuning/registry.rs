@@ -218,6 +218,8 @@ pub static KNOBS: &[Knob] = &[
     knob("stretch.theta0_deg", num(gt(0.0), lt(90.0)), at!(stretch.theta0_deg), "θ0 of eq. 4.2, degrees: largest direction change within one phase"),
     knob("stretch.isometry", NON_NEGATIVE, at!(stretch.isometry), "steps with absolute change below 1 + this are isometric (a fold holding its shape)"),
     knob("stretch.max_hold", count(0, MANY), at!(stretch.max_hold), "consecutive isometric steps a phase survives"),
+    knob("stretch.transient_steps", count(0, 50), at!(stretch.transient_steps),
+        "a stretch phase of at most this many steps that turns straight into shrinkage is a transient: shrinkage counts from before it"),
     knob("stretch.smooth_iterations", count(0, 1000), at!(stretch.smooth_iterations), "smoothing iterations of Γ, γ and the direction angle"),
     knob("stretch.max_change", num(gt(1.0), FREE), at!(stretch.max_change), "valid range: absolute changes above this are outliers"),
     knob("stretch.tail_fraction", num(ge(0.0), lt(0.5)), at!(stretch.tail_fraction), "histogram tails: sparse extreme bins below this fraction of the triangles are dropped; 0 = off"),

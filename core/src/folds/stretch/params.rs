@@ -21,6 +21,10 @@ pub struct StretchParams {
     pub isometry: f64,
     /// Consecutive isometric steps a phase may hold through before it ends.
     pub max_hold: usize,
+    /// A stretch phase of at most this many steps that turns straight into shrinkage along the same direction
+    /// is a transient (an outlier vertex, a frame of tracking jitter): the shrinkage is measured from before
+    /// the stretch instead of from its peak. 0 measures every shrinkage from the phase boundary (the thesis).
+    pub transient_steps: usize,
     /// Jacobi smoothing iterations of Γ, γ and the direction angle over edge-adjacent triangles (§4.2).
     pub smooth_iterations: usize,
     /// Valid magnitude range: absolute changes above this are outliers (registration errors), §4.2.
@@ -72,6 +76,7 @@ impl Default for StretchParams {
             theta0_deg: 30.0,
             isometry: 0.002,
             max_hold: 2,
+            transient_steps: 1,
             smooth_iterations: 6,
             max_change: 2.0,
             tail_fraction: 0.0005,
@@ -182,6 +187,12 @@ impl StretchParams {
             ));
         }
         finite_nonneg("min_length", self.min_length)?;
+        if self.transient_steps > 50 {
+            return Err(Error::param(
+                "transient_steps",
+                format!("at most 50 steps, got {}", self.transient_steps),
+            ));
+        }
         if self.temporal_radius > 50 {
             return Err(Error::param(
                 "temporal_radius",

@@ -33,6 +33,8 @@ pub struct Signal {
 #[derive(Debug, Clone, Copy)]
 struct TriState {
     reference: Shape,
+    /// The reference before the last phase boundary.
+    before: Shape,
     clock: PhaseClock,
 }
 
@@ -96,8 +98,10 @@ pub enum Restart {
     Keep,
     /// The reference becomes the step's current frame (no phase open after an isometric step).
     AtCurrent,
-    /// A new phase starts at the step's previous frame.
+    /// A new phase starts at the step's previous frame; the reference it replaces is kept for [`Restart::Resume`].
     AtPrevious,
+    /// The reference goes back to the one the last [`Restart::AtPrevious`] replaced (a transient stretch undone).
+    Resume,
 }
 
 /// The phase bookkeeping of one triangle that does not need its geometry: last direction, state, hold counter.
@@ -110,6 +114,8 @@ pub struct PhaseClock {
     /// −1 shrinkage, +1 stretch, 0 no phase open.
     pub state: i8,
     pub hold: u16,
+    /// Non-isometric steps of the open phase.
+    pub steps: u16,
 }
 
 impl PhaseClock {
@@ -131,14 +137,29 @@ impl PhaseClock {
             };
         }
         let s: i8 = if v < 1.0 { -1 } else { 1 };
-        let continuous = self.state == s && axial_difference(angle, self.last_dir) < theta0;
+        let same_axis = axial_difference(angle, self.last_dir) < theta0;
+        let transient = self.state == 1
+            && s == -1
+            && same_axis
+            && self.hold == 0
+            && (self.steps as usize) <= params.transient_steps;
+        let continuous = self.state == s && same_axis;
         self.last_dir = angle;
         self.hold = 0;
-        if !continuous {
+        if transient {
+            // A stretch of a step or two that goes straight back is a capture's outlier or jitter, not cloth
+            // pulled taut: the shrinkage counts from where it counted before the stretch, so undoing the
+            // stretch is no fold, and a fold that was forming keeps what it had gathered.
+            self.state = -1;
+            self.steps = 1;
+            Restart::Resume
+        } else if !continuous {
             // Phase boundary: the new phase starts at the previous frame.
             self.state = s;
+            self.steps = 1;
             Restart::AtPrevious
         } else {
+            self.steps = self.steps.saturating_add(1);
             Restart::Keep
         }
     }
@@ -230,6 +251,7 @@ impl PhaseTracker {
         let tris = (0..topo.n_triangles())
             .map(|t| TriState {
                 reference: shape(triangle(topo, first, t)),
+                before: shape(triangle(topo, first, t)),
                 clock: PhaseClock::default(),
             })
             .collect();
@@ -259,7 +281,11 @@ impl PhaseTracker {
                 |(t, st)| match st.clock.advance(step[t].0, step[t].1, theta0, params) {
                     Restart::Keep => {}
                     Restart::AtCurrent => st.reference = shape(triangle(topo, cur, t)),
-                    Restart::AtPrevious => st.reference = shape(triangle(topo, prev, t)),
+                    Restart::AtPrevious => {
+                        st.before = st.reference;
+                        st.reference = shape(triangle(topo, prev, t));
+                    }
+                    Restart::Resume => st.reference = st.before,
                 },
             );
         // Integrated tensor: the current triangle against its phase's first frame.
@@ -279,6 +305,7 @@ impl PhaseTracker {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::Frame;
 
     /// Smoothing in buffers reused from step to step (the tracker's) gives the fields of fresh buffers bit for
     /// bit, whatever the buffers held before.
@@ -303,5 +330,79 @@ mod tests {
             }
         }
         assert!(shrunk > 0, "no shrinkage to smooth");
+    }
+
+    /// Largest integrated shrinkage a forward pass reads anywhere in the frame after a one-frame spike (one
+    /// vertex of a flat sheet lifted a whole edge and put back), and whether the pass saw the stretch at all.
+    fn shrink_after_spike(transient_steps: usize) -> (f64, bool) {
+        let (topo, flat) = crate::synth::sheet(12, 12, 1.0).unwrap();
+        let mut spiked = flat.clone();
+        spiked[6 * 12 + 6][2] = 1.0;
+        let frames = [&flat, &flat, &spiked, &flat, &flat];
+        let params = StretchParams {
+            transient_steps,
+            ..StretchParams::default()
+        };
+        let mut tracker = PhaseTracker::new(&topo, frames[0]);
+        let mut after = 1.0_f64;
+        let mut stretched = false;
+        for t in 1..frames.len() {
+            let geom = FrameGeometry::new(&topo, frames[t]);
+            let signal = tracker.step(&topo, frames[t - 1], frames[t], &geom, &params);
+            stretched |= tracker.tris.iter().any(|s| s.clock.state == 1);
+            if t > 2 {
+                after = signal.shrink.iter().fold(after, |a, &b| a.max(b));
+            }
+        }
+        (after, stretched)
+    }
+
+    /// An outlier that comes and goes in one frame is no fold: with transients recognised, undoing the spike
+    /// reads as no shrinkage, where the thesis' rule measures it from the spike's peak and seeds a fold there.
+    #[test]
+    fn a_one_frame_spike_is_no_fold() {
+        let min_shrink = 1.0 + StretchParams::default().min_shrink;
+        let (thesis, stretched) = shrink_after_spike(0);
+        assert!(stretched, "the spike did not read as a stretch");
+        assert!(
+            thesis > min_shrink,
+            "the thesis' rule read {thesis} (the test lost its point)"
+        );
+        let (transient, _) = shrink_after_spike(1);
+        assert!(
+            transient < 1.0 + 1e-9,
+            "undoing a spike read as shrinkage {transient}"
+        );
+    }
+
+    /// A fold that was forming keeps the shrinkage it had gathered through a transient stretch.
+    #[test]
+    fn a_forming_fold_survives_a_transient() {
+        // Twelve frames of compression and release: the first seven compress.
+        let seq = crate::synth::compressed_tube(2000, 12, 0.3, 0.0).unwrap();
+        let topo = &seq.topology;
+        let params = StretchParams {
+            transient_steps: 1,
+            ..StretchParams::default()
+        };
+        let run = |frames: &[&Frame]| {
+            let mut tracker = PhaseTracker::new(topo, frames[0]);
+            let mut last = Signal::default();
+            for t in 1..frames.len() {
+                let geom = FrameGeometry::new(topo, frames[t]);
+                last = tracker.step(topo, frames[t - 1], frames[t], &geom, &params);
+            }
+            last.shrink.iter().fold(1.0_f64, |a, &b| a.max(b))
+        };
+        let clean: Vec<&Frame> = seq.frames[..7].iter().collect();
+        // Frame 4 pulled back to frame 2's shape: a stretch against the compression that goes straight back.
+        let mut jittered = clean.clone();
+        jittered[4] = &seq.frames[2];
+        let (a, b) = (run(&clean), run(&jittered));
+        assert!(a > 1.0 + params.min_shrink, "the tube did not fold ({a})");
+        assert!(
+            (a - b).abs() < 0.05 * (a - 1.0),
+            "a transient changed the fold's shrinkage {a} → {b}"
+        );
     }
 }

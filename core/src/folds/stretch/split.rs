@@ -193,6 +193,7 @@ impl Phases<'_> {
             };
             let mut clocks = vec![PhaseClock::default(); self.n_triangles];
             let mut refs = vec![first; self.n_triangles];
+            let mut befores = vec![first; self.n_triangles];
             for t in order {
                 if progress.cancelled() {
                     return Err(Error::Cancelled);
@@ -214,13 +215,17 @@ impl Phases<'_> {
                 };
                 let codes = clocks
                     .iter_mut()
-                    .zip(refs.iter_mut())
+                    .zip(refs.iter_mut().zip(befores.iter_mut()))
                     .zip(&rec)
-                    .map(|((clock, r), rec)| {
+                    .map(|((clock, (r, before)), rec)| {
                         match clock.advance(rec[col], rec[col + 1], theta0, self.params) {
                             Restart::Keep => {}
                             Restart::AtCurrent => *r = t,
-                            Restart::AtPrevious => *r = prev,
+                            Restart::AtPrevious => {
+                                *before = *r;
+                                *r = prev;
+                            }
+                            Restart::Resume => *r = *before,
                         }
                         encode(*r, clock.state == -1)
                     })

@@ -19,6 +19,24 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `crease run --folds stretch` on `dir/captured` into `out`, with `extra` flags; fails the test with crease's
+/// stderr if the run fails.
+fn run_stretch(dir: &Path, out: &Path, extra: &[&str]) {
+    let o = Command::new(crease_e2e::bin())
+        .args([
+            "run",
+            "--input",
+            s(&dir.join("captured")),
+            "--folds",
+            "stretch",
+        ])
+        .args(["--out", s(out), "--quiet", "--threads", "2"])
+        .args(extra)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 /// The ridge's width, in edges: a raised cosine this wide, its steepest slope [`SLOPE_DEG`] at the peak frame.
 const WIDTH: f64 = 4.0;
 const SLOPE_DEG: f64 = 35.0;
@@ -167,19 +185,7 @@ fn a_fold_the_capture_erased_comes_back_where_the_stretch_detector_finds_it() {
 
     let run = |out: &str, extra: &[&str]| {
         let out = d.join(out);
-        let o = Command::new(crease_e2e::bin())
-            .args([
-                "run",
-                "--input",
-                s(&d.join("captured")),
-                "--folds",
-                "stretch",
-            ])
-            .args(["--out", s(&out), "--quiet", "--threads", "2"])
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        run_stretch(d, &out, extra);
         let o = Command::new(crease_e2e::bin())
             .args(["eval", "--output", s(&out), "--gt", s(&d.join("gt"))])
             .args(["--input", s(&d.join("captured"))])
@@ -332,18 +338,7 @@ fn a_seam_across_the_fold_stays_closed() {
         captured.push(split(&kept));
     }
     let out = d.join("out");
-    let o = Command::new(crease_e2e::bin())
-        .args([
-            "run",
-            "--input",
-            s(&d.join("captured")),
-            "--folds",
-            "stretch",
-        ])
-        .args(["--out", s(&out), "--quiet", "--threads", "2"])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    run_stretch(d, &out, &[]);
     let mut moved = 0.0f64;
     for (t, cap) in captured.iter().enumerate() {
         let p = read_obj(&out.join(format!("frame_{:04}.obj", t + 1)));

@@ -147,8 +147,8 @@ impl PhaseClock {
         self.last_dir = angle;
         self.hold = 0;
         if transient {
-            // A stretch of a step or two that goes straight back is a capture's outlier or jitter, not cloth
-            // pulled taut: the shrinkage counts from where it counted before the stretch, so undoing the
+            // A stretch of a few steps at most that goes straight back is a capture's outlier or jitter, not
+            // cloth pulled taut: the shrinkage counts from where it counted before the stretch, so undoing the
             // stretch is no fold, and a fold that was forming keeps what it had gathered.
             self.state = -1;
             self.steps = 1;

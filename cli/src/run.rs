@@ -314,7 +314,8 @@ pub fn run(a: RunArgs) -> Result<()> {
                 progress.println(match folds {
                     Folds::Video => {
                         "  the capture kept almost no trace of its folds (erased, not blurred): the shading \
-                         refinement followed the images further there (`video.refine_erased_stay`)"
+                         refinement followed the images further there (`video.refine_erased_stay`), and the \
+                         geometry's folds were left out (`video.geometry_min_trace`)"
                     }
                     _ => {
                         "  the capture kept almost no trace of its folds (erased, not blurred): from the geometry \

@@ -169,3 +169,34 @@ fn positioning_chunks_end_at_the_windows_release_points() {
         assert_eq!(chunks.len(), bound);
     }
 }
+
+/// A video job that joins the geometry's folds lists the reliefs before its fold merge and makes the merge wait
+/// for every one (it reads them to tell whether the capture erased its folds); with `geometry_folds = false`
+/// the merge waits for the detection alone.
+#[test]
+fn a_video_merge_that_fuses_waits_for_every_relief() {
+    let relief_keys = |tasks: &[TaskDef]| -> Vec<String> {
+        tasks
+            .iter()
+            .filter(|t| matches!(t.spec, TaskSpec::Relief { .. }))
+            .map(|t| t.key.clone())
+            .collect()
+    };
+    for (extra, waits) in [
+        ("", true),
+        ("\n[folds.params]\ngeometry_folds = false", false),
+    ] {
+        let j = job(
+            &format!("[folds]\nkind = \"video\"\ncameras = \"/c.json\"{extra}"),
+            "fused",
+        );
+        let tasks = plan(&j, &info(9, None)).unwrap();
+        assert_topological(&tasks);
+        let reliefs = relief_keys(&tasks);
+        assert!(reliefs.len() > 1, "the case has several relief chunks");
+        let merge = &tasks[index(&tasks, keys::FOLD_MERGE_TASK)];
+        for r in &reliefs {
+            assert_eq!(merge.deps.contains(r), waits, "{extra:?}: merge and {r}");
+        }
+    }
+}

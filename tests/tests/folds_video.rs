@@ -21,10 +21,8 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-#[test]
-fn demo_video_then_run_with_video_folds() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
+/// The demo capture with a synthetic three-camera video, small enough for seconds.
+fn video_demo(d: &Path) {
     ok(&crease(&[
         "demo",
         "--out",
@@ -41,6 +39,13 @@ fn demo_video_then_run_with_video_folds() {
         "--video-height",
         "400",
     ]));
+}
+
+#[test]
+fn demo_video_then_run_with_video_folds() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    video_demo(d);
     for f in [
         "cameras.json",
         "input/frame_0001.obj",
@@ -136,4 +141,102 @@ fn demo_video_then_run_with_video_folds() {
         !e.status.success() && msg.contains("10x10") && msg.contains("300x400"),
         "{msg}"
     );
+}
+
+/// The anchors of `dir/anchors.json` as detectors hand them over: one entry per frame.
+fn anchors_of(
+    dir: &Path,
+    n_frames: usize,
+    n_triangles: usize,
+) -> Vec<crease_core::folds::FrameAnchors> {
+    let set = crease_core::folds::AnchorSet::read(&dir.join("anchors.json"), n_frames, n_triangles)
+        .unwrap();
+    (0..n_frames)
+        .map(|t| crease_core::folds::FrameAnchors {
+            frame: t,
+            anchors: set.frame(t).to_vec(),
+            ..Default::default()
+        })
+        .collect()
+}
+
+/// A video job's anchors are the images' and the stretch detector's made one (the mean rotation where both
+/// anchor a triangle, every angle times `video.fused_gain`), exactly as `crease run` finds each alone; and
+/// `video.geometry_folds=false` leaves the images' alone.
+#[test]
+fn the_geometrys_folds_join_the_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    video_demo(d);
+    let input = d.join("input");
+    let video = |out: &Path, extra: &[&str]| {
+        let mut args = vec!["run", "--input", s(&input), "--folds", "video", "--cameras"];
+        let cameras = d.join("cameras.json");
+        args.extend([
+            s(&cameras),
+            "--out",
+            s(out),
+            "--quiet",
+            "--preview-size",
+            "32",
+        ]);
+        args.extend(extra);
+        ok(&crease(&args));
+    };
+    let (fused, images, geometry) = (d.join("fused"), d.join("images"), d.join("geometry"));
+    video(&fused, &["--set", "video.fused_gain=0.6"]);
+    video(&images, &["--set", "video.geometry_folds=false"]);
+    ok(&crease(&[
+        "run",
+        "--input",
+        s(&input),
+        "--folds",
+        "stretch",
+        "--out",
+        s(&geometry),
+        "--quiet",
+        "--preview-size",
+        "32",
+    ]));
+
+    let report = |dir: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap()
+    };
+    let r = report(&fused);
+    let g = &r["fold_detection"]["geometry"];
+    let count = |k: &str| {
+        g[k].as_u64()
+            .unwrap_or_else(|| panic!("geometry.{k} missing: {g}")) as usize
+    };
+    assert!(
+        count("images_anchors") > 0 && count("geometry_anchors") > 0,
+        "{g}"
+    );
+    assert_eq!(g["fused_gain"].as_f64(), Some(0.6));
+    assert!(report(&images)["fold_detection"].get("geometry").is_none());
+
+    let n_tri = r["summary"]["triangles"].as_u64().unwrap() as usize;
+    let (want, counts) = crease_core::folds::fuse::fuse(
+        anchors_of(&images, 3, n_tri),
+        &anchors_of(&geometry, 3, n_tri),
+        0.6,
+    )
+    .unwrap();
+    assert_eq!(counts.primary, count("images_anchors"));
+    assert_eq!(counts.secondary, count("geometry_anchors"));
+    assert_eq!(counts.shared, count("shared_triangles"));
+    let got = anchors_of(&fused, 3, n_tri);
+    for (w, g) in want.iter().zip(&got) {
+        assert_eq!(w.anchors.len(), g.anchors.len(), "frame {}", w.frame);
+        for (a, b) in w.anchors.iter().zip(&g.anchors) {
+            assert_eq!(a.triangle, b.triangle, "frame {}", w.frame);
+            let (va, vb) = (a.rotation_vector(), b.rotation_vector());
+            assert!(
+                (0..3).all(|k| (va[k] - vb[k]).abs() < 1e-12),
+                "frame {} triangle {}: {va:?} against {vb:?}",
+                w.frame,
+                a.triangle
+            );
+        }
+    }
 }

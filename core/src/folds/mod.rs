@@ -5,6 +5,7 @@
 //! single-machine driver and the cluster planner run any of them without knowing which one it is.
 
 pub mod anchors;
+pub mod fuse;
 pub mod stretch;
 pub mod temporal;
 pub mod video;

@@ -19,11 +19,14 @@ use crate::report::FoldDetection;
 use crate::spec::FoldSpec;
 use crate::storage::keys;
 use crease_core::folds::anchors::binary;
+use crease_core::folds::fuse::fuse;
+use crease_core::folds::stretch::{StretchDetector, StretchParams};
 use crease_core::folds::{AnchorSet, FoldDetector, FrameAnchors};
 use crease_core::mesh::io::OpenedSequence;
 use serde_json::{json, Value};
 use std::ops::Range;
 use std::path::Path;
+use std::sync::Arc;
 
 fn job_detector(
     env: &TaskEnv,
@@ -107,6 +110,11 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
         (frames, json!({ "per_frame": per_frame }))
     };
     lap.lap("fold-merge: gathering, in all");
+    let (frames, geometry) = with_geometry_folds(env, &opened, frames)?;
+    if let (Some(g), Some(s)) = (geometry, summary_extra.as_object_mut()) {
+        s.insert("geometry".into(), g);
+        lap.lap("fold-merge: the geometry's folds");
+    }
     let set = AnchorSet::from_frame_anchors(frames, n_tri, None)
         .map_err(|e| TaskError::from_core(&format!("{} fold merge", d.name()), e))?;
     if set.n_frames() != n {
@@ -156,6 +164,51 @@ pub fn merge(env: &TaskEnv) -> Result<(Value, Vec<String>), TaskError> {
     Ok((
         json!({ "anchors_per_frame": counts, "anchors": back.total() }),
         written,
+    ))
+}
+
+/// A video job's anchors joined by the geometry's (`video.geometry_folds`, [`crease_core::folds::fuse`]): the
+/// stretch detector runs here, on the whole sequence, with its default settings, so the fused set is made in
+/// one place and every worker reads the same bytes. Not where the capture erased its folds (its trace, the
+/// median share of the lost surface the relief gives back, below `video.geometry_min_trace`): the geometry
+/// knows the band that lost length there, not where each crest lies, and the images alone place them better.
+/// Returns the frames to store and what the report says of it.
+fn with_geometry_folds(
+    env: &TaskEnv,
+    opened: &Arc<OpenedSequence>,
+    frames: Vec<FrameAnchors>,
+) -> Result<(Vec<FrameAnchors>, Option<Value>), TaskError> {
+    let FoldSpec::Video { params, .. } = &env.job.folds else {
+        return Ok((frames, None));
+    };
+    if !params.geometry_folds {
+        return Ok((frames, None));
+    }
+    let trace = super::capture_trace::median_relief_share(env, opened)?;
+    if let Some(share) = trace.filter(|&s| s < params.geometry_min_trace) {
+        return Ok((
+            frames,
+            Some(json!({ "capture_trace": share, "skipped": "the capture erased its folds" })),
+        ));
+    }
+    let n = opened.source.n_frames();
+    let clock = std::time::Instant::now();
+    let geometry = StretchDetector::new(StretchParams::default())
+        .detect(opened.source.as_ref(), 0..n, env.progress())
+        .map_err(|e| TaskError::from_core("fold merge: the geometry's folds", e))?;
+    let seconds = clock.elapsed().as_secs_f64();
+    let (fused, counts) = fuse(frames, &geometry, params.fused_gain)
+        .map_err(|e| TaskError::from_core("fold merge: fusing the geometry's folds", e))?;
+    Ok((
+        fused,
+        Some(json!({
+            "images_anchors": counts.primary,
+            "geometry_anchors": counts.secondary,
+            "shared_triangles": counts.shared,
+            "fused_gain": params.fused_gain,
+            "capture_trace": trace,
+            "seconds": seconds,
+        })),
     ))
 }
 

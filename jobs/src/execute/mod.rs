@@ -10,6 +10,7 @@
 //! [`crease_core::spacetime::stages`] functions in a fixed order, so what it writes does not depend on the
 //! worker, the number of workers, or how many times it ran.
 
+mod capture_trace;
 #[cfg(feature = "deep")]
 mod deep;
 mod env;

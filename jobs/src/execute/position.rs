@@ -435,7 +435,10 @@ fn strain_limiter(
 
 /// The bound of what the deformation adds for `opened` (the surface each neighbourhood shows at its largest over the sequence),
 /// built once per process and input like the strain limiter: it reads every frame.
-fn rest_areas(opened: &Arc<OpenedSequence>, label: &str) -> Result<Arc<RestAreas>, TaskError> {
+pub(super) fn rest_areas(
+    opened: &Arc<OpenedSequence>,
+    label: &str,
+) -> Result<Arc<RestAreas>, TaskError> {
     type Built = (Arc<OpenedSequence>, Arc<RestAreas>);
     static BUILT: Mutex<Vec<Built>> = Mutex::new(Vec::new());
     let found = |built: &[Built]| {

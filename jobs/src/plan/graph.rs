@@ -89,14 +89,27 @@ pub fn plan(job: &JobSpec, info: &InputInfo) -> Result<Vec<TaskDef>, JobError> {
         info.n_triangles,
         &detected,
     ));
+    // A video job that joins the geometry's folds asks first whether the capture erased them, which the
+    // reliefs say (`execute::capture_trace`): its merge waits for them, so they are listed before it.
+    if matches!(&job.folds, crate::spec::FoldSpec::Video { params, .. } if params.geometry_folds) {
+        tasks.extend(relief);
+        push_merge(job, &mut tasks);
+    } else {
+        push_merge(job, &mut tasks);
+        tasks.extend(relief);
+    }
+    Ok(tasks)
+}
+
+/// The fold merge of a detecting job, after every task listed so far.
+fn push_merge(job: &JobSpec, tasks: &mut Vec<TaskDef>) {
+    let deps = tasks.iter().map(|t| t.key.clone()).collect();
     tasks.push(TaskDef {
         key: keys::FOLD_MERGE_TASK.to_string(),
         spec: TaskSpec::FoldMerge { job: job.clone() },
-        deps: tasks.iter().map(|t| t.key.clone()).collect(),
+        deps,
         expands: true,
     });
-    tasks.extend(relief);
-    Ok(tasks)
 }
 
 /// Whether a job's positioning adds the fold relief: every job that adds folds (from a file or a detector),

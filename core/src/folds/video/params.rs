@@ -116,6 +116,17 @@ pub struct VideoParams {
     /// Wavelength in the input's units above which the refinement's offsets are removed (they move the garment
     /// rather than fold it); 0: the deformation's shape scale.
     pub refine_scale: f64,
+    /// Whether the geometry's folds (Chen's stretch detector, with its default settings, on the same capture)
+    /// join the images' ([`crate::folds::fuse`]): the two see different evidence of the same folds, and the
+    /// rotation field spread from both is closer to the cloth than from either. `false`: the images' alone,
+    /// as Popa et al.
+    pub geometry_folds: bool,
+    /// With `geometry_folds`, the factor on every anchor's angle after the two sets are made one, in (0, 1].
+    pub fused_gain: f64,
+    /// With `geometry_folds`, the capture trace (the median share of the surface the capture lost that the
+    /// fold relief gives back) below which the geometry's folds are left out: such a capture erased its folds,
+    /// and the geometry knows the band that lost length, not where each crest lies. 0: always fused.
+    pub geometry_min_trace: f64,
 }
 
 /// The cameras video fold estimation analyses.
@@ -179,6 +190,9 @@ impl Default for VideoParams {
             refine_kept_stay: refine.kept_stay,
             refine_max_offset: refine.max_offset_edges,
             refine_scale: refine.shape_scale,
+            geometry_folds: true,
+            fused_gain: 0.7,
+            geometry_min_trace: 0.1,
         }
     }
 }
@@ -252,6 +266,13 @@ impl VideoParams {
         if !(self.silhouette_margin.is_finite() && self.silhouette_margin >= 0.0) {
             return Err(Error::param("silhouette_margin", "must be >= 0"));
         }
+        if !(self.fused_gain > 0.0 && self.fused_gain <= 1.0) {
+            return Err(Error::param(
+                "fused_gain",
+                format!("must be in (0, 1], got {}", self.fused_gain),
+            ));
+        }
+        frac("geometry_min_trace", self.geometry_min_trace)?;
         frac("silhouette_cos", self.silhouette_cos)?;
         frac("square_cos", self.square_cos)?;
         frac("min_cover_gain", self.min_cover_gain)?;
@@ -348,6 +369,13 @@ mod tests {
                 "min_cover_gain",
                 VideoParams {
                     min_cover_gain: f64::NAN,
+                    ..Default::default()
+                },
+            ),
+            (
+                "fused_gain",
+                VideoParams {
+                    fused_gain: 0.0,
                     ..Default::default()
                 },
             ),
